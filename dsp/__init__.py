@@ -1,0 +1,36 @@
+"""Shared DSP and localization stack of risloc-rt: pure numpy/scipy.
+
+It runs the same on simulated and measured beat cubes and never imports ``risloc_rt``.
+
+Axis order: a beat cube is ``complex [M, K, N]`` (beams, chirps, ADC samples) in √W; a
+delay-Doppler map is ``[K_DFT, N_DFT]``. SI units and radians throughout
+(``docs/conventions.md``).
+"""
+
+from .beamscan import BeamScan, scan_beams
+from .geometry import RisPose, angles_from_direction, direction_from_angles
+from .localize import Localization, localize, self_localize
+from .processing import ProcessingConfig, window_vector
+from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
+from .spectrum import DelayDopplerMap, delay_doppler_map
+from .sweep import BeamSweep
+
+__all__ = [
+    "BeamScan",
+    "BeamSweep",
+    "DelayDopplerMap",
+    "Localization",
+    "ProcessingConfig",
+    "RadarConfig",
+    "RisPose",
+    "SPEED_OF_LIGHT",
+    "angles_from_direction",
+    "db_to_linear",
+    "delay_doppler_map",
+    "direction_from_angles",
+    "linear_to_db",
+    "localize",
+    "scan_beams",
+    "self_localize",
+    "window_vector",
+]

@@ -1,0 +1,132 @@
+"""Input checks shared by the public functions of :mod:`dsp` (and reused by ``risloc_rt``).
+
+Every check raises :class:`ValueError` (or :class:`TypeError`) whose message names the
+argument, says what was found and what is expected.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def _describe_shape(shape: tuple[int | None, ...]) -> str:
+    return "[" + ", ".join("*" if s is None else str(s) for s in shape) + "]"
+
+
+def as_finite_array(
+    value: Any,
+    name: str,
+    *,
+    shape: tuple[int | None, ...] | None = None,
+    trailing: tuple[int, ...] | None = None,
+    dtype: type = float,
+    allow_empty: bool = False,
+) -> np.ndarray:
+    """Convert ``value`` to a finite numpy array, checking its shape.
+
+    Parameters
+    ----------
+    value : array_like
+        The input.
+    name : str
+        Argument name used in error messages.
+    shape : tuple of (int or None), optional
+        Required shape; ``None`` entries match any length.
+    trailing : tuple of int, optional
+        Required trailing dimensions (any number of leading ones).
+    dtype : type
+        ``float`` or ``complex``.
+    allow_empty : bool
+        Accept arrays with a zero-length axis.
+    """
+    try:
+        arr = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a numeric array, got {type(value).__name__}: {exc}") from None
+    if shape is not None:
+        ok = arr.ndim == len(shape) and all(s is None or s == a for s, a in zip(shape, arr.shape))
+        if not ok:
+            raise ValueError(f"{name} has shape {list(arr.shape)}, expected {_describe_shape(shape)}")
+    if trailing is not None:
+        if arr.ndim < len(trailing) or tuple(arr.shape[arr.ndim - len(trailing):]) != tuple(trailing):
+            raise ValueError(
+                f"{name} has shape {list(arr.shape)}, expected [..., {', '.join(map(str, trailing))}]"
+            )
+    if arr.size == 0 and not allow_empty:
+        raise ValueError(f"{name} is empty (shape {list(arr.shape)}); it needs at least one element")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f"{name} contains {bad} NaN or infinite value(s); all values must be finite")
+    return arr
+
+
+def positive(value: Any, name: str, unit: str) -> float:
+    """Return ``value`` as a float, requiring a finite number > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}={value!r} must be a finite number > 0 [{unit}]")
+    return v
+
+
+def non_negative(value: Any, name: str, unit: str) -> float:
+    """Return ``value`` as a float, requiring a finite number >= 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+    if not np.isfinite(v) or v < 0:
+        raise ValueError(f"{name}={value!r} must be a finite number >= 0 [{unit}]")
+    return v
+
+
+def finite(value: Any, name: str, unit: str) -> float:
+    """Return ``value`` as a finite float."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{name}={value!r} must be finite [{unit}]")
+    return v
+
+
+def positive_int(value: Any, name: str) -> int:
+    """Return ``value`` as an int >= 1 (rejecting bools and non-integral floats)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, (float, np.floating)) and float(value).is_integer():
+            value = int(value)
+        else:
+            raise TypeError(f"{name}={value!r} must be an integer >= 1")
+    if value < 1:
+        raise ValueError(f"{name}={value!r} must be an integer >= 1")
+    return int(value)
+
+
+def dataclass_from_dict(cls: type, data: Any, what: str, *, require_all: bool = False) -> Any:
+    """Build the dataclass ``cls`` from a mapping, naming unknown or missing keys in the error.
+
+    With ``require_all`` every field must be present (used when reading files, so that nothing
+    is silently taken from a default).
+    """
+    from dataclasses import MISSING, fields
+
+    if not isinstance(data, dict):
+        raise TypeError(f"{what} must be a mapping of field names to values, got {type(data).__name__}")
+    all_fields = fields(cls)
+    names = {f.name for f in all_fields}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ValueError(f"{what}: unknown field(s) {unknown}; valid fields are {sorted(names)}")
+    missing = sorted(
+        f.name for f in all_fields
+        if f.name not in data
+        and (require_all or (f.default is MISSING and f.default_factory is MISSING))  # type: ignore[misc]
+    )
+    if missing:
+        raise ValueError(f"{what}: missing field(s) {missing}")
+    return cls(**data)

@@ -1,0 +1,180 @@
+"""Per-beam peak search and average power: eqs. (argmaxmap) and (P_ave), vectorised over beams."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.fft
+
+from .processing import ProcessingConfig
+from .radar import SPEED_OF_LIGHT, RadarConfig
+from .spectrum import CHUNK_BYTES, check_cube, windowed_range_spectrum
+from .sweep import BeamSweep
+
+__all__ = ["BeamScan", "scan_beams"]
+
+
+@dataclass(frozen=True)
+class BeamScan:
+    """The strongest delay-Doppler peak of every beam and its average power.
+
+    Attributes
+    ----------
+    angles : float array [M, 2]
+        Steering angle ``[az, el]`` of each beam, RIS frame [rad].
+    delay : float array [M]
+        τ_m, delay of the grid maximum of beam m [s].
+    delay_rate : float array [M]
+        ν_m, delay rate of the grid maximum [s/s].
+    peak_power : float array [M]
+        |z_m(τ_m, ν_m)|², normalised [W].
+    average_power : float array [M]
+        P_ave,m: mean of |z_m(τ, ν_m)|² over the delay bins with |τ - τ_m| <= Δ [W].
+    delay_bin, doppler_bin : int arrays [M]
+        Grid indices p (0…N_DFT-1) and q (FFT order, 0…K_DFT-1) of the maximum.
+    """
+
+    angles: np.ndarray
+    delay: np.ndarray
+    delay_rate: np.ndarray
+    peak_power: np.ndarray
+    average_power: np.ndarray
+    delay_bin: np.ndarray
+    doppler_bin: np.ndarray
+
+    @property
+    def num_beams(self) -> int:
+        """M."""
+        return int(self.delay.shape[0])
+
+    @property
+    def best_beam(self) -> int:
+        """m̂ = argmax_m P_ave,m (the first one on a tie)."""
+        return int(np.argmax(self.average_power))
+
+    @property
+    def distance(self) -> np.ndarray:
+        """τ_m·c/2 per beam [M] [m] (loop-back delay not removed)."""
+        return self.delay * SPEED_OF_LIGHT / 2.0
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """ν_m·c/2 per beam, positive receding [M] [m/s]."""
+        return self.delay_rate * SPEED_OF_LIGHT / 2.0
+
+
+def _fine_bins_near(coarse_bins: np.ndarray, k_coarse: int, k_dft: int) -> np.ndarray:
+    """Fine-grid Doppler bins within one coarse bin spacing of each coarse bin (FFT order)."""
+    ratio = k_dft / k_coarse
+    centre = coarse_bins * ratio
+    reach = int(np.ceil(ratio))
+    offsets = np.arange(-reach, reach + 1)
+    fine = np.round(centre[:, None]).astype(np.int64) + offsets[None, :]
+    return np.unique(np.mod(fine, k_dft))
+
+
+def scan_beams(
+    cube: Any,
+    sweep: BeamSweep,
+    radar: RadarConfig,
+    processing: ProcessingConfig,
+) -> BeamScan:
+    """Find each beam's delay-Doppler peak and its average power P_ave.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        Beat samples (beams, chirps, ADC samples) [√W].
+    sweep : BeamSweep
+        The M beam steering angles, in the order of the cube's first axis.
+    radar : RadarConfig
+    processing : ProcessingConfig
+
+    Returns
+    -------
+    BeamScan
+
+    Notes
+    -----
+    eq. (argmaxmap): ``(τ_m, ν_m) = argmax |z_m(τ, ν)|²`` over the N_DFT × K_DFT grid, skipping
+    delays below ``2·min_range/c``; eq. (P_ave): ``P_ave,m = mean_{|τ_p - τ_m| <= Δ} |z_m(τ_p, ν_m)|²``,
+    the grid version of ``(1/2Δ)∫ |z_m(τ, ν_m)|² dτ``.
+    """
+    arr = check_cube(cube, radar)
+    if not isinstance(sweep, BeamSweep):
+        raise TypeError(f"sweep must be a BeamSweep, got {type(sweep).__name__}")
+    if sweep.num_beams != arr.shape[0]:
+        raise ValueError(
+            f"cube has {arr.shape[0]} beams (frames) but the sweep has {sweep.num_beams} angles; "
+            "every frame needs the angle its RIS beam was steered to"
+        )
+    processing.check_against(radar.num_samples, radar.num_chirps)
+
+    spectrum, gain = windowed_range_spectrum(arr, radar, processing)  # [M, K, N_DFT]
+    delays = radar.delay_grid(processing.n_dft)
+    rates = radar.delay_rate_grid(processing.k_dft)
+    searchable = delays >= 2.0 * processing.min_range / SPEED_OF_LIGHT
+    if not searchable.any():
+        raise ValueError(
+            f"min_range={processing.min_range} m excludes every delay bin (the unambiguous range "
+            f"is {radar.max_range:.3f} m); lower min_range"
+        )
+
+    m = arr.shape[0]
+    q_best = np.empty(m, dtype=np.int64)
+    p_best = np.empty(m, dtype=np.int64)
+    peak = np.empty(m)
+    rows = np.empty((m, processing.n_dft))  # |z_m(τ, ν_m)|² for P_ave
+
+    if processing.doppler_search == "full":
+        step = max(1, CHUNK_BYTES // (16 * processing.k_dft * processing.n_dft))
+        for i in range(0, m, step):
+            z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=-1)
+            power = np.abs(z) ** 2 / gain**2  # [c, K_DFT, N_DFT]
+            power[:, :, ~searchable] = -1.0
+            flat = power.reshape(power.shape[0], -1).argmax(axis=1)
+            q, p = np.unravel_index(flat, power.shape[1:])
+            idx = np.arange(power.shape[0])
+            q_best[i:i + step], p_best[i:i + step] = q, p
+            peak[i:i + step] = power[idx, q, p]
+            rows[i:i + step] = np.abs(z[idx, q, :]) ** 2 / gain**2
+    else:
+        k = radar.num_chirps
+        k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
+        margin = 10.0 ** (-processing.zoom_margin_db / 10.0)
+        chirp = np.arange(k)
+        step = max(1, CHUNK_BYTES // (16 * k_coarse * processing.n_dft))
+        for i in range(0, m, step):
+            coarse = scipy.fft.ifft(spectrum[i:i + step], n=k_coarse, axis=1, norm="forward", workers=-1)
+            coarse_power = np.abs(coarse[:, :, searchable]) ** 2  # [c, K_c, N_search]
+            doppler_profile = coarse_power.max(axis=2)  # [c, K_c]
+            for j in range(coarse.shape[0]):
+                prof = doppler_profile[j]
+                candidates = np.flatnonzero(prof >= prof.max() * margin)
+                fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
+                # Exact K_DFT-grid DFT at the chosen bins: e^{+j2π q k / K_DFT}, phase reduced
+                # modulo K_DFT in integers so that it stays exact for every q·k.
+                kernel = np.exp(2j * np.pi * (np.outer(fine, chirp) % processing.k_dft) / processing.k_dft)
+                z = kernel @ spectrum[i + j]  # [Q, N_DFT]
+                power = np.abs(z) ** 2 / gain**2
+                power[:, ~searchable] = -1.0
+                qi, p = np.unravel_index(int(power.argmax()), power.shape)
+                q_best[i + j], p_best[i + j] = fine[qi], p
+                peak[i + j] = power[qi, p]
+                rows[i + j] = np.abs(z[qi]) ** 2 / gain**2
+
+    tau = delays[p_best]
+    # ±Δ inclusive; the relative slack keeps a bin exactly Δ away despite rounding.
+    in_window = np.abs(delays[None, :] - tau[:, None]) <= processing.delta * (1.0 + 1e-9)
+    average = (rows * in_window).sum(axis=1) / in_window.sum(axis=1)
+    return BeamScan(
+        angles=sweep.angles,
+        delay=tau,
+        delay_rate=rates[q_best],
+        peak_power=peak,
+        average_power=average,
+        delay_bin=p_best,
+        doppler_bin=q_best,
+    )

@@ -1,0 +1,92 @@
+"""The FMCW beat-signal model, eq. (1) of the seed paper."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dsp import RadarConfig
+from dsp.sweep import BeamSweep
+
+from .paths import PathSet
+from .ris import RisConfig, ris_response
+
+__all__ = ["beat_cube", "add_noise", "wrapped_tone"]
+
+
+def wrapped_tone(frequency: np.ndarray, length: int) -> np.ndarray:
+    """``exp(-j2π f i)`` for i = 0…length-1, phase wrapped in float64 [L, length].
+
+    Parameters
+    ----------
+    frequency : float array [L]
+        Tone frequency in cycles per sample (any magnitude) [cycles].
+    length : int
+        Number of samples.
+
+    Notes
+    -----
+    The frequency is first reduced modulo 1 (exact in float64), the product with the index is
+    reduced again, and only the fractional cycle count reaches the exponential, so the phase
+    error stays below ``length · 2⁻⁵²`` cycles however large f·i is.
+    """
+    f = np.asarray(frequency, dtype=np.float64)
+    f = f - np.floor(f)
+    cycles = np.outer(f, np.arange(length, dtype=np.float64))
+    cycles -= np.round(cycles)
+    return np.exp(-2j * np.pi * cycles)
+
+
+def beat_cube(paths: PathSet, *, radar: RadarConfig, sweep: BeamSweep, ris: RisConfig | None) -> np.ndarray:
+    """Noiseless beat cube of eq. (1) for every sweep beam.
+
+    Parameters
+    ----------
+    paths : PathSet
+        L round-trip paths; those with RIS angles get the RIS response of each beam.
+    radar : RadarConfig
+    sweep : BeamSweep
+        M beams.
+    ris : RisConfig or None
+        Needed when any path goes through the RIS.
+
+    Returns
+    -------
+    complex array [M, K, N]
+        ``Y[m, k, n] = Σ_l γ_l r_{m,l} e^{-j2π(S τ_l + f_c ν_l) n T_s} e^{-j2π f_c ν_l k T}`` [√W],
+        where r_{m,l} is :func:`risloc_rt.ris.ris_response` for RIS paths and 1 otherwise.
+    """
+    m = sweep.num_beams
+    coef = np.broadcast_to(paths.gain, (m, len(paths))).copy()  # [M, L]
+    ris_paths = paths.via_ris
+    if ris_paths.any():
+        if ris is None:
+            raise ValueError("the path set has RIS loop-back paths but no RisConfig was given")
+        coef[:, ris_paths] *= ris_response(
+            ris, sweep, paths.ris_incidence[ris_paths], paths.ris_departure[ris_paths],
+            wavelength=radar.wavelength,
+        )
+    fast = wrapped_tone((radar.slope * paths.delay + radar.carrier_frequency * paths.delay_rate)
+                        * radar.sample_period, radar.num_samples)  # [L, N]
+    slow = wrapped_tone(radar.carrier_frequency * paths.delay_rate * radar.chirp_duration,
+                        radar.num_chirps)  # [L, K]
+    # [M, 1, L] * [1, K, L] -> [M, K, L]; @ [L, N] -> [M, K, N]
+    return (coef[:, None, :] * slow.T[None, :, :]) @ fast
+
+
+def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator) -> np.ndarray:
+    """``cube + w`` with w ~ CN(0, σ²) i.i.d. per sample.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        [√W].
+    noise_power : float
+        σ² [W].
+    rng : numpy.random.Generator
+        Source of the noise.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
+    scale = np.sqrt(noise_power / 2.0)
+    noise = rng.standard_normal(cube.shape + (2,))
+    return cube + scale * (noise[..., 0] + 1j * noise[..., 1])
