@@ -1,0 +1,142 @@
+"""Factories shared by the test suite.
+
+Every factory takes keyword overrides, so a test states only what it changes. The defaults are a
+*small* radar (N = 128 samples, K = 16 chirps, N_DFT = 2N - 1, K_DFT = 4K) with Table I's RF
+parameters (f_c, B, T, T_s), so the unambiguous range, slope and Doppler scale are the paper's;
+tests that need Table I itself use :func:`risloc_rt.scenario.paper_scenario` (see ``paper_run``).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, RisPose
+from risloc_rt.paths import PathSet
+from risloc_rt.ris import RisConfig
+from risloc_rt.scenario import PointTarget, Scenario, paper_scenario
+from risloc_rt.simulate import simulate
+
+C = SPEED_OF_LIGHT
+#: UE-RIS distance of the paper [m].
+PAPER_DISTANCE = 13.38
+#: RCS used by the paper for "other objects" (and for the RIS structure) [m²].
+PAPER_RCS = 19.0
+
+
+def make_radar(**kw: Any) -> RadarConfig:
+    """Table I radar with N = 128 samples and K = 16 chirps unless overridden."""
+    params: dict[str, Any] = {"num_samples": 128, "num_chirps": 16}
+    params.update(kw)
+    return RadarConfig(**params)
+
+
+def make_processing(radar: RadarConfig | None = None, **kw: Any) -> ProcessingConfig:
+    """N_DFT = 2N - 1 (as the paper) and K_DFT = 4K for ``radar`` unless overridden."""
+    radar = radar or make_radar()
+    params: dict[str, Any] = {"n_dft": 2 * radar.num_samples - 1, "k_dft": 4 * radar.num_chirps}
+    params.update(kw)
+    return ProcessingConfig(**params)
+
+
+def paper_sweep() -> BeamSweep:
+    """-45° … 45° in 1.5° steps, elevation 0 (61 beams), as in the paper."""
+    return BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))
+
+
+def make_ris(
+    *,
+    mode: str = "relay",
+    position: Any = (0.0, PAPER_DISTANCE, 0.0),
+    facing: Any = (0.0, 0.0, 0.0),
+    yaw: float = 0.0,
+    rx_toward: Any = (0.0, 0.0, 0.0),
+    **kw: Any,
+) -> RisConfig:
+    """RIS facing ``facing`` turned by ``yaw`` [rad], relay Rx beam toward ``rx_toward``."""
+    pose = RisPose.facing(np.asarray(position, float), np.asarray(facing, float), yaw=yaw)
+    return RisConfig(pose=pose, mode=mode, **kw).with_rx_toward(np.asarray(rx_toward, float))
+
+
+def make_scenario(
+    *,
+    radar: RadarConfig | None = None,
+    processing: ProcessingConfig | None = None,
+    mode: str = "relay",
+    yaw: float = 0.0,
+    ue_position: Any = (0.0, 0.0, 0.0),
+    ris_position: Any = (0.0, PAPER_DISTANCE, 0.0),
+    ris_facing: Any | None = None,
+    structure: bool = True,
+    sweep: BeamSweep | None = None,
+    ris_kw: dict[str, Any] | None = None,
+    **kw: Any,
+) -> Scenario:
+    """Paper-like scenario on the small radar: UE, RIS facing it (turned by ``yaw`` [rad]).
+
+    ``structure`` adds the RIS panel's structural reflection (σ = 19 m² at the RIS centre), as
+    :func:`paper_scenario` does.
+    """
+    radar = radar or make_radar()
+    processing = processing or make_processing(radar)
+    ue = np.asarray(ue_position, float)
+    ris_pos = np.asarray(ris_position, float)
+    ris = make_ris(mode=mode, position=ris_pos, facing=ue if ris_facing is None else ris_facing,
+                   yaw=yaw, rx_toward=ue, **(ris_kw or {}))
+    targets = (PointTarget(position=ris_pos, rcs=PAPER_RCS, label="ris_structure"),) if structure else ()
+    return Scenario(
+        radar=radar,
+        ris=ris,
+        sweep=sweep or paper_sweep(),
+        processing=processing,
+        ue_position=ue,
+        targets=targets,
+        **kw,
+    )
+
+
+def tone_paths(gain: Any, delay: Any, delay_rate: Any, *, label: str = "target") -> PathSet:
+    """Non-RIS paths (NaN RIS angles) with the given gains [√W], delays [s] and rates [s/s]."""
+    g = np.atleast_1d(np.asarray(gain, complex))
+    n = g.shape[0]
+    return PathSet(
+        gain=g,
+        delay=np.broadcast_to(np.asarray(delay, float), (n,)).copy(),
+        delay_rate=np.broadcast_to(np.asarray(delay_rate, float), (n,)).copy(),
+        ris_incidence=np.full((n, 2), np.nan),
+        ris_departure=np.full((n, 2), np.nan),
+        labels=(label,) * n,
+    )
+
+
+def delay_step(radar: RadarConfig, processing: ProcessingConfig) -> float:
+    """Spacing of the delay grid, max_delay / N_DFT [s]."""
+    return radar.max_delay / processing.n_dft
+
+
+@functools.lru_cache(maxsize=None)
+def _paper_run(case: str, mode: str) -> tuple[Scenario, Any]:
+    scenario = paper_scenario(case, mode=mode)
+    capture = simulate(scenario, rng=np.random.default_rng(0), noise=False)
+    return scenario, capture
+
+
+@pytest.fixture(scope="session")
+def paper_run():
+    """``paper_run(case, mode) -> (scenario, noiseless capture)`` for Table I, computed once."""
+    return _paper_run
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A fresh, seeded Generator per test."""
+    return np.random.default_rng(20240607)
+
+
+__all__ = [
+    "C", "PAPER_DISTANCE", "PAPER_RCS", "delay_step", "make_processing", "make_radar", "make_ris",
+    "make_scenario", "paper_sweep", "tone_paths",
+]
