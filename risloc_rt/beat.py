@@ -8,32 +8,10 @@ from dsp import RadarConfig
 from dsp.sweep import BeamSweep
 
 from .paths import PathSet
+from .phase import exact_fractional_cycles, wrapped_tone
 from .ris import RisConfig, ris_response
 
-__all__ = ["beat_cube", "add_noise", "wrapped_tone"]
-
-
-def wrapped_tone(frequency: np.ndarray, length: int) -> np.ndarray:
-    """``exp(-j2π f i)`` for i = 0…length-1, phase wrapped in float64 [L, length].
-
-    Parameters
-    ----------
-    frequency : float array [L]
-        Tone frequency in cycles per sample (any magnitude) [cycles].
-    length : int
-        Number of samples.
-
-    Notes
-    -----
-    The frequency is first reduced modulo 1 (exact in float64), the product with the index is
-    reduced again, and only the fractional cycle count reaches the exponential, so the phase
-    error stays below ``length · 2⁻⁵²`` cycles however large f·i is.
-    """
-    f = np.asarray(frequency, dtype=np.float64)
-    f = f - np.floor(f)
-    cycles = np.outer(f, np.arange(length, dtype=np.float64))
-    cycles -= np.round(cycles)
-    return np.exp(-2j * np.pi * cycles)
+__all__ = ["beat_cube", "add_noise"]
 
 
 def beat_cube(paths: PathSet, *, radar: RadarConfig, sweep: BeamSweep, ris: RisConfig | None) -> np.ndarray:
@@ -65,10 +43,12 @@ def beat_cube(paths: PathSet, *, radar: RadarConfig, sweep: BeamSweep, ris: RisC
             ris, sweep, paths.ris_incidence[ris_paths], paths.ris_departure[ris_paths],
             wavelength=radar.wavelength,
         )
-    fast = wrapped_tone((radar.slope * paths.delay + radar.carrier_frequency * paths.delay_rate)
-                        * radar.sample_period, radar.num_samples)  # [L, N]
-    slow = wrapped_tone(radar.carrier_frequency * paths.delay_rate * radar.chirp_duration,
-                        radar.num_chirps)  # [L, K]
+    # Cycles per sample (S τ + f_c ν) T_s and per chirp f_c ν T, reduced modulo 1 exactly.
+    fast = wrapped_tone(exact_fractional_cycles(
+        [(radar.slope, paths.delay), (radar.carrier_frequency, paths.delay_rate)], radar.sample_period),
+        radar.num_samples)  # [L, N]
+    slow = wrapped_tone(exact_fractional_cycles(
+        [(radar.carrier_frequency, paths.delay_rate)], radar.chirp_duration), radar.num_chirps)  # [L, K]
     # [M, 1, L] * [1, K, L] -> [M, K, L]; @ [L, N] -> [M, K, N]
     return (coef[:, None, :] * slow.T[None, :, :]) @ fast
 

@@ -9,6 +9,8 @@ import numpy as np
 from dsp import SPEED_OF_LIGHT, RadarConfig
 from dsp._validate import as_finite_array
 
+from .phase import exact_fractional_cycles
+
 __all__ = ["carrier_phase", "point_target_gain", "ris_loopback_gain", "one_way_free_space_gain"]
 
 
@@ -22,8 +24,9 @@ def carrier_phase(delay: Any, carrier_frequency: float) -> np.ndarray:
     carrier_frequency : float
         f_c [Hz].
     """
-    cycles = np.asarray(delay, dtype=float) * carrier_frequency
-    return np.exp(-2j * np.pi * (cycles - np.round(cycles)))
+    tau = np.asarray(delay, dtype=float)
+    frac = exact_fractional_cycles([(1.0, tau.ravel())], carrier_frequency).reshape(tau.shape)
+    return np.exp(-2j * np.pi * frac)
 
 
 def one_way_free_space_gain(distance: Any, wavelength: float) -> np.ndarray:

@@ -15,7 +15,8 @@ import pytest
 from conftest import C, PAPER_RCS, make_radar, make_scenario, tone_paths
 
 from dsp import BeamSweep, RadarConfig
-from risloc_rt.beat import add_noise, beat_cube, wrapped_tone
+from risloc_rt.beat import add_noise, beat_cube
+from risloc_rt.phase import wrapped_tone
 from risloc_rt.paths import PathSet
 from risloc_rt.ris import ris_response
 from risloc_rt.scenario import analytic_paths
