@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# One-step set-up of risloc-rt on a fresh Debian machine (Python >= 3.10, run as root or with sudo).
+# One-step set-up of risloc-rt on a fresh Debian machine (Python >= 3.10, run as root or with sudo):
+# Debian's python3-venv and libllvm19 when missing, then a virtual environment with pinned packages.
 #
 #   ./setup.sh           create .venv and install risloc-rt (then: .venv/bin/risloc demo)
 #   ./setup.sh --test    the same plus the test tools     (then: .venv/bin/python -m pytest)
@@ -23,6 +24,11 @@ VENV=${VENV:-.venv}
 
 need_apt=()
 "$PYTHON" -c 'import venv, ensurepip' 2>/dev/null || need_apt+=(python3-venv)
+# sionna-rt's CPU backend (Dr.Jit LLVM) needs libLLVM >= 17: drjit 1.5 aborts with LLVM 15/16
+# and refuses 14. Debian 12 ships libllvm19.
+if ! ls /usr/lib/*-linux-gnu/libLLVM.so.{17,18,19,20,21}* /usr/lib/*-linux-gnu/libLLVM-{17,18,19,20,21}.so* >/dev/null 2>&1; then
+  need_apt+=(libllvm19)
+fi
 if ((${#need_apt[@]})); then
   if command -v apt-get >/dev/null; then
     SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo
