@@ -166,7 +166,9 @@ def ris_response(
 
     Notes
     -----
-    ``g(θ) = 2π/λ · d(θ)`` with ``d`` the unit direction of ``docs/conventions.md``. With λ/2
+    ``g(θ) = 2π/λ · d(θ)`` with ``d`` the unit direction of ``docs/conventions.md``. The
+    elements are isotropic in the front half-space (as in the paper) and do not radiate
+    backwards: a path whose incidence or departure lies behind the panel (|az| >= 90°) gets 0. With λ/2
     spacing the reflective mode has grating lobes where ``sin φ - sin θ = ±1`` in azimuth,
     inside ±45° as soon as ``|sin θ| > 1 - sin 45° ≈ 0.29`` (θ > 17°); the relay mode has none.
     """
@@ -177,13 +179,17 @@ def ris_response(
         raise ValueError(f"incidence {list(inc.shape)} and departure {list(dep.shape)} must have the same shape")
     k = 2 * np.pi / lam
     x = ris.element_positions  # [N, 3]
-    a_inc = _steering(x, direction_from_angles(inc) if inc.size else np.zeros((0, 3)), k)  # [N, L]
-    a_dep = _steering(x, direction_from_angles(dep) if dep.size else np.zeros((0, 3)), k)  # [N, L]
+    d_inc = direction_from_angles(inc) if inc.size else np.zeros((0, 3))  # [L, 3]
+    d_dep = direction_from_angles(dep) if dep.size else np.zeros((0, 3))
+    # Elements radiate into the front half-space only: nothing enters or leaves through the back.
+    front = (d_inc[:, 2] > 0) & (d_dep[:, 2] > 0)  # [L]
+    a_inc = _steering(x, d_inc, k)  # [N, L]
+    a_dep = _steering(x, d_dep, k)  # [N, L]
     beams = direction_from_angles(sweep.angles)  # [M, 3]
     if ris.mode == "reflective":
         profile = np.exp(-2j * k * (beams @ x.T))  # ω_m, [M, N]
-        return profile @ (a_inc * a_dep)
+        return (profile @ (a_inc * a_dep)) * front[None, :]
     w_tx = np.exp(-1j * k * (beams @ x.T))  # [M, N]
     w_rx = np.exp(-1j * k * (x @ direction_from_angles(ris.relay_rx_angle)))  # [N]
     rx_gain = w_rx @ a_inc  # [L]
-    return (w_tx @ a_dep) * rx_gain[None, :] / ris.num_elements
+    return (w_tx @ a_dep) * (rx_gain * front)[None, :] / ris.num_elements
