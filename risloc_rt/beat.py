@@ -34,23 +34,24 @@ def beat_cube(paths: PathSet, *, radar: RadarConfig, sweep: BeamSweep, ris: RisC
         where r_{m,l} is :func:`risloc_rt.ris.ris_response` for RIS paths and 1 otherwise.
     """
     m = sweep.num_beams
-    coef = np.broadcast_to(paths.gain, (m, len(paths))).copy()  # [M, L]
-    ris_paths = paths.via_ris
-    if ris_paths.any():
-        if ris is None:
-            raise ValueError("the path set has RIS loop-back paths but no RisConfig was given")
-        coef[:, ris_paths] *= ris_response(
-            ris, sweep, paths.ris_incidence[ris_paths], paths.ris_departure[ris_paths],
-            wavelength=radar.wavelength,
-        )
     # Cycles per sample (S τ + f_c ν) T_s and per chirp f_c ν T, reduced modulo 1 exactly.
     fast = wrapped_tone(exact_fractional_cycles(
         [(radar.slope, paths.delay), (radar.carrier_frequency, paths.delay_rate)], radar.sample_period),
         radar.num_samples)  # [L, N]
     slow = wrapped_tone(exact_fractional_cycles(
         [(radar.carrier_frequency, paths.delay_rate)], radar.chirp_duration), radar.num_chirps)  # [L, K]
-    # [M, 1, L] * [1, K, L] -> [M, K, L]; @ [L, N] -> [M, K, N]
-    return (coef[:, None, :] * slow.T[None, :, :]) @ fast
+    via = paths.via_ris
+    # Paths that do not pass through the RIS are the same in every beam: one [K, N] frame.
+    common = (slow[~via].T * paths.gain[~via]) @ fast[~via]  # [K, L0] @ [L0, N]
+    cube = np.broadcast_to(common, (m,) + common.shape).copy()
+    if via.any():
+        if ris is None:
+            raise ValueError("the path set has RIS loop-back paths but no RisConfig was given")
+        coef = paths.gain[via] * ris_response(
+            ris, sweep, paths.ris_incidence[via], paths.ris_departure[via], wavelength=radar.wavelength)  # [M, L1]
+        # [M, 1, L1] * [1, K, L1] -> [M, K, L1]; @ [L1, N] -> [M, K, N]
+        cube += (coef[:, None, :] * slow[via].T[None, :, :]) @ fast[via]
+    return cube
 
 
 def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator) -> np.ndarray:

@@ -1,0 +1,54 @@
+"""The sionna-rt-facing layer: the only part of risloc-rt that imports sionna, mitsuba and drjit.
+
+It loads Mitsuba XML scenes (:func:`load_scene`), traces a radar pose with one sionna-rt
+``PathSolver`` call (:func:`trace_scene`), caches traces on disk (:class:`TraceCache`) and hands
+the paths over as numpy (:class:`risloc_rt.traced.TracedPaths`).
+
+Importing this package imports none of the heavy dependencies: the names below are loaded on
+first use, and sionna-rt itself only inside the functions that need it, after
+:func:`ensure_backend` has chosen a libLLVM that does not abort the process.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS = {
+    "BackendError": "backend",
+    "backend_info": "backend",
+    "ensure_backend": "backend",
+    "find_libllvm": "backend",
+    "LoadedScene": "scene",
+    "SceneError": "scene",
+    "load_scene": "scene",
+    "scene_content_hash": "scene",
+    "TraceResult": "result",
+    "TraceSettings": "result",
+    "trace_scene": "tracer",
+    "TraceCache": "cache",
+    "default_cache_dir": "cache",
+    "trace_key": "cache",
+}
+
+__all__ = sorted(_EXPORTS)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .backend import BackendError, backend_info, ensure_backend, find_libllvm
+    from .cache import TraceCache, default_cache_dir, trace_key
+    from .result import TraceResult, TraceSettings
+    from .scene import LoadedScene, SceneError, load_scene, scene_content_hash
+    from .tracer import trace_scene
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,187 @@
+"""On-disk cache of ray traces: one ``.npz`` file per (scene content, poses, frequency, settings).
+
+A hit returns the stored arrays bit for bit. The key covers everything that changes the
+paths: the scene's content hash (XML and mesh bytes), the radar and RIS positions, the radar
+velocity, the frequency, the solver settings, the sionna-rt/mitsuba/drjit versions and the
+cache format. A file that cannot be read (truncated, corrupt, another format) counts as a miss
+and is overwritten by the next store; files are written to a temporary name and renamed, so a
+crash mid-write never leaves a half-written entry under the final name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..traced import TracedPaths
+from .backend import package_versions
+from .result import TraceResult, TraceSettings
+
+__all__ = ["CACHE_FORMAT_VERSION", "TraceCache", "default_cache_dir", "trace_key"]
+
+#: Bump when the file layout or the meaning of a stored array changes.
+CACHE_FORMAT_VERSION = 1
+
+_log = logging.getLogger(__name__)
+
+
+def default_cache_dir() -> Path:
+    """``$RISLOC_CACHE_DIR``, else ``~/.cache/risloc-rt/traces``."""
+    env = os.environ.get("RISLOC_CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "risloc-rt" / "traces"
+
+
+def _floats(values: Any) -> Any:
+    """Nested lists of ``repr(float64)`` strings: exact and platform-independent."""
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim == 0:
+        return repr(float(arr))
+    return [_floats(v) for v in arr]
+
+
+def trace_key(
+    *,
+    scene_hash: str,
+    radar_position: Any,
+    ris_positions: Any,
+    radar_velocity: Any,
+    frequency: float,
+    settings: TraceSettings,
+) -> str:
+    """SHA-256 (hex) of a canonical JSON of everything that determines a trace.
+
+    Parameters
+    ----------
+    scene_hash : str
+        :func:`risloc_rt.raytrace.scene_content_hash` of the scene.
+    radar_position : float array [3]
+        [m].
+    ris_positions : float array [R, 3]
+        [m]; R may be 0.
+    radar_velocity : float array [3]
+        [m/s].
+    frequency : float
+        [Hz].
+    settings : TraceSettings
+
+    Notes
+    -----
+    Floats enter as ``repr`` of float64 (shortest round-trip text), so any change of any bit
+    changes the key; keys are sorted and the JSON is written without spaces.
+    """
+    payload = {
+        "format": CACHE_FORMAT_VERSION,
+        "scene": str(scene_hash),
+        "radar_position": _floats(radar_position),
+        "ris_positions": _floats(np.asarray(ris_positions, dtype=np.float64).reshape(-1, 3)),
+        "radar_velocity": _floats(radar_velocity),
+        "frequency": _floats(frequency),
+        "settings": settings.to_dict(),
+        "versions": package_versions(),
+    }
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+class TraceCache:
+    """Directory of cached :class:`TraceResult` files, ``<directory>/<key>.npz``.
+
+    Parameters
+    ----------
+    directory : path-like, optional
+        Where the files live (created on the first store); default :func:`default_cache_dir`.
+    """
+
+    def __init__(self, directory: str | os.PathLike[str] | None = None) -> None:
+        self._directory = Path(directory).expanduser() if directory is not None else default_cache_dir()
+
+    @property
+    def directory(self) -> Path:
+        """The cache directory."""
+        return self._directory
+
+    def __repr__(self) -> str:
+        return f"TraceCache({str(self._directory)!r})"
+
+    def path_for(self, key: str) -> Path:
+        """File that holds (or would hold) the entry ``key``."""
+        if not key or not all(c in "0123456789abcdef" for c in key):
+            raise ValueError(f"key={key!r} must be a lowercase hex digest from trace_key()")
+        return self._directory / f"{key}.npz"
+
+    def load(self, key: str) -> TraceResult | None:
+        """The stored result for ``key`` (``cache_hit`` True), or None when absent or unreadable."""
+        path = self.path_for(key)
+        if not path.is_file():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"]))
+                if meta.get("format") != CACHE_FORMAT_VERSION or meta.get("key") != key:
+                    raise ValueError(f"format {meta.get('format')!r} / key mismatch")
+                traced = [
+                    TracedPaths.from_arrays({name.split("/", 1)[1]: data[name] for name in data.files
+                                             if name.startswith(f"{prefix}/")})
+                    for prefix in ["mono"] + [f"leg{i}" for i in range(int(meta["num_legs"]))]
+                ]
+                return TraceResult(
+                    monostatic=traced[0],
+                    legs=tuple(traced[1:]),
+                    scene_hash=str(meta["scene_hash"]),
+                    cache_hit=True,
+                    timing={k: float(v) for k, v in meta["timing"].items()},
+                    settings=TraceSettings(**meta["settings"]),
+                    radar_velocity=np.array([float(v) for v in meta["radar_velocity"]]),
+                )
+        except Exception as exc:  # corrupt or foreign file: a miss, overwritten by the next store
+            _log.warning("ignoring unreadable trace cache file %s (%s: %s)", path, type(exc).__name__, exc)
+            return None
+
+    def store(self, key: str, result: TraceResult) -> Path | None:
+        """Write ``result`` under ``key`` atomically; returns the path (None if writing failed).
+
+        A failure to write (read-only or full disk) warns and returns None instead of raising: the
+        trace itself succeeded.
+        """
+        path = self.path_for(key)
+        arrays: dict[str, np.ndarray] = {}
+        for prefix, paths in [("mono", result.monostatic)] + [(f"leg{i}", p) for i, p in enumerate(result.legs)]:
+            for name, value in paths.to_arrays().items():
+                arrays[f"{prefix}/{name}"] = np.asarray(value)
+        meta = {
+            "format": CACHE_FORMAT_VERSION,
+            "key": key,
+            "scene_hash": result.scene_hash,
+            "num_legs": len(result.legs),
+            "settings": result.settings.to_dict(),
+            "timing": result.timing,
+            "radar_velocity": [repr(float(v)) for v in result.radar_velocity],
+        }
+        arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
+        tmp_name = None
+        try:
+            self._directory.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile(dir=self._directory, prefix=f".{key[:16]}-", suffix=".tmp",
+                                             delete=False) as f:
+                tmp_name = f.name
+                np.savez(f, **arrays)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp_name, path)
+            tmp_name = None
+        except OSError as exc:
+            warnings.warn(f"could not write trace cache file {path}: {exc}", RuntimeWarning, stacklevel=2)
+            return None
+        finally:
+            if tmp_name is not None and os.path.exists(tmp_name):
+                os.unlink(tmp_name)
+        return path
+
