@@ -84,8 +84,10 @@ class TraceResult:
         True when the result was read from a :class:`risloc_rt.raytrace.TraceCache`.
     timing : dict
         Wall-clock seconds of this call: ``hash``, ``cache_read``, ``load`` (0 when the scene was
-        already loaded in this process), ``solve``, ``convert``, ``cache_write`` (0 for steps
-        that did not run).
+        already loaded in this process; the first load in a process includes importing sionna-rt,
+        about 1 s), ``solve`` (includes Dr.Jit's kernel compilation on a cold ``~/.drjit``),
+        ``convert``, ``cache_write``; 0 for steps that did not run (a cache hit runs only ``hash``
+        and ``cache_read``).
     settings : TraceSettings
         Solver options used.
     radar_velocity : float array [3]

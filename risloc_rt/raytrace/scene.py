@@ -55,7 +55,7 @@ class LoadedScene:
     frequency: float
     content_hash: str
     object_names: tuple[str, ...]
-    materials: dict[str, tuple[str, float, float, float]]
+    materials: dict[str, tuple[str, float, float, float]] = field(compare=False)
 
 
 def _parse_xml(xml_path: str) -> ET.Element:
@@ -216,18 +216,20 @@ def _set_frequency(scene: Any, xml_path: str, frequency: float) -> None:
         scene.frequency = frequency
     except ValueError:
         # sionna stops at the first bad material and leaves the rest at their old values; find all.
-        bad = []
+        bad, types = [], set()
         for name, mat in sorted(scene.radio_materials.items()):
             try:
                 mat.frequency_update()
             except ValueError:
+                types.add(getattr(mat, "itu_type", "?"))
                 bad.append(f"{name!r} (ITU type {getattr(mat, 'itu_type', '?')!r})")
+        note = (" (sionna-rt stores the frequency as float32: 60e9 becomes 60.000002 GHz, just above "
+                "marble's 60 GHz limit; 59.99e9 works.)") if "marble" in types else ""
         raise SceneError(
             f"scene file {xml_path}: material {', '.join(bad) or '?'} is not defined at "
             f"{frequency / 1e9:g} GHz (frequency={frequency:g} Hz) in ITU-R P.2040 / sionna-rt; "
             f"use a material valid there (at 60 GHz: {_ITU_AT_60GHZ}) or a <bsdf type=\"radio-material\"> "
-            "with explicit relative_permittivity, conductivity and thickness. (sionna-rt stores the "
-            "frequency as float32: 60e9 becomes 60.000002 GHz, just above marble's 60 GHz limit.)"
+            f"with explicit relative_permittivity, conductivity and thickness.{note}"
         ) from None
 
 

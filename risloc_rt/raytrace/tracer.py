@@ -70,8 +70,8 @@ def _point(value: Any, name: str) -> np.ndarray:
 
 
 def _points(value: Any, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float) if not isinstance(value, np.ndarray) else value
-    if np.size(arr) == 0:
+    arr = as_finite_array(value, name, allow_empty=True)
+    if arr.size == 0:
         return np.zeros((0, 3))
     return as_finite_array(arr, name, shape=(None, 3))
 
@@ -162,6 +162,7 @@ def paths_to_traced(
     radar_position: np.ndarray,
     ris_positions: np.ndarray,
     radar_velocity: np.ndarray,
+    max_depth: int | None = None,
 ) -> tuple[TracedPaths, ...]:
     """Convert a :func:`solve_paths` result to one :class:`TracedPaths` per receiver.
 
@@ -173,6 +174,9 @@ def paths_to_traced(
         The scene it was solved in (object ids are only valid in this process).
     radar_position, ris_positions, radar_velocity
         As given to :func:`solve_paths`.
+    max_depth : int, optional
+        ``settings.max_depth`` of the solve: the width D of the per-bounce arrays (sionna-rt
+        returns one all-zero column for ``max_depth=0``). Default: as returned.
 
     Returns
     -------
@@ -210,6 +214,14 @@ def paths_to_traced(
     interactions = np.moveaxis(np.asarray(paths.interactions.numpy(), np.int64)[:, :, 0, :], 0, -1)
     raw_objects = np.moveaxis(np.asarray(paths.objects.numpy(), np.int64)[:, :, 0, :], 0, -1)
     vertices = np.moveaxis(np.asarray(paths.vertices.numpy(), np.float64)[:, :, 0, :, :], 0, 2)
+    if max_depth is not None and interactions.shape[-1] != max_depth:
+        width = interactions.shape[-1]
+        if np.any(interactions[..., max_depth:] != 0):
+            raise RuntimeError(f"sionna-rt returned paths deeper than max_depth={max_depth}")
+        pad = max(max_depth - width, 0)
+        interactions = np.pad(interactions[..., :max_depth], [(0, 0), (0, 0), (0, pad)])
+        raw_objects = np.pad(raw_objects[..., :max_depth], [(0, 0), (0, 0), (0, pad)])
+        vertices = np.pad(vertices[..., :max_depth, :], [(0, 0), (0, 0), (0, pad), (0, 0)])
 
     rx_positions = [radar, *ris]
     rx_velocities = [velocity] + [np.zeros(3)] * len(ris)
@@ -333,7 +345,8 @@ def trace_scene(
     paths.tau.numpy()
     timing["solve"] = time.perf_counter() - t
     t = time.perf_counter()
-    traced = paths_to_traced(paths, loaded, radar_position=radar, ris_positions=ris, radar_velocity=velocity)
+    traced = paths_to_traced(paths, loaded, radar_position=radar, ris_positions=ris, radar_velocity=velocity,
+                             max_depth=settings.max_depth)
     timing["convert"] = time.perf_counter() - t
     result = TraceResult(monostatic=traced[0], legs=traced[1:], scene_hash=loaded.content_hash,
                          cache_hit=False, timing=timing, settings=settings, radar_velocity=velocity)
