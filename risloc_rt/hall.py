@@ -184,6 +184,7 @@ def hall_scenario(
     ue_position, ue_velocity : float array [3], optional
         Override the spec's radar position and velocity [m], [m/s].
     """
+    from .authoring.geometry import load_geometry
     from .authoring.spec import load_spec
 
     folder = scene_directory(scene)
@@ -199,7 +200,9 @@ def hall_scenario(
     ris = ris_list[0]
     if mode is not None:
         ris = replace(ris, mode=mode)
-    ris = ris.with_rx_toward(ue)
+    if spec.ris[0].relay_rx_toward is None:  # as in the experiment: the Rx beam points at the UE
+        ris = ris.with_rx_toward(ue)
+    load_geometry(folder / "scene.xml").check_point(ue, what="radar")
     base = Scenario(
         radar=radar or RadarConfig(),
         ris=ris,

@@ -132,3 +132,25 @@ def _save(fig, plt, path: str | os.PathLike[str], *, tight: bool = True) -> Path
     fig.savefig(out)
     plt.close(fig)
     return out
+
+
+def plot_labelled_profile(profile, path: str | os.PathLike[str], *, title: str = "") -> Path:
+    """A :class:`risloc_rt.path_table.LabelledProfile`: range profile with each peak named by its path."""
+    plt = _pyplot()
+    db = _dbm(profile.power)
+    fig, ax = plt.subplots(figsize=(10, 5), dpi=110)
+    ax.plot(profile.distance, db, color="C0", lw=1)
+    for rank, p in enumerate(profile.peaks):
+        ax.plot(profile.distance[p], db[p], "v", color="red", ms=6)
+        text = profile.labels[rank]
+        if len(text) > 70:
+            text = text[:67] + "..."
+        ax.annotate(f"{profile.distance[p]:.2f} m: {text}", (profile.distance[p], db[p]),
+                    xytext=(5, -10 - 11 * rank), textcoords="offset points", fontsize=7, color="darkred",
+                    arrowprops={"arrowstyle": "-", "color": "gray", "lw": 0.5})
+    ax.set_xlabel("apparent distance τc/2 [m]")
+    ax.set_ylabel("|z|² [dBm] (noiseless)")
+    ax.set_ylim(db.max() - 70, db.max() + 5)
+    ax.grid(alpha=0.3)
+    ax.set_title(title or f"range profile from the traced paths, beam az {np.rad2deg(profile.beam[0]):+.1f}°")
+    return _save(fig, plt, path)

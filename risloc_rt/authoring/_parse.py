@@ -20,12 +20,21 @@ class SpecError(ValueError):
         Dotted key path of the offending value, e.g. ``"objects[2].size"`` (``""`` for the file).
     """
 
-    def __init__(self, key: str, problem: str, fix: str = "") -> None:
+    def __init__(self, key: str, problem: str, fix: str = "", *, source: str | None = None) -> None:
         self.key = key
+        self.problem = problem
+        self.fix = fix
+        self.source = source
         message = f"{key}: {problem}" if key else problem
         if fix:
             message += f"; {fix}"
+        if source:
+            message = f"{source}: {message}"
         super().__init__(message)
+
+    def with_source(self, source: str) -> "SpecError":
+        """The same error, its message prefixed with the spec file's path."""
+        return SpecError(self.key, self.problem, self.fix, source=source)
 
 
 def toml_type(value: Any) -> str:
@@ -132,10 +141,14 @@ class Table:
             return value
         return check_vector(value, self.key(name), length, unit=unit, minimum=minimum, strict=strict)
 
-    def table(self, name: str, *, required: bool = False) -> "Table | None":
-        """A sub-table, or ``None`` when absent and not required."""
-        value = self.raw(name, _MISSING if required else None, what="{ ... }")
+    def table(self, name: str) -> "Table | None":
+        """An optional sub-table, ``None`` when absent."""
+        value = self.raw(name, None)
         return None if value is None else Table(value, self.key(name))
+
+    def required_table(self, name: str) -> "Table":
+        """A sub-table that must be present."""
+        return Table(self.raw(name, what="{ ... }"), self.key(name))
 
     def tables(self, name: str) -> list["Table"]:
         """An array of tables (``[[name]]``); empty when absent."""

@@ -17,6 +17,7 @@ Two traps it handles (``/tmp/rt_research/FINDINGS.md`` §6):
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass
@@ -225,8 +226,6 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
                         'write e.g. "concrete" or {itu = "concrete", thickness = 0.2}')
     if itu is not None:
         if itu not in ITU_MATERIALS:
-            import difflib
-
             close = difflib.get_close_matches(itu, list(ITU_MATERIALS), n=1)
             raise SpecError(itu_key, f"unknown ITU material type {itu!r}",
                             (f"did you mean {close[0]!r}? " if close else "")
