@@ -119,20 +119,22 @@ def test_paper_hall_spec_is_the_papers_geometry():
     assert {m.itu for m in (spec.materials.walls, spec.materials.floor, spec.materials.ceiling)} == {"concrete"}
     assert spec.materials.walls.thickness == 0.2
     radar = spec.radar_positions()
-    assert radar.shape == (1, 3)
+    assert radar.shape == (2, 3)
     (ris,) = spec.ris_configs()
-    # 13.38 m apart at equal height; exact up to float64 rounding of the decimal inputs (1e-12 m).
-    assert np.linalg.norm(ris.pose.position - radar[0]) == pytest.approx(13.38, abs=1e-12)
-    assert ris.pose.position[2] == radar[0, 2]
-    # The RIS faces the radar: the radar is at broadside, and so is the relay's Rx beam.
+    # Both 13.38 m away at equal height; exact up to float64 rounding of the decimal inputs (1e-12 m).
+    np.testing.assert_allclose(np.linalg.norm(ris.pose.position - radar, axis=1), 13.38, atol=1e-12)
+    assert np.all(radar[:, 2] == ris.pose.position[2])
+    # The RIS faces the first radar (broadside); the second is seen at azimuth +21°, on the sweep grid.
     np.testing.assert_allclose(ris.pose.angles_to(radar[0]), [0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose(ris.relay_rx_angle, [0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(ris.pose.angles_to(radar[1]), [np.deg2rad(21.0), 0.0], atol=1e-12)
+    # No fixed relay Rx direction in the spec: the simulator points it at the radar in use.
+    assert spec.ris[0].relay_rx_toward is None
     assert (ris.num_rows, ris.num_columns, ris.mode) == (16, 4, "relay")
     assert ris.element_spacing == pytest.approx(SPEED_OF_LIGHT / 60e9 / 2, rel=1e-15)
     assert (ris.amplification_db, ris.loopback_delay) == (45.532, 1.78e-9)
     (plate,) = spec.ris_panels()
     assert (plate.width, plate.height, plate.reflection) == (0.10, 0.05, -1)
-    np.testing.assert_allclose(spec.radar_boresights(), [[1.0, 0.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(spec.radar_boresights()[0], [1.0, 0.0, 0.0], atol=1e-15)
 
 
 def test_paper_hall_committed_scene_is_up_to_date(tmp_path):
