@@ -26,9 +26,11 @@ need_apt=()
 "$PYTHON" -c 'import venv, ensurepip' 2>/dev/null || need_apt+=(python3-venv)
 # sionna-rt's CPU backend (Dr.Jit LLVM) needs libLLVM >= 17: drjit 1.5 aborts with LLVM 15/16
 # and refuses 14. Debian 12 ships libllvm19.
-if ! ls /usr/lib/*-linux-gnu/libLLVM.so.{17,18,19,20,21}* /usr/lib/*-linux-gnu/libLLVM-{17,18,19,20,21}.so* >/dev/null 2>&1; then
-  need_apt+=(libllvm19)
-fi
+have_llvm=""
+for lib in /usr/lib/*-linux-gnu/libLLVM.so.{17,18,19,20,21}* /usr/lib/*-linux-gnu/libLLVM-{17,18,19,20,21}.so*; do
+  [ -e "$lib" ] && have_llvm="$lib" && break
+done
+[ -n "$have_llvm" ] || [ -n "${DRJIT_LIBLLVM_PATH:-}" ] || need_apt+=(libllvm19)
 if ((${#need_apt[@]})); then
   if command -v apt-get >/dev/null; then
     SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo
