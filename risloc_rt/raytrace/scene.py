@@ -18,6 +18,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from typing import Any
 
+from dsp._validate import positive
+
 __all__ = ["LoadedScene", "SceneError", "load_scene", "scene_content_hash", "scene_references"]
 
 #: ITU-R P.2040 materials sionna-rt 2.2 defines at 60 GHz (for error messages).
@@ -256,7 +258,7 @@ def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedS
     from .backend import ensure_backend
 
     xml_path = os.path.abspath(os.fspath(xml_path))
-    frequency = _check_frequency(frequency)
+    frequency = positive(frequency, "frequency", "Hz")
     content_hash = scene_content_hash(xml_path)  # also checks the XML parses and its meshes exist
     ensure_backend()
     import sionna.rt as rt
@@ -276,13 +278,3 @@ def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedS
         object_names=tuple(sorted(scene.objects)),
         materials=_material_summary(scene),
     )
-
-
-def _check_frequency(frequency: Any) -> float:
-    try:
-        f = float(frequency)
-    except (TypeError, ValueError):
-        raise TypeError(f"frequency={frequency!r} must be a number [Hz]") from None
-    if not math.isfinite(f) or f <= 0:
-        raise ValueError(f"frequency={frequency!r} must be a finite number > 0 [Hz]")
-    return f

@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dsp import SPEED_OF_LIGHT
-from dsp._validate import as_finite_array
+from dsp._validate import as_finite_array, positive
 
 from ..traced import TracedPaths
 from .result import TraceResult, TraceSettings
-from .scene import LoadedScene, _check_frequency, load_scene, scene_content_hash
+from .scene import LoadedScene, load_scene, scene_content_hash
 
 if TYPE_CHECKING:  # pragma: no cover
     from .cache import TraceCache
@@ -315,7 +315,7 @@ def trace_scene(
     if not isinstance(settings, TraceSettings):
         raise TypeError(f"settings must be a TraceSettings, got {type(settings).__name__}")
     radar, ris, velocity = _validate_poses(radar_position, ris_positions, radar_velocity)
-    frequency = _check_frequency(frequency)
+    frequency = positive(frequency, "frequency", "Hz")
     xml_path = os.path.abspath(os.fspath(xml_path))
     timing = dict.fromkeys(("hash", "cache_read", "load", "solve", "convert", "cache_write"), 0.0)
 
