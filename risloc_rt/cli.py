@@ -122,8 +122,8 @@ def _demo_hall(args: argparse.Namespace) -> int:
         timing = {"trace" + (" (cached)" if traced.trace.cache_hit else ""): traced.timing["trace"],
                   "paths": traced.timing["paths"], "synthesis": time.perf_counter() - start}
         result = _report_case(hs.name.replace("#", "-"), capture, out, processing, timing)
-        if out is not None:
-            _plot_traced_profile(hs, traced, out / result.name / "traced_profile.png", result)
+        _plot_traced_profile(hs, traced, out / result.name / "traced_profile.png")
+        result = replace(result, plots={**result.plots, "traced_profile": f"{result.name}/traced_profile.png"})
         print(format_case(result))
         print(f"  paths: {traced.counts['hall']} hall echoes, {traced.counts['ris_loopback']} RIS loop-back and "
               f"{traced.counts['ris_structure']} panel leg pairs; {traced.report.summary()}")
@@ -147,7 +147,7 @@ def _quiet_hall_paths(hs, cache):
         return hall_paths(hs, cache=cache)
 
 
-def _plot_traced_profile(hs, traced, path: Path, result: CaseResult | None = None) -> None:
+def _plot_traced_profile(hs, traced, path: Path) -> None:
     from . import plots as plotting
     from .path_table import labelled_range_profile
 
@@ -156,8 +156,6 @@ def _plot_traced_profile(hs, traced, path: Path, result: CaseResult | None = Non
                                      ris=hs.base.ris, beam=beam)
     plotting.plot_labelled_profile(profile, path, title=f"{hs.name}: range profile from the traced paths, "
                                                          f"beam {np.rad2deg(beam[0]):+.1f}° (noiseless)")
-    if result is not None:
-        result.plots["traced_profile"] = str(Path(path).relative_to(Path(path).parent.parent))
 
 
 def _demo_analytic(args: argparse.Namespace) -> int:
@@ -179,7 +177,7 @@ def _demo_analytic(args: argparse.Namespace) -> int:
 
 
 def _scenario_from_args(args: argparse.Namespace) -> Scenario:
-    scenario = paper_scenario(args.case, mode=args.mode)
+    scenario = paper_scenario(args.case, mode=args.mode or "relay")
     radar = scenario.radar
     if args.tx_power_dbm is not None:
         radar = replace(radar, tx_power_dbm=args.tx_power_dbm)
@@ -190,8 +188,29 @@ def _scenario_from_args(args: argparse.Namespace) -> Scenario:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    scenario = _scenario_from_args(args)
-    capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed)
+    if args.scene is None:
+        scenario = _scenario_from_args(args)
+        paths, extra = None, None
+    else:
+        from .hall import hall_scenario
+
+        ue = None if args.ue is None else _vector(args.ue, "--ue")
+        velocity = None if args.ue_velocity is None else _vector(args.ue_velocity, "--ue-velocity")
+        hs = hall_scenario(args.scene, radar_index=args.radar_index, mode=args.mode, trace=_trace_settings(args),
+                           ue_position=ue, ue_velocity=velocity)
+        if args.tx_power_dbm is not None:
+            hs = replace(hs, base=replace(hs.base, radar=replace(hs.base.radar, tx_power_dbm=args.tx_power_dbm)))
+        scenario = replace(hs.base, processing=_processing_overrides(args, hs.base.processing))
+        traced = _quiet_hall_paths(hs, _trace_cache(args))
+        paths = traced.paths
+        extra = {"scene": str(hs.scene_xml), "scene_hash": traced.trace.scene_hash,
+                 "trace_settings": hs.trace.to_dict(), "model": hs.model.to_dict(),
+                 "pruning": traced.report.summary()}
+        print(f"traced {hs.scene_xml}: {traced.report.summary()}")
+        for w in traced.report.warnings:
+            print(f"warning: {w}")
+    capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
+                       paths=paths, provenance_extra=extra)
     if args.complex64:
         capture = replace(capture, cube=capture.cube.astype(np.complex64))
     path = save_capture(capture, args.output)
@@ -268,16 +287,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_processing_flags(demo)
     demo.set_defaults(func=_cmd_demo)
 
-    sim = sub.add_parser("simulate", help="simulate a capture file of the paper scenario")
+    sim = sub.add_parser("simulate", help="simulate a capture file: the paper scenario, or a ray-traced hall with --scene")
     sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
-    sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="paper case (default: %(default)s)")
-    sim.add_argument("--mode", choices=["relay", "reflective"], default="relay", help="RIS mode (default: %(default)s)")
-    sim.add_argument("--ue", metavar="X,Y,Z", help="UE position [m] (default: the origin)")
+    sim.add_argument("--scene", help="ray trace this hall (name in scenes/ or folder) instead of the analytic paper scenario")
+    sim.add_argument("--radar-index", type=int, default=0, help="with --scene: which radar position of the spec (default: %(default)s)")
+    sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="analytic paper case (default: %(default)s)")
+    sim.add_argument("--mode", choices=["relay", "reflective"], help="RIS mode (default: relay, or the scene's)")
+    sim.add_argument("--ue", metavar="X,Y,Z", help="UE position [m] (default: the origin, or the scene's radar position)")
     sim.add_argument("--ue-velocity", metavar="VX,VY,VZ", help="UE velocity [m/s] (default: 0)")
     sim.add_argument("--tx-power-dbm", type=float, help="transmit power [dBm] (default: Table I, 20)")
     sim.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     sim.add_argument("--no-noise", action="store_true", help="write the noiseless cube")
     sim.add_argument("--complex64", action="store_true", help="store the cube as complex64 (half the size)")
+    _add_trace_flags(sim)
     _add_processing_flags(sim)
     sim.set_defaults(func=_cmd_simulate)
 

@@ -19,6 +19,7 @@ def simulate(
     paths: PathSet | None = None,
     noise: bool = True,
     seed: int | None = None,
+    provenance_extra: dict | None = None,
 ) -> Capture:
     """One realization of the beat cube for ``scenario``.
 
@@ -33,6 +34,8 @@ def simulate(
         Add CN(0, σ_N²) noise (``False`` gives the noiseless cube of eq. (1)).
     seed : int, optional
         Recorded in the capture's provenance (the seed ``rng`` was made from).
+    provenance_extra : dict, optional
+        More provenance keys (e.g. the traced scene and its content hash).
 
     Returns
     -------
@@ -55,6 +58,7 @@ def simulate(
         frame_index=np.arange(scenario.sweep.num_beams),
         provenance=provenance("simulation", scenario=scenario.name, seed=seed, noise=noise,
                               paths=[{"label": lab, "delay": float(t), "power_dbm": float(10 * np.log10(max(pw, 1e-300)) + 30)}
-                                     for lab, t, pw in zip(paths.labels, paths.delay, paths.power)]),
+                                     for lab, t, pw in zip(paths.labels, paths.delay, paths.power)],
+                              **(provenance_extra or {})),
         truth=scenario.truth,
     )

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import sys
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -120,25 +119,16 @@ def scene_xml(spec: HallSpec, meshes: list[SceneMesh]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _mesh_references(xml_path: Path) -> list[str]:
-    root = ET.parse(xml_path).getroot()
-    return [s.get("value", "") for s in root.iter("string") if s.get("name") == "filename"]
-
-
 def content_hash(xml_path: str | Path) -> str:
-    """sha256 (hex) of a scene: its XML, then every PLY it references, sorted by relative path.
+    """sha256 (hex) of a scene: its XML and every file it references (the trace cache's key).
 
-    Each file contributes ``relative/path \\0 size \\0 bytes``, so renaming a mesh changes the hash
-    too. Files in the folder that the XML does not reference (the spec copy, stale meshes) do not
-    count. The RIS and radar of the spec are not part of the scene and do not count either.
+    The one definition is :func:`risloc_rt.raytrace.scene.scene_content_hash` (which imports no
+    ray tracer): files in the folder that the XML does not reference (the spec copy, stale meshes)
+    do not count, and neither do the RIS and radar of the spec, which are not part of the scene.
     """
-    xml_path = Path(xml_path)
-    folder = xml_path.parent
-    h = hashlib.sha256()
-    for rel in [xml_path.name, *sorted(_mesh_references(xml_path))]:
-        data = (folder / rel).read_bytes()
-        h.update(rel.encode("utf-8") + b"\0" + str(len(data)).encode("ascii") + b"\0" + data)
-    return h.hexdigest()
+    from ..raytrace.scene import scene_content_hash
+
+    return scene_content_hash(xml_path)
 
 
 def build_scene(spec: HallSpec | str | Path, out_dir: str | Path) -> BuiltScene:
