@@ -315,6 +315,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_trace_flags(trace)
     trace.set_defaults(func=_cmd_trace)
 
+    from .authoring.cli import add_scene_parser
+
+    add_scene_parser(sub)
+
     loc = sub.add_parser("locate", help="run the DSP on a capture file")
     loc.add_argument("capture", help="capture file (.npz) from 'risloc simulate' or a converter")
     loc.add_argument("--out", help="directory for result.json and plots (default: print only)")

@@ -8,9 +8,16 @@
   deterministically; ``python -m risloc_rt.authoring.build SPEC -o DIR``.
 * :mod:`.geometry` -- :class:`HallGeometry` of a built scene: ``check_point`` for radar and RIS
   positions.
+* :mod:`.check` -- :func:`check_scene` validates a spec or a built folder (mesh quality, closure,
+  placement, materials, grating lobes, range) into a :class:`CheckReport`.
+* :mod:`.show` -- :func:`show_scene` draws the plan and elevation (optionally traced paths) to a PNG.
+* :mod:`.cli` -- ``risloc scene build|check|show`` (:func:`~.cli.add_scene_parser`).
 
-Pure numpy/trimesh: nothing here imports sionna, mitsuba or drjit. The build and geometry modules
-are imported on first use, so ``python -m risloc_rt.authoring.build`` runs cleanly.
+Tutorial: ``docs/scene-authoring.md``.
+
+Pure numpy/trimesh (and matplotlib for :mod:`.show`): nothing here imports sionna, mitsuba or drjit
+(``risloc scene show --paths`` traces through :mod:`risloc_rt.hall`). The build, geometry, check and
+show modules are imported on first use, so ``python -m risloc_rt.authoring.build`` runs cleanly.
 """
 
 from __future__ import annotations
@@ -21,9 +28,11 @@ from ._parse import SpecError
 from .spec import HallSpec, load_spec, loads_spec
 
 __all__ = ["SpecError", "HallSpec", "load_spec", "loads_spec", "BuiltScene", "build_scene", "HallGeometry",
-           "load_geometry"]
+           "load_geometry", "CheckReport", "Issue", "check_scene", "SceneFigure", "show_scene"]
 
-_LAZY = {"BuiltScene": "build", "build_scene": "build", "HallGeometry": "geometry", "load_geometry": "geometry"}
+_LAZY = {"BuiltScene": "build", "build_scene": "build", "HallGeometry": "geometry", "load_geometry": "geometry",
+         "CheckReport": "check", "Issue": "check", "check_scene": "check", "SceneFigure": "show",
+         "show_scene": "show"}
 
 
 def __getattr__(name: str) -> Any:

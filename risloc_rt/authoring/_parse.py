@@ -18,13 +18,21 @@ class SpecError(ValueError):
     ----------
     key : str
         Dotted key path of the offending value, e.g. ``"objects[2].size"`` (``""`` for the file).
+    problem, fix : str
+        What is wrong, and how to fix it.
+    code : str
+        Which check failed, for :mod:`.check`: ``"spec"`` (a malformed spec, the default),
+        ``"material.frequency"`` (an ITU material undefined at the carrier) or
+        ``"position.outside"`` (a radar or RIS outside the hall).
     """
 
-    def __init__(self, key: str, problem: str, fix: str = "", *, source: str | None = None) -> None:
+    def __init__(self, key: str, problem: str, fix: str = "", *, source: str | None = None,
+                 code: str = "spec") -> None:
         self.key = key
         self.problem = problem
         self.fix = fix
         self.source = source
+        self.code = code
         message = f"{key}: {problem}" if key else problem
         if fix:
             message += f"; {fix}"
@@ -34,7 +42,7 @@ class SpecError(ValueError):
 
     def with_source(self, source: str) -> "SpecError":
         """The same error, its message prefixed with the spec file's path."""
-        return SpecError(self.key, self.problem, self.fix, source=source)
+        return SpecError(self.key, self.problem, self.fix, source=source, code=self.code)
 
 
 def toml_type(value: Any) -> str:

@@ -11,7 +11,6 @@ timestamps, fixed float formatting, objects in spec order, meshes written by :fu
 from __future__ import annotations
 
 import argparse
-import hashlib
 import sys
 from dataclasses import dataclass
 from pathlib import Path

@@ -236,7 +236,7 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
                             f"{frequency / 1e9:.9g} GHz (sionna-rt compares in float32: "
                             f"{float(np.float32(frequency) / np.float32(1e9)):.9g} GHz)",
                             f"use one valid there ({', '.join(valid_at(frequency))}) or a custom "
-                            "{permittivity, conductivity, thickness}")
+                            "{permittivity, conductivity, thickness}", code="material.frequency")
         name = name or f"{itu}-{_mm(thickness)}"
     else:
         name = name or f"eps{_tag(eps)}-sig{_tag(sigma)}-{_mm(thickness)}"  # type: ignore[arg-type]

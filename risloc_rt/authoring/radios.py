@@ -121,10 +121,10 @@ def inside_hall(point: tuple[float, ...], key: str, footprint: np.ndarray, heigh
     p = np.array(point[:2])[None, :]
     if not (polygon.contains(footprint, p)[0] and polygon.boundary_distance(footprint, p)[0] > 0):
         raise SpecError(key, f"the {what} at [{', '.join(f'{v:g}' for v in point)}] m is outside the hall footprint",
-                        "move it inside the hall")
+                        "move it inside the hall", code="position.outside")
     if not 0 < point[2] < height:
         raise SpecError(key, f"the {what}'s height z = {point[2]:g} m is not between the floor (0) and the "
-                        f"ceiling ({height:g} m)", "give a height inside the hall")
+                        f"ceiling ({height:g} m)", "give a height inside the hall", code="position.outside")
 
 
 
