@@ -26,9 +26,9 @@ import warnings
 
 import numpy as np
 
-from dsp import localize, scan_beams
 from risloc_rt.hall import hall_paths, hall_scenario
 from risloc_rt.pruning import AliasWarning
+from risloc_rt.report import process_capture
 from risloc_rt.raytrace.backend import backend_info
 from risloc_rt.raytrace.tracer import TraceSettings, trace_scene
 from risloc_rt.simulate import simulate
@@ -85,10 +85,8 @@ def stage_times(realizations: int, seed: int) -> None:
         t0 = time.perf_counter()
         cap = simulate(b, rng=np.random.default_rng(ss), paths=hp.paths)
         synth.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        loc = localize(scan_beams(cap.cube, cap.sweep, cap.radar, cap.processing), radar=cap.radar,
-                       pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay)
-        dsp.append(time.perf_counter() - t0)
+        loc, elapsed = process_capture(cap)
+        dsp.append(elapsed)
         errs.append(np.linalg.norm(loc.position - b.truth.ue_position))
     print(f"  synthesis ({len(hp.paths)} paths, 61x128x600 cube + noise): {np.mean(synth):.2f} s;  DSP (zoom): "
           f"{np.mean(dsp):.2f} s;  position error {1e3 * np.mean(errs):.1f} mm (mean of {realizations})")
@@ -126,8 +124,7 @@ def fidelity_table(realizations: int, seed: int, quick: bool) -> None:
                 model.append(np.linalg.norm(clean - ref_cubes[i]) / np.linalg.norm(ref_cubes[i]))
                 for ss in np.random.SeedSequence([seed, depth, n, i]).spawn(realizations):
                     cap = simulate(b, rng=np.random.default_rng(ss), paths=hp.paths)
-                    loc = localize(scan_beams(cap.cube, cap.sweep, cap.radar, cap.processing), radar=cap.radar,
-                                   pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay)
+                    loc, _ = process_capture(cap)
                     dist.append(abs(loc.distance - b.truth.distance))
                     pos.append(np.linalg.norm(loc.position - b.truth.ue_position))
                     hits += bool(np.allclose(loc.aod, b.truth.aod, atol=1e-9))

@@ -18,11 +18,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from dsp import scan_beams
-from risloc_rt.report import estimation_errors
+from risloc_rt.report import estimation_errors, process_capture
 from risloc_rt.scenario import PAPER_CASES, paper_scenario
 from risloc_rt.simulate import simulate
-from dsp import localize
 
 
 def run(realizations: int, full: int, seed: int, mode: str) -> None:
@@ -45,14 +43,10 @@ def run(realizations: int, full: int, seed: int, mode: str) -> None:
             scans = {}
             for method in (("zoom", "full") if i < full else ("zoom",)):
                 proc = replace(scenario.processing, doppler_search=method)
-                t0 = time.perf_counter()
-                scan = scan_beams(capture.cube, capture.sweep, capture.radar, proc)
-                loc = localize(scan, radar=capture.radar, pose=capture.ris.pose,
-                               loopback_delay=capture.ris.loopback_delay)
-                elapsed = time.perf_counter() - t0
+                loc, elapsed = process_capture(capture, processing=proc)
                 err = estimation_errors(loc, capture.truth, capture)
                 rows[method].append((elapsed, abs(err["distance"]), abs(err["angle"]), err["position"]))
-                scans[method] = scan
+                scans[method] = loc.scan
             if "full" in scans:
                 same.append(bool(np.array_equal(scans["zoom"].delay_bin, scans["full"].delay_bin)
                                  and np.array_equal(scans["zoom"].doppler_bin, scans["full"].doppler_bin)))
