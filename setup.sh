@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One-step set-up of risloc-rt on a fresh Debian machine (Python >= 3.10, run as root or with sudo):
+# One-step set-up of risloc-rt on a fresh Debian machine (Python >= 3.11, run as root or with sudo):
 # Debian's python3-venv and libllvm19 when missing, then a virtual environment with pinned packages.
 #
 #   ./setup.sh           create .venv and install risloc-rt (then: .venv/bin/risloc demo)

@@ -115,9 +115,9 @@ def scan_beams(
     spectrum, gain = windowed_range_spectrum(arr, radar, processing)  # [M, K, N_DFT]
     delays = radar.delay_grid(processing.n_dft)
     rates = radar.delay_rate_grid(processing.k_dft)
-    searchable = delays >= 2.0 * processing.min_range / SPEED_OF_LIGHT
-    first = int(np.argmax(searchable))  # delays ascend: the searchable bins are [first, N_DFT)
-    if not searchable.any():
+    # Delays ascend, so the searchable bins (τ·c/2 >= min_range) are [first, N_DFT).
+    first = int(np.searchsorted(delays, 2.0 * processing.min_range / SPEED_OF_LIGHT))
+    if first >= processing.n_dft:
         raise ValueError(
             f"min_range={processing.min_range} m excludes every delay bin (the unambiguous range "
             f"is {radar.max_range:.3f} m); lower min_range"
@@ -134,7 +134,7 @@ def scan_beams(
         for i in range(0, m, step):
             z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=-1)
             power = np.abs(z) ** 2 / gain**2  # [c, K_DFT, N_DFT]
-            power[:, :, ~searchable] = -1.0
+            power[:, :, :first] = -1.0
             flat = power.reshape(power.shape[0], -1).argmax(axis=1)
             q, p = np.unravel_index(flat, power.shape[1:])
             idx = np.arange(power.shape[0])

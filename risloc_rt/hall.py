@@ -21,7 +21,7 @@ from .paths import PathSet
 from .plate import Plate
 from .pruning import ModelSettings, PruneReport, prune_paths
 from .raytrace.tracer import TraceResult, TraceSettings
-from .ris import RisConfig, RisMode
+from .ris import RisMode
 from .scenario import Scenario
 
 __all__ = ["HallScenario", "HallPaths", "hall_paths", "hall_scenario", "scene_directory", "SCENES_DIR", "DEFAULT_SCENE"]

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from dsp import SPEED_OF_LIGHT, RadarConfig
+from dsp import RadarConfig
 from dsp._validate import as_finite_array
 
 from .phase import exact_fractional_cycles
@@ -72,7 +72,3 @@ def ris_loopback_gain(radar: RadarConfig, distance: Any, amplification: float) -
     g = one_way_free_space_gain(distance, radar.wavelength)
     return np.sqrt(radar.tx_power * radar.antenna_gain * g * amplification * g)
 
-
-def round_trip_delay(distance: Any) -> np.ndarray:
-    """τ = 2 d / c [s] for a one-way distance d [m]."""
-    return 2.0 * np.asarray(distance, dtype=float) / SPEED_OF_LIGHT

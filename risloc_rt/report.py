@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from dsp import Localization, ProcessingConfig, direction_from_angles, localize, scan_beams
+from dsp import Localization, ProcessingConfig, direction_from_angles, self_localize
 
 from .capture import Capture
 from .scenario import Truth
@@ -56,10 +56,10 @@ class CaseResult:
 
 def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None) -> tuple[Localization, float]:
     """Run the shared DSP on a capture; returns the localization and the DSP time [s]."""
-    proc = processing or capture.processing
     start = time.perf_counter()
-    scan = scan_beams(capture.cube, capture.sweep, capture.radar, proc)
-    loc = localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
+    loc = self_localize(capture.cube, sweep=capture.sweep, radar=capture.radar,
+                        processing=processing or capture.processing, pose=capture.ris.pose,
+                        loopback_delay=capture.ris.loopback_delay)
     return loc, time.perf_counter() - start
 
 

@@ -14,11 +14,11 @@ import functools
 
 import numpy as np
 import pytest
-from conftest import C, PAPER_RCS, delay_step, make_processing, make_radar, make_scenario, paper_sweep
+from conftest import C, PAPER_RCS, delay_step, make_processing, make_radar, make_scenario
 
 from dsp import (BeamScan, BeamSweep, RisPose, delay_doppler_map, direction_from_angles, localize,
-                 scan_beams, self_localize)
-from risloc_rt.scenario import PointTarget, Scenario, analytic_paths, paper_scenario
+                 self_localize)
+from risloc_rt.scenario import Scenario, analytic_paths
 from risloc_rt.simulate import simulate
 
 # Rounding in x_RIS + d·d(θ) for |x| ~ 15 m is ~1e-14 m; the issue asks for 1e-9 m.

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from box_hall import PLANES, SIZE, make_box_hall, planes, reflect, write_wall
+from box_hall import PLANES, SIZE, make_box_hall, reflect, write_wall
 
 from dsp import SPEED_OF_LIGHT as C
 from risloc_rt import raytrace as rr
