@@ -26,20 +26,20 @@ import warnings
 
 import numpy as np
 
-from risloc_rt.hall import hall_paths, hall_scenario
-from risloc_rt.pruning import AliasWarning
-from risloc_rt.report import process_capture
-from risloc_rt.raytrace.backend import backend_info
-from risloc_rt.raytrace.tracer import TraceSettings, trace_scene
-from risloc_rt.simulate import simulate
+from risloc_rt.hall.scenario import hall_paths, hall_scenario
+from risloc_rt.hall.pruning import AliasWarning
+from risloc_rt.io.report import process_capture
+from risloc_rt.hall.raytrace.backend import backend_info
+from risloc_rt.hall.raytrace.tracer import TraceSettings, trace_scene
+from risloc_rt.model.simulate import simulate
 
 warnings.simplefilter("ignore", AliasWarning)
 
 _COLD = """
 import time, numpy as np
 t0 = time.perf_counter()
-from risloc_rt.hall import hall_scenario
-from risloc_rt.raytrace.tracer import trace_scene
+from risloc_rt.hall.scenario import hall_scenario
+from risloc_rt.hall.raytrace.tracer import trace_scene
 hs = hall_scenario("paper_hall")
 b = hs.base
 r = trace_scene(hs.scene_xml, radar_position=b.ue_position, ris_positions=b.ris.pose.position[None],
@@ -70,7 +70,7 @@ def stage_times(realizations: int, seed: int) -> None:
     trace_scene(hs.scene_xml, radar_position=b.ue_position + [0.3, 0.0, 0.0], ris_positions=b.ris.pose.position[None],
                 frequency=b.radar.carrier_frequency, settings=hs.trace)
     print(f"  trace, same process, radar moved (warm):                              {time.perf_counter() - t0:.2f} s")
-    from risloc_rt.raytrace.cache import TraceCache
+    from risloc_rt.hall.raytrace.cache import TraceCache
 
     with tempfile.TemporaryDirectory() as cd:
         cache = TraceCache(cd)

@@ -18,9 +18,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from risloc_rt.report import estimation_errors, process_capture
-from risloc_rt.scenario import PAPER_CASES, paper_scenario
-from risloc_rt.simulate import simulate
+from risloc_rt.io.report import estimation_errors, process_capture
+from risloc_rt.model.scenario import PAPER_CASES, paper_scenario
+from risloc_rt.model.simulate import simulate
 
 
 def run(realizations: int, full: int, seed: int, mode: str) -> None:

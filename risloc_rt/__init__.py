@@ -1,3 +1,47 @@
-"""risloc-rt: RIS-enabled self-localization of an FMCW radar, simulated and measured."""
+"""risloc-rt: RIS-enabled self-localization of an FMCW radar, simulated and measured.
 
-__version__ = "0.1.0"
+The entry points a script needs, loaded on first use (``import risloc_rt`` imports nothing heavy)::
+
+    scenario = risloc_rt.paper_scenario("off-broadside")          # or risloc_rt.hall_scenario("paper_hall")
+    capture = risloc_rt.simulate(scenario, rng=np.random.default_rng(0))
+    loc, seconds = risloc_rt.process_capture(capture)             # dsp.Localization
+    risloc_rt.save_capture(capture, "run.npz"); risloc_rt.load_capture("run.npz")
+
+The subpackages, from the ground up (``docs/architecture.md``): ``dsp`` (separate package),
+:mod:`risloc_rt.model`, :mod:`risloc_rt.authoring`, :mod:`risloc_rt.hall`, :mod:`risloc_rt.io`,
+:mod:`risloc_rt.cli`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from ._version import __version__
+
+_EXPORTS = {
+    "paper_scenario": "model",
+    "simulate": "model",
+    "Capture": "model",
+    "Scenario": "model",
+    "hall_scenario": "hall",
+    "hall_paths": "hall",
+    "load_capture": "io",
+    "save_capture": "io",
+    "process_capture": "io",
+}
+
+__all__ = ["__version__", *sorted(_EXPORTS)]
+
+
+def __getattr__(name: str) -> Any:
+    package = _EXPORTS.get(name)
+    if package is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{package}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -3,7 +3,7 @@
 Every factory takes keyword overrides, so a test states only what it changes. The defaults are a
 *small* radar (N = 128 samples, K = 16 chirps, N_DFT = 2N - 1, K_DFT = 4K) with Table I's RF
 parameters (f_c, B, T, T_s), so the unambiguous range, slope and Doppler scale are the paper's;
-tests that need Table I itself use :func:`risloc_rt.scenario.paper_scenario` (see ``paper_run``).
+tests that need Table I itself use :func:`risloc_rt.model.scenario.paper_scenario` (see ``paper_run``).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, RisPose
-from risloc_rt.paths import PathSet
-from risloc_rt.ris import RisConfig
-from risloc_rt.scenario import PointTarget, Scenario, paper_scenario
-from risloc_rt.simulate import simulate
+from risloc_rt.model.paths import PathSet
+from risloc_rt.model.ris import RisConfig
+from risloc_rt.model.scenario import PointTarget, Scenario, paper_scenario
+from risloc_rt.model.simulate import simulate
 
 C = SPEED_OF_LIGHT
 #: UE-RIS distance of the paper [m].

@@ -20,6 +20,7 @@ import numpy as np
 from ._parse import SpecError
 from .materials import MaterialSpec
 from .shapes import SceneMesh, scene_meshes
+from .scene_folder import scene_content_hash
 from .spec import HallSpec, load_spec
 
 __all__ = ["BuiltScene", "build_scene", "content_hash", "ply_bytes", "scene_xml", "main"]
@@ -121,12 +122,10 @@ def scene_xml(spec: HallSpec, meshes: list[SceneMesh]) -> str:
 def content_hash(xml_path: str | Path) -> str:
     """sha256 (hex) of a scene: its XML and every file it references (the trace cache's key).
 
-    The one definition is :func:`risloc_rt.raytrace.scene.scene_content_hash` (which imports no
-    ray tracer): files in the folder that the XML does not reference (the spec copy, stale meshes)
+    The one definition is :func:`risloc_rt.authoring.scene_folder.scene_content_hash`: files in
+    the folder that the XML does not reference (the spec copy, stale meshes)
     do not count, and neither do the RIS and radar of the spec, which are not part of the scene.
     """
-    from ..raytrace.scene import scene_content_hash
-
     return scene_content_hash(xml_path)
 
 

@@ -15,7 +15,7 @@ from ._parse import SpecError, Table, check_vector
 from .materials import MaterialSpec, check_name, parse_material
 
 if TYPE_CHECKING:
-    from ..ris import RisConfig
+    from ..model.ris import RisConfig
 
 __all__ = ["RisPanel", "RisSpec", "RadarSpec", "inside_hall", "parse_ris", "parse_radar"]
 
@@ -87,7 +87,7 @@ class RisSpec:
     def to_config(self) -> "RisConfig":
         """The simulator's :class:`risloc_rt.ris.RisConfig`, relay Rx beam toward ``relay_rx_toward``
         (broadside when ``None``; :func:`risloc_rt.hall.hall_scenario` then points it at the radar)."""
-        from ..ris import RisConfig
+        from ..model.ris import RisConfig
 
         cfg = RisConfig(pose=self.pose, num_rows=self.rows, num_columns=self.columns, element_spacing=self.spacing,
                         amplification_db=self.amplification_db, loopback_delay=self.loopback_delay, mode=self.mode)

@@ -99,8 +99,8 @@ from .objects import HallContext, HallObject, ImportedMesh, WallPanel, parse_mes
 from .radios import RadarSpec, RisPanel, RisSpec, parse_radar, parse_ris
 
 if TYPE_CHECKING:
-    from ..plate import Plate
-    from ..ris import RisConfig
+    from ..model.plate import Plate
+    from ..model.ris import RisConfig
 
 __all__ = ["HallSpec", "HallMaterials", "RisPanel", "RisSpec", "RadarSpec", "SpecError", "load_spec", "loads_spec"]
 
@@ -198,7 +198,7 @@ class HallSpec:
         Metal is a perfect conductor (Γ = -1); other materials get the normal-incidence Fresnel
         coefficient of a half-space, Γ = (1 - √ε_c)/(1 + √ε_c), ε_c = ε_r - jσ/(2π f ε_0).
         """
-        from ..plate import Plate
+        from ..model.plate import Plate
 
         out = []
         for r in self.ris:

@@ -1,0 +1,102 @@
+"""What the ``risloc`` verbs share: argument types, flags, the error type and the traced-hall helpers.
+
+Degrees in flags, SI units and radians inside.
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dsp import ProcessingConfig
+
+__all__ = ["CliError", "vector", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
+           "plot_traced_profile", "add_trace_flags", "add_processing_flags"]
+
+
+class CliError(Exception):
+    """A user error: printed as one line, exit status 2."""
+
+
+def vector(text: str, name: str) -> np.ndarray:
+    """Three comma-separated finite numbers ``X,Y,Z`` (flag ``name`` in the message)."""
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise CliError(f"{name} {text!r} must be three comma-separated numbers, e.g. 1.0,2.5,1.2") from None
+    if len(values) != 3 or not np.all(np.isfinite(values)):
+        raise CliError(f"{name} {text!r} must be three finite comma-separated numbers, e.g. 1.0,2.5,1.2")
+    return np.array(values)
+
+
+def processing_overrides(args: argparse.Namespace, base: ProcessingConfig) -> ProcessingConfig:
+    """``base`` with ``--doppler-search`` and ``--min-range`` applied."""
+    changes: dict[str, Any] = {}
+    if getattr(args, "doppler_search", None):
+        changes["doppler_search"] = args.doppler_search
+    if getattr(args, "min_range", None) is not None:
+        changes["min_range"] = args.min_range
+    return replace(base, **changes) if changes else base
+
+
+def trace_cache(args: argparse.Namespace):
+    """The user's trace cache, or ``None`` with ``--no-cache``."""
+    if args.no_cache:
+        return None
+    from ..hall.raytrace.cache import TraceCache, default_cache_dir
+
+    return TraceCache(default_cache_dir())
+
+
+def trace_settings(args: argparse.Namespace):
+    """:class:`TraceSettings` with ``--depth`` and ``--samples`` applied."""
+    from ..hall.raytrace.tracer import TraceSettings
+
+    changes = {}
+    if args.depth is not None:
+        changes["max_depth"] = args.depth
+    if args.samples is not None:
+        changes["samples_per_src"] = args.samples
+    return TraceSettings(**changes)
+
+
+def quiet_hall_paths(hs, cache):
+    """hall_paths with its AliasWarnings collected in the report only (the CLI prints them once)."""
+    from ..hall.pruning import AliasWarning
+    from ..hall.scenario import hall_paths
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AliasWarning)
+        return hall_paths(hs, cache=cache)
+
+
+def plot_traced_profile(hs, traced, path: Path) -> None:
+    """The labelled range profile of ``traced`` at the beam nearest the true AoD, as a PNG."""
+    from ..hall.path_table import labelled_range_profile
+    from ..io import plots as plotting
+
+    beam = hs.base.sweep.angles[int(np.argmin(np.linalg.norm(hs.base.sweep.angles - hs.base.truth.aod, axis=1)))]
+    profile = labelled_range_profile(traced.paths, radar=hs.base.radar, processing=hs.base.processing,
+                                     ris=hs.base.ris, beam=beam)
+    plotting.plot_labelled_profile(profile, path, title=f"{hs.name}: range profile from the traced paths, "
+                                                         f"beam {np.rad2deg(beam[0]):+.1f}° (noiseless)")
+
+
+def add_trace_flags(p: argparse.ArgumentParser) -> None:
+    """``--depth``, ``--samples``, ``--no-cache``."""
+    p.add_argument("--depth", type=int, help="ray-tracing depth (default 3)")
+    p.add_argument("--samples", type=int, help="rays per source (default 100000)")
+    p.add_argument("--no-cache", action="store_true", help="always re-trace (default: reuse cached traces)")
+
+
+def add_processing_flags(p: argparse.ArgumentParser) -> None:
+    """``--doppler-search``, ``--min-range``."""
+    p.add_argument("--doppler-search", choices=["zoom", "full"],
+                   help="peak search over Doppler: 'zoom' (default, exact on the grid, fast) or 'full' (the paper's full 2-D DFT)")
+    p.add_argument("--min-range", type=float, metavar="M",
+                   help="ignore peaks closer than M metres (e.g. Tx-Rx leakage in measured data)")

@@ -1,0 +1,80 @@
+"""``risloc simulate``: write a capture file of the analytic scenario or of a ray-traced hall."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+
+import numpy as np
+
+from ..io.capture_file import save_capture
+from ..model.scenario import PAPER_CASES, Scenario, paper_scenario
+from ..model.simulate import simulate
+from .common import (add_processing_flags, add_trace_flags, processing_overrides, quiet_hall_paths, trace_cache,
+                     trace_settings, vector)
+
+__all__ = ["add_parser"]
+
+
+def _scenario_from_args(args: argparse.Namespace) -> Scenario:
+    scenario = paper_scenario(args.case, mode=args.mode or "relay")
+    radar = scenario.radar
+    if args.tx_power_dbm is not None:
+        radar = replace(radar, tx_power_dbm=args.tx_power_dbm)
+    ue = scenario.ue_position if args.ue is None else vector(args.ue, "--ue")
+    velocity = scenario.ue_velocity if args.ue_velocity is None else vector(args.ue_velocity, "--ue-velocity")
+    return replace(scenario, radar=radar, ris=scenario.ris.with_rx_toward(ue), ue_position=ue,
+                   ue_velocity=velocity, processing=processing_overrides(args, scenario.processing))
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.scene is None:
+        scenario = _scenario_from_args(args)
+        paths, extra = None, None
+    else:
+        from ..hall.scenario import hall_scenario
+
+        ue = None if args.ue is None else vector(args.ue, "--ue")
+        velocity = None if args.ue_velocity is None else vector(args.ue_velocity, "--ue-velocity")
+        hs = hall_scenario(args.scene, radar_index=args.radar_index, mode=args.mode, trace=trace_settings(args),
+                           ue_position=ue, ue_velocity=velocity)
+        if args.tx_power_dbm is not None:
+            hs = replace(hs, base=replace(hs.base, radar=replace(hs.base.radar, tx_power_dbm=args.tx_power_dbm)))
+        scenario = replace(hs.base, processing=processing_overrides(args, hs.base.processing))
+        traced = quiet_hall_paths(hs, trace_cache(args))
+        paths = traced.paths
+        extra = {"scene": str(hs.scene_xml), "scene_hash": traced.trace.scene_hash,
+                 "trace_settings": hs.trace.to_dict(), "model": hs.model.to_dict(),
+                 "pruning": traced.report.summary()}
+        print(f"traced {hs.scene_xml}: {traced.report.summary()}")
+        for w in traced.report.warnings:
+            print(f"warning: {w}")
+    capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
+                       paths=paths, provenance_extra=extra)
+    if args.complex64:
+        capture = replace(capture, cube=capture.cube.astype(np.complex64))
+    path = save_capture(capture, args.output)
+    t = capture.truth
+    print(f"wrote {path}: {capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x "
+          f"{capture.cube.shape[2]} samples ({capture.cube.dtype}); truth: distance {t.distance:.4f} m, "
+          f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
+    return 0
+
+
+def add_parser(sub) -> None:
+    """Add ``simulate`` to an ``add_subparsers()`` object."""
+    sim = sub.add_parser("simulate", help="simulate a capture file: the paper scenario, or a ray-traced hall with --scene")
+    sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
+    sim.add_argument("--scene", help="ray trace this hall (name in scenes/ or folder) instead of the analytic paper scenario")
+    sim.add_argument("--radar-index", type=int, default=0, help="with --scene: which radar position of the spec (default: %(default)s)")
+    sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="analytic paper case (default: %(default)s)")
+    sim.add_argument("--mode", choices=["relay", "reflective"], help="RIS mode (default: relay, or the scene's)")
+    sim.add_argument("--ue", metavar="X,Y,Z", help="UE position [m] (default: the origin, or the scene's radar position)")
+    sim.add_argument("--ue-velocity", metavar="VX,VY,VZ", help="UE velocity [m/s] (default: 0)")
+    sim.add_argument("--tx-power-dbm", type=float, help="transmit power [dBm] (default: Table I, 20)")
+    sim.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
+    sim.add_argument("--no-noise", action="store_true", help="write the noiseless cube")
+    sim.add_argument("--complex64", action="store_true", help="store the cube as complex64 (half the size)")
+    add_trace_flags(sim)
+    add_processing_flags(sim)
+    sim.set_defaults(func=_run)

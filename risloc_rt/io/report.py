@@ -1,0 +1,184 @@
+"""Run the DSP on captures and report estimates, errors and timings (``result.json``, console)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dsp import SPEED_OF_LIGHT, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles, self_localize
+
+from ..model.capture import Capture
+from ..model.scenario import Truth
+
+__all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
+           "RESULT_FORMAT"]
+
+RESULT_FORMAT = "risloc-result"
+RESULT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """One processed capture: the estimate, the truth (if known) and the time per stage.
+
+    Attributes
+    ----------
+    name : str
+    capture : Capture
+    localization : Localization
+    timing : dict of str -> float
+        Seconds per stage (``"synthesis"``, ``"dsp"``, …).
+    plots : dict of str -> str
+        Plot files written for this case, relative to the output directory.
+    """
+
+    name: str
+    capture: Capture
+    localization: Localization
+    timing: dict[str, float] = field(default_factory=dict)
+    plots: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def truth(self) -> Truth | None:
+        """The capture's ground truth, if any."""
+        return self.capture.truth
+
+    @property
+    def errors(self) -> dict[str, Any] | None:
+        """:func:`estimation_errors` against the truth, or ``None`` without one."""
+        return None if self.truth is None else estimation_errors(self.localization, self.truth, self.capture)
+
+
+def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None) -> tuple[Localization, float]:
+    """Run the shared DSP on a capture; returns the localization and the DSP time [s]."""
+    start = time.perf_counter()
+    loc = self_localize(capture.cube, sweep=capture.sweep, radar=capture.radar,
+                        processing=processing or capture.processing, pose=capture.ris.pose,
+                        loopback_delay=capture.ris.loopback_delay)
+    return loc, time.perf_counter() - start
+
+
+def report_capture(name: str, capture: Capture, *, out_dir: Path | None, processing: ProcessingConfig,
+                   timing: dict[str, float]) -> CaseResult:
+    """Localize ``capture`` and, with ``out_dir``, draw its figures under ``out_dir/name/``.
+
+    The figures are the delay-Doppler map of the chosen beam with its three largest peaks, P_ave
+    over the sweep, and the range profile at the estimated Doppler. ``timing`` (seconds per
+    stage) gains ``"dsp"`` and, with figures, ``"plots"``.
+    """
+    loc, dsp_time = process_capture(capture, processing=processing)
+    timing = {**timing, "dsp": dsp_time}
+    plots: dict[str, str] = {}
+    if out_dir is not None:
+        from . import plots as plotting
+
+        start = time.perf_counter()
+        frame = capture.cube[loc.beam_index]
+        ddm = delay_doppler_map(frame, capture.radar, processing)
+        peaks = ddm.peaks(3, min_delay=2 * processing.min_range / SPEED_OF_LIGHT)
+        az = np.rad2deg(loc.aod[0])
+        files = {
+            "delay_doppler": plotting.plot_delay_doppler(
+                ddm, peaks, out_dir / name / "delay_doppler.png",
+                title=f"{name}: delay-Doppler map, beam {loc.beam_index} (φ = {az:+.1f}°), 3 largest peaks"),
+            "sweep": plotting.plot_sweep(loc, out_dir / name / "aod_sweep.png", truth=capture.truth,
+                                         title=f"{name}: P_ave over the RIS sweep"),
+            "range_profile": plotting.plot_range_profile(
+                ddm, loc, out_dir / name / "range_profile.png", loopback_delay=capture.ris.loopback_delay,
+                truth=capture.truth, title=f"{name}: range profile at ν ≈ ν̂, beam {loc.beam_index}"),
+        }
+        plots = {k: str(v.relative_to(out_dir)) for k, v in files.items()}
+        timing["plots"] = time.perf_counter() - start
+    return CaseResult(name=name, capture=capture, localization=loc, timing=timing, plots=plots)
+
+
+def estimation_errors(loc: Localization, truth: Truth, capture: Capture) -> dict[str, Any]:
+    """Estimate minus truth: distance [m], velocity [m/s], AoD [rad] per axis, angle between the
+    estimated and true directions [rad], and the position error norm [m]."""
+    true_dir = capture.ris.pose.to_world(direction_from_angles(truth.aod))
+    cosang = float(np.clip(loc.direction @ true_dir, -1.0, 1.0))
+    return {
+        "distance": loc.distance - truth.distance,
+        "velocity": loc.velocity - truth.velocity,
+        "aod": (loc.aod - truth.aod).tolist(),
+        "angle": float(np.arccos(cosang)),
+        "position": float(np.linalg.norm(loc.position - truth.ue_position)),
+    }
+
+
+def _estimate_dict(loc: Localization) -> dict[str, Any]:
+    return {
+        "beam_index": loc.beam_index,
+        "aod": loc.aod.tolist(),
+        "delay": loc.delay,
+        "distance": loc.distance,
+        "delay_rate": loc.delay_rate,
+        "velocity": loc.velocity,
+        "position": loc.position.tolist(),
+    }
+
+
+def case_dict(case: CaseResult) -> dict[str, Any]:
+    """The JSON object of one case (see ``docs/formats.md``)."""
+    scan = case.localization.scan
+    return {
+        "name": case.name,
+        "source": case.capture.provenance.get("source"),
+        "provenance": case.capture.provenance,
+        "estimate": _estimate_dict(case.localization),
+        "truth": None if case.truth is None else case.truth.to_dict(),
+        "error": case.errors,
+        "sweep": {
+            "angles": scan.angles.tolist(),
+            "average_power": scan.average_power.tolist(),
+            "peak_delay": scan.delay.tolist(),
+            "peak_delay_rate": scan.delay_rate.tolist(),
+        },
+        "timing": case.timing,
+        "plots": case.plots,
+    }
+
+
+def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Path:
+    """Write ``out_dir/result.json`` for ``cases``; returns its path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {
+        "format": RESULT_FORMAT,
+        "version": RESULT_VERSION,
+        "units": "SI: m, s, m/s, rad; delay_rate s/s; average_power W",
+        "cases": [case_dict(c) for c in cases],
+    }
+    path = out / "result.json"
+    tmp = path.with_name("result.json.partial")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def format_case(case: CaseResult) -> str:
+    """Human-readable table of truth, estimate and error for one case (degrees for angles)."""
+    loc, truth, err = case.localization, case.truth, case.errors
+    fmt3 = lambda v: "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"  # noqa: E731
+    deg = lambda v: "[" + ", ".join(f"{x:+.2f}" for x in np.rad2deg(v)) + "]°"  # noqa: E731
+    rows = [("quantity", "truth", "estimate", "error")]
+    rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-", f"{loc.distance:.4f}",
+                 f"{err['distance']:+.4f}" if err else "-"))
+    rows.append(("velocity [m/s]", f"{truth.velocity:+.3f}" if truth else "-", f"{loc.velocity:+.3f}",
+                 f"{err['velocity']:+.3f}" if err else "-"))
+    rows.append(("AoD [az, el]", deg(truth.aod) if truth else "-", deg(loc.aod),
+                 f"{np.rad2deg(err['angle']):.2f}°" if err else "-"))
+    rows.append(("position [m]", fmt3(truth.ue_position) if truth else "-", fmt3(loc.position),
+                 f"{err['position']:.4f} m" if err else "-"))
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    lines = [f"== {case.name} (beam {loc.beam_index} of {loc.scan.num_beams})"]
+    lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    if case.timing:
+        lines.append("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in case.timing.items()))
+    return "\n".join(lines)
