@@ -21,6 +21,7 @@ from ._version import __version__
 
 _EXPORTS = {
     "paper_scenario": "model",
+    "analytic_scenario": "model",
     "simulate": "model",
     "Capture": "model",
     "Scenario": "model",

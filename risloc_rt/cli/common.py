@@ -15,7 +15,7 @@ import numpy as np
 
 from dsp import ProcessingConfig
 
-__all__ = ["CliError", "vector", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
+__all__ = ["CliError", "vector", "angle_pair", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
            "plot_traced_profile", "add_trace_flags", "add_processing_flags"]
 
 
@@ -32,6 +32,17 @@ def vector(text: str, name: str) -> np.ndarray:
     if len(values) != 3 or not np.all(np.isfinite(values)):
         raise CliError(f"{name} {text!r} must be three finite comma-separated numbers, e.g. 1.0,2.5,1.2")
     return np.array(values)
+
+
+def angle_pair(text: str, name: str) -> np.ndarray:
+    """Two comma-separated finite angles ``AZ,EL`` in degrees -> radians [2]."""
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise CliError(f"{name} {text!r} must be two comma-separated angles in degrees, e.g. 7.3,0") from None
+    if len(values) != 2 or not np.all(np.isfinite(values)):
+        raise CliError(f"{name} {text!r} must be two finite comma-separated angles in degrees, e.g. 7.3,0")
+    return np.deg2rad(values)
 
 
 def processing_overrides(args: argparse.Namespace, base: ProcessingConfig) -> ProcessingConfig:

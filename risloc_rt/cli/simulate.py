@@ -8,15 +8,18 @@ from dataclasses import replace
 import numpy as np
 
 from ..io.capture_file import save_capture
+from ..model.builder import analytic_scenario
 from ..model.scenario import PAPER_CASES, Scenario, paper_scenario
 from ..model.simulate import simulate
-from .common import (add_processing_flags, add_trace_flags, processing_overrides, quiet_hall_paths, trace_cache,
-                     trace_settings, vector)
+from .common import (CliError, add_processing_flags, add_trace_flags, angle_pair, processing_overrides,
+                     quiet_hall_paths, trace_cache, trace_settings, vector)
 
 __all__ = ["add_parser"]
 
 
 def _scenario_from_args(args: argparse.Namespace) -> Scenario:
+    if args.distance is not None or args.aod is not None:
+        return _placed_scenario(args)
     scenario = paper_scenario(args.case, mode=args.mode or "relay")
     radar = scenario.radar
     if args.tx_power_dbm is not None:
@@ -27,10 +30,27 @@ def _scenario_from_args(args: argparse.Namespace) -> Scenario:
                    ue_velocity=velocity, processing=processing_overrides(args, scenario.processing))
 
 
+def _placed_scenario(args: argparse.Namespace) -> Scenario:
+    """--distance and --aod: the UE placed in the RIS frame of the --case's RIS."""
+    if args.ue is not None:
+        raise CliError("--ue and --distance/--aod both place the UE; give one of them")
+    if args.distance is None or args.aod is None:
+        raise CliError("--distance and --aod go together, e.g. --distance 10 --aod 7.3,0")
+    aod = angle_pair(args.aod, "--aod")
+    velocity = (0.0, 0.0, 0.0) if args.ue_velocity is None else vector(args.ue_velocity, "--ue-velocity")
+    paper = paper_scenario(args.case)
+    return analytic_scenario(distance=args.distance, aod=aod, ue_velocity=velocity, mode=args.mode or "relay",
+                             tx_power_dbm=args.tx_power_dbm, ris_pose=paper.ris.pose,
+                             processing=processing_overrides(args, paper.processing),
+                             name=f"analytic-{args.distance:g}m-{args.aod}")
+
+
 def _run(args: argparse.Namespace) -> int:
     if args.scene is None:
         scenario = _scenario_from_args(args)
         paths, extra = None, None
+    elif args.distance is not None or args.aod is not None:
+        raise CliError("--distance/--aod place the UE of the analytic scenario; with --scene use --ue X,Y,Z")
     else:
         from ..hall.scenario import hall_scenario
 
@@ -70,6 +90,9 @@ def add_parser(sub) -> None:
     sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="analytic paper case (default: %(default)s)")
     sim.add_argument("--mode", choices=["relay", "reflective"], help="RIS mode (default: relay, or the scene's)")
     sim.add_argument("--ue", metavar="X,Y,Z", help="UE position [m] (default: the origin, or the scene's radar position)")
+    sim.add_argument("--distance", type=float, metavar="M",
+                     help="UE-RIS distance [m]; with --aod places the UE in the RIS frame of --case's RIS")
+    sim.add_argument("--aod", metavar="AZ,EL", help="AoD of the UE seen from the RIS [deg], with --distance")
     sim.add_argument("--ue-velocity", metavar="VX,VY,VZ", help="UE velocity [m/s] (default: 0)")
     sim.add_argument("--tx-power-dbm", type=float, help="transmit power [dBm] (default: Table I, 20)")
     sim.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")

@@ -4,6 +4,7 @@ Floor 1 of ``docs/architecture.md``: imports ``dsp`` and nothing else of risloc-
 """
 
 from .beat import add_noise, beat_cube
+from .builder import RisMisconfiguredWarning, analytic_scenario
 from .capture import Capture, provenance
 from .link_budget import carrier_phase, one_way_free_space_gain, point_target_gain, ris_loopback_gain
 from .paths import PathSet
@@ -13,8 +14,8 @@ from .scenario import PAPER_CASES, PointTarget, Scenario, Truth, analytic_paths,
 from .simulate import simulate
 
 __all__ = [
-    "Capture", "PAPER_CASES", "PathSet", "Plate", "PointTarget", "RisConfig", "RisMode", "Scenario", "Truth",
-    "add_noise", "analytic_paths", "beat_cube", "carrier_phase", "one_way_free_space_gain", "paper_scenario",
+    "Capture", "PAPER_CASES", "PathSet", "Plate", "PointTarget", "RisConfig", "RisMisconfiguredWarning", "RisMode",
+    "Scenario", "Truth", "add_noise", "analytic_paths", "analytic_scenario", "beat_cube", "carrier_phase", "one_way_free_space_gain", "paper_scenario",
     "plate_rcs", "plate_scattering", "point_target_gain", "provenance", "ris_loopback_gain", "ris_response",
     "simulate",
 ]
