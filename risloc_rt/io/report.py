@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +18,7 @@ from ..model.capture import Capture
 from ..model.scenario import Truth
 
 __all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
-           "RESULT_FORMAT"]
+           "RESULT_FORMAT", "json_safe"]
 
 RESULT_FORMAT = "risloc-result"
 RESULT_VERSION = 1
@@ -145,20 +146,61 @@ def case_dict(case: CaseResult) -> dict[str, Any]:
     }
 
 
+def json_safe(value: Any, *, where: str = "$", nonfinite: list[str] | None = None) -> Any:
+    """``value`` as plain JSON: NaN and ±inf become ``null``, numpy scalars and arrays plain Python.
+
+    Parameters
+    ----------
+    value : any JSON-like value (dicts, lists, numbers, strings, numpy values)
+    where : str
+        Path of ``value`` in the document (``$.cases[0].estimate``), for the report.
+    nonfinite : list of str, optional
+        Collects the path of every value that was NaN or infinite.
+    """
+    if isinstance(value, dict):
+        return {k: json_safe(v, where=f"{where}.{k}", nonfinite=nonfinite) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_safe(v, where=f"{where}[{i}]", nonfinite=nonfinite) for i, v in enumerate(value)]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        if np.isfinite(value):
+            return float(value)
+        if nonfinite is not None:
+            nonfinite.append(where)
+        return None
+    return value
+
+
 def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Path:
-    """Write ``out_dir/result.json`` for ``cases``; returns its path."""
+    """Write ``out_dir/result.json`` for ``cases``; returns its path.
+
+    The file is strict JSON: a value that is not finite (an estimate of a capture where nothing
+    was detected, say) is written as ``null`` and its path listed under ``"nonfinite"``. It is
+    written to a unique temporary file in ``out_dir`` and renamed, so concurrent writers leave one
+    complete file and an interrupted write leaves none.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    doc = {
+    nonfinite: list[str] = []
+    doc = json_safe({
         "format": RESULT_FORMAT,
         "version": RESULT_VERSION,
         "units": "SI: m, s, m/s, rad; delay_rate s/s; average_power W",
         "cases": [case_dict(c) for c in cases],
-    }
+    }, nonfinite=nonfinite)
+    doc["nonfinite"] = nonfinite
     path = out / "result.json"
-    tmp = path.with_name("result.json.partial")
-    tmp.write_text(json.dumps(doc, indent=2) + "\n")
-    os.replace(tmp, path)
+    fd, tmp = tempfile.mkstemp(prefix=".result.json.", suffix=".partial", dir=out)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
     return path
 
 
