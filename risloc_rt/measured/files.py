@@ -1,0 +1,156 @@
+"""Split capture files: ``<prefix>_Raw_0.bin``, ``<prefix>_Raw_1.bin``, … found, read and written as one stream.
+
+mmWave Studio and the DCA1000 command-line tool start a new file when one reaches the size limit
+(Studio: ``adc_data_Raw_0.bin``, ``adc_data_Raw_1.bin``, …). The files are one byte stream cut at
+the limit; raw-mode files may be cut anywhere, packet-recorded files between packets.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from .errors import MeasuredFormatError
+
+__all__ = ["SplitWriter", "capture_files", "split_name"]
+
+_SPLIT = re.compile(r"^(?P<stem>.*_Raw_)(?P<index>\d+)(?P<suffix>\.bin)$")
+
+
+def split_name(prefix: str, index: int) -> str:
+    """File name of split ``index``: ``f"{prefix}_Raw_{index}.bin"``."""
+    return f"{prefix}_Raw_{index}.bin"
+
+
+def capture_files(path: str | Path | Sequence[str | Path]) -> tuple[Path, ...]:
+    """The files of a capture, in stream order.
+
+    Parameters
+    ----------
+    path : path or sequence of paths
+        One file: if its name is ``…_Raw_<i>.bin``, the siblings ``…_Raw_<j>.bin`` are collected
+        and ordered by j, which must run 0, 1, 2, … without a gap. A sequence is taken as given.
+
+    Raises
+    ------
+    MeasuredFormatError
+        A missing file, or a gap in the split numbering (the missing name is given).
+    """
+    if isinstance(path, (str, Path)):
+        p = Path(path)
+        if not p.is_file():
+            raise MeasuredFormatError(f"raw capture {p} does not exist or is not a file")
+        m = _SPLIT.match(p.name)
+        if not m:
+            return (p,)
+        stem, suffix = m["stem"], m["suffix"]
+        found = {}
+        for q in p.parent.iterdir():
+            mq = _SPLIT.match(q.name)
+            if mq and mq["stem"] == stem and mq["suffix"] == suffix and q.is_file():
+                found[int(mq["index"])] = q
+        indices = sorted(found)
+        expected = list(range(len(indices)))
+        if indices != expected:
+            missing = sorted(set(range(max(indices) + 1)) - set(indices))
+            raise MeasuredFormatError(
+                f"split file {p.parent / (stem + str(missing[0]) + suffix)} is missing (found indices "
+                f"{indices}); copy every split file of the capture into {p.parent}")
+        return tuple(found[i] for i in indices)
+    files = tuple(Path(q) for q in path)
+    if not files:
+        raise MeasuredFormatError("no capture files given")
+    for q in files:
+        if not q.is_file():
+            raise MeasuredFormatError(f"raw capture {q} does not exist or is not a file")
+    return files
+
+
+def iter_file_bytes(files: Sequence[Path], block: int) -> Iterator[memoryview]:
+    """Bytes of ``files`` concatenated, in blocks of at most ``block`` bytes (one reused buffer)."""
+    buf = bytearray(block)
+    view = memoryview(buf)
+    for path in files:
+        with open(path, "rb", buffering=0) as fh:
+            while True:
+                n = fh.readinto(view)
+                if not n:
+                    break
+                yield view[:n]
+
+
+class SplitWriter:
+    """Writes a byte stream to ``<folder>/<prefix>_Raw_<i>.bin``, starting a new file at ``max_file_size``.
+
+    Parameters
+    ----------
+    folder : path
+        Existing folder.
+    prefix : str
+        File prefix (Studio: ``adc_data``).
+    max_file_size : int or None
+        Size limit of one file [bytes]; None writes a single file.
+    record_size : int or None
+        Write records of this size whole (packet-recorded form): a file holds as many whole
+        records as fit. None cuts at exactly ``max_file_size`` bytes (raw form).
+    """
+
+    def __init__(self, folder: str | Path, prefix: str, *, max_file_size: int | None = None,
+                 record_size: int | None = None) -> None:
+        self.folder, self.prefix = Path(folder), prefix
+        self.limit = max_file_size
+        if max_file_size is not None and record_size is not None and max_file_size < record_size:
+            raise MeasuredFormatError(f"max_file_size={max_file_size} is smaller than one packet ({record_size} bytes)")
+        if max_file_size is not None and max_file_size < 2:
+            raise MeasuredFormatError(f"max_file_size={max_file_size} must be >= 2 bytes")
+        self.files: list[Path] = []
+        self._fh = None
+        self._size = 0
+
+    def _open_next(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+        path = self.folder / split_name(self.prefix, len(self.files))
+        self._fh = open(path, "wb")
+        self.files.append(path)
+        self._size = 0
+
+    def write(self, data: bytes | memoryview, *, whole: bool = False) -> None:
+        """Append ``data``; with ``whole`` (a packet) it is never cut across two files."""
+        if self._fh is None:
+            self._open_next()
+        data = memoryview(data).cast("B")
+        if self.limit is None:
+            self._fh.write(data)
+            self._size += len(data)
+            return
+        if whole:
+            if self._size + len(data) > self.limit and self._size > 0:
+                self._open_next()
+            self._fh.write(data)
+            self._size += len(data)
+            return
+        while len(data):
+            room = self.limit - self._size
+            if room <= 0:
+                self._open_next()
+                continue
+            part = data[:room]
+            self._fh.write(part)
+            self._size += len(part)
+            data = data[len(part):]
+
+    def close(self) -> tuple[Path, ...]:
+        """Close the current file; returns every file written."""
+        if self._fh is None:
+            self._open_next()
+        self._fh.close()
+        return tuple(self.files)
+
+    def __enter__(self) -> "SplitWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._fh is not None and not self._fh.closed:
+            self._fh.close()

@@ -1,0 +1,327 @@
+"""``risloc capture inspect RAW --config CFG``: what a raw capture holds and whether it looks healthy.
+
+:func:`inspect_capture` streams the capture once (memory: a few frames) and returns a
+:class:`CaptureInspection`: counts, the range–Doppler peak, lost packets, clipping, DC offset,
+I/Q imbalance and I/Q order, each problem as a named flag with its remedy.
+:func:`plot_inspection` draws the range profile and the range–Doppler map.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.constants
+import scipy.signal
+
+from .dca1000 import Form, iter_frames, open_raw
+from .errors import MeasuredFormatError
+from .layout import RawLayout
+from .sdk_cfg import read_sdk_cfg
+from .studio_json import read_studio_json
+from .ti_config import TiChirpConfig
+
+def _db(x):
+    """10·log10(x) [dB]."""
+    with np.errstate(divide="ignore"):
+        return 10.0 * np.log10(x)
+
+
+__all__ = ["CaptureInspection", "Flag", "Peak", "inspect_capture", "load_config", "plot_inspection"]
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A named finding with its cause and remedy."""
+
+    name: str
+    message: str
+
+
+@dataclass(frozen=True)
+class Peak:
+    """Strongest range–Doppler cell.
+
+    Attributes
+    ----------
+    range_bin : int
+        Bin of the N-point fast-time DFT (N = samples per chirp), 0 … N−1.
+    doppler_bin : int
+        Signed slow-time bin, −K/2 … K/2−1; 0 = zero velocity, positive = receding.
+    snr_db : float
+        Range-profile peak over its median [dB].
+    range : float or None
+        ``range_bin · c/(2 S N T_s)`` with the quantized slope [m] (None without a configuration).
+    velocity : float or None
+        ``doppler_bin · λ/(2 K T_loop)`` [m/s], positive receding.
+    """
+
+    range_bin: int
+    doppler_bin: int
+    snr_db: float
+    range: float | None
+    velocity: float | None
+
+
+@dataclass(frozen=True)
+class CaptureInspection:
+    """Result of :func:`inspect_capture`; ``to_json()`` is what the CLI prints.
+
+    Attributes
+    ----------
+    files, form, layout, config
+        What was read and how (config None when a layout was given directly).
+    frames : int
+        Complete frames in the capture; ``frames_read`` of them were analysed.
+    truncated_bytes : int
+        Bytes of a dropped, incomplete final frame.
+    dropped_packets : int
+        Packets lost (zero-filled); ``damaged_frames`` lists the frames holding the zeros.
+    peak : Peak
+    range_profile : ndarray, [N]
+        Mean power per range bin over frames, loops and channels, window-normalised [counts²].
+    range_doppler : ndarray, [K, N]
+        Mean power per (Doppler, range) cell, Doppler ascending as ``doppler_bins`` [counts²].
+    doppler_bins : ndarray of int, [K]
+        Signed Doppler bin of each row of ``range_doppler``.
+    clipped_words, clipped_fraction
+        I or Q words at an ADC rail, and their share of all words.
+    dc_offset : complex
+        Mean of I + jQ (hardware I/Q) [counts].
+    iq_gain_imbalance_db, iq_phase_imbalance
+        ``10 log10(var Q / var I)`` [dB] and ``asin(cov(I,Q)/(σ_I σ_Q))`` [rad]; meaningful on
+        noise-like or many-tone data (each ~0 for a balanced receiver).
+    positive_frequency_excess_db
+        Power at positive over negative beat frequencies (bins 1…N/2−1 vs N/2+1…N−1) [dB]; TI data
+        decoded right puts targets at positive ones (NaN for real data).
+    flags : tuple of Flag
+    notes : tuple of str
+    """
+
+    files: tuple[Path, ...]
+    form: str
+    layout: RawLayout
+    config: TiChirpConfig | None
+    frames: int
+    frames_read: int
+    truncated_bytes: int
+    dropped_packets: int
+    damaged_frames: tuple[int, ...]
+    peak: Peak
+    range_profile: np.ndarray
+    range_doppler: np.ndarray
+    doppler_bins: np.ndarray
+    clipped_words: int
+    clipped_fraction: float
+    dc_offset: complex
+    iq_gain_imbalance_db: float
+    iq_phase_imbalance: float
+    positive_frequency_excess_db: float
+    flags: tuple[Flag, ...]
+    notes: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON summary (no arrays): counts, peak, impairments, flags. SI units, radians."""
+        lay = self.layout
+        return {
+            "files": [str(f) for f in self.files], "form": self.form,
+            "frames": self.frames, "frames_read": self.frames_read, "chirps": lay.num_loops,
+            "chirps_per_loop": lay.chirps_per_loop, "samples": lay.num_samples, "rx": lay.num_rx,
+            "channels": lay.num_virtual, "adc_format": lay.adc_format, "lanes": lay.lanes, "iq_swap": lay.iq_swap,
+            "peak": {"range_bin": self.peak.range_bin, "doppler_bin": self.peak.doppler_bin,
+                     "snr_db": round(self.peak.snr_db, 2), "range": self.peak.range, "velocity": self.peak.velocity},
+            "dropped_packets": self.dropped_packets, "damaged_frames": list(self.damaged_frames),
+            "truncated_bytes": self.truncated_bytes,
+            "clipping": {"words": self.clipped_words, "fraction": self.clipped_fraction},
+            "dc_offset": {"i": self.dc_offset.real, "q": self.dc_offset.imag},
+            "iq_imbalance": {"gain_db": self.iq_gain_imbalance_db, "phase": self.iq_phase_imbalance},
+            "positive_frequency_excess_db": (None if np.isnan(self.positive_frequency_excess_db)
+                                             else self.positive_frequency_excess_db),
+            "flags": [{"name": f.name, "message": f.message} for f in self.flags],
+            "notes": list(self.notes),
+        }
+
+    def to_json(self, *, indent: int | None = 2) -> str:
+        """:meth:`to_dict` as JSON text."""
+        return json.dumps(self.to_dict(), indent=indent)
+
+
+def load_config(path: str | Path, *, strict: bool = True) -> tuple[TiChirpConfig, int | None]:
+    """A ``.cfg`` (mmWave SDK) or ``.json`` (mmWave Studio) file → (config, LVDS lanes or None)."""
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        parsed = read_studio_json(path)
+        return parsed.config, parsed.lanes
+    if path.suffix.lower() == ".cfg":
+        return read_sdk_cfg(path, strict=strict).config, None
+    raise MeasuredFormatError(f"{path}: unknown config type {path.suffix!r}; give an mmWave SDK .cfg or an "
+                              "mmWave Studio .json export")
+
+
+def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig | RawLayout, *,
+                    lanes: int | None = None, iq_swap: bool = False, form: Form = "auto",
+                    payload_size: int | None = None, max_frames: int | None = None, window: str = "hann",
+                    min_range_bin: int = 0, frames_per_block: int = 4) -> CaptureInspection:
+    """Inspect a DCA1000 raw capture.
+
+    Parameters
+    ----------
+    raw : path or sequence of paths
+        ``adc_data_Raw_0.bin`` (split siblings are found) or the files in order.
+    config : path, TiChirpConfig or RawLayout
+        An mmWave SDK ``.cfg``, an mmWave Studio ``.json``, a parsed configuration, or a bare
+        layout (then no metres, no m/s and no frame-count check).
+    lanes : {2, 4}, optional
+        LVDS lanes; default: the Studio JSON's ``laneEn``, else 2 (xWR16xx/18xx/68xx).
+    iq_swap : bool, default False
+        The file stores Q first (the config's swap flag is not trusted, see the docs).
+    form : {"auto", "raw", "packets"}, default "auto"
+    payload_size : int, optional
+        Packet payload [bytes]; detected when omitted.
+    max_frames : int, optional
+        Analyse only the first frames (all are still counted).
+    window : str, default "hann"
+        ``scipy.signal.get_window`` name for both DFTs (periodic).
+    min_range_bin : int, default 0
+        Ignore range bins below this when finding the peak (Tx→Rx leakage, DC).
+    frames_per_block : int, default 4
+        Frames decoded at a time (sets the memory used).
+    """
+    cfg: TiChirpConfig | None = None
+    if isinstance(config, RawLayout):
+        layout = config if lanes is None and not iq_swap else RawLayout(
+            config.num_samples, config.num_rx, config.chirps_per_loop, config.num_loops, config.adc_format,
+            lanes or config.lanes, iq_swap)
+    else:
+        file_lanes = None
+        if isinstance(config, TiChirpConfig):
+            cfg = config
+        else:
+            cfg, file_lanes = load_config(config)
+        layout = RawLayout.from_config(cfg, lanes=lanes or file_lanes or 2, iq_swap=iq_swap)
+    info = open_raw(raw, layout, form=form, payload_size=payload_size,
+                    expected_frames=cfg.num_frames if cfg is not None else None)
+    N, K = layout.num_samples, layout.num_loops
+    if not 0 <= min_range_bin < N:
+        raise MeasuredFormatError(f"min_range_bin={min_range_bin} must be in [0, {N})")
+    bits = cfg.adc_bits if cfg is not None else 16
+    lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    wn = scipy.signal.get_window(window, N, fftbins=True)
+    wk = scipy.signal.get_window(window, K, fftbins=True)
+    gain = (wn.sum() * wk.sum()) ** 2
+    rd = np.zeros((K, N))
+    s1 = np.zeros(2)
+    s2 = np.zeros(3)                                  # Σ I², Σ Q², Σ I·Q
+    count = clipped = frames_read = dropped = 0
+    damaged: list[int] = []
+    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=max_frames):
+        y = block.cube                                # complex64 [f, K, V, N], paper convention
+        i_hw, q_hw = y.real.astype(np.float64), -y.imag.astype(np.float64)
+        s1 += (i_hw.sum(), q_hw.sum())
+        s2 += ((i_hw * i_hw).sum(), (q_hw * q_hw).sum(), (i_hw * q_hw).sum())
+        count += i_hw.size
+        words = (i_hw, q_hw) if layout.is_complex else (i_hw,)
+        clipped += sum(int(np.count_nonzero((w <= lo) | (w >= hi))) for w in words)
+        # eq. (2DDFT) sign: e^{+j2πpn/N}, e^{+j2πqk/K} (numpy's ifft times the length)
+        z = np.fft.ifft(np.fft.ifft(y * wn, axis=-1) * wk[:, None, None], axis=1) * (N * K)
+        rd += (np.abs(z) ** 2).sum(axis=(0, 2)) / gain
+        frames_read += len(y)
+        dropped += sum(d.count for d in block.dropped)
+        damaged += [block.first_frame + int(i) for i in np.flatnonzero(block.damaged)]
+    if frames_read == 0:
+        raise MeasuredFormatError("no frame to inspect (max_frames=0?)")
+    rd /= frames_read * layout.num_virtual
+    rd = np.fft.fftshift(rd, axes=0)
+    doppler_bins = np.arange(K) - K // 2
+    profile = rd.mean(axis=0)
+    p = min_range_bin + int(np.argmax(profile[min_range_bin:]))
+    q = int(doppler_bins[int(np.argmax(rd[:, p]))])
+    snr_db = float(_db(profile[p] / max(np.median(profile), 1e-300)))
+    rng_m = vel = None
+    if cfg is not None:
+        radar = cfg.to_radar_config()
+        rng_m = float(p * radar.range_resolution)
+        vel = float(q / (K * radar.carrier_frequency * radar.chirp_duration) * scipy.constants.c / 2)
+
+    mean_i, mean_q = s1 / count
+    var_i, var_q = s2[0] / count - mean_i ** 2, s2[1] / count - mean_q ** 2
+    cov = s2[2] / count - mean_i * mean_q
+    if layout.is_complex and var_i > 0 and var_q > 0:
+        g_db = float(10 * np.log10(var_q / var_i))
+        phase = float(np.arcsin(np.clip(cov / np.sqrt(var_i * var_q), -1, 1)))
+        pos, neg = profile[1:N // 2].sum(), profile[N // 2 + 1:].sum()
+        excess = float(_db(pos / max(neg, 1e-300)))
+    else:
+        g_db, phase, excess = 0.0, 0.0, float("nan")
+    dc = complex(mean_i, mean_q)
+    full = 2.0 ** (bits - 1)
+    flags = []
+    if dropped:
+        flags.append(Flag("dropped_packets", f"{dropped} packets lost; frames {damaged[:10]}"
+                          f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
+    if info.truncated_bytes:
+        flags.append(Flag("truncated_frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
+    if clipped:
+        flags.append(Flag("clipping", f"{clipped} of {count * len(words)} ADC words at a rail: lower the Rx gain "
+                          "(profileCfg rxGain) or move away from strong reflectors"))
+    if abs(dc) > 0.01 * full:
+        flags.append(Flag("dc_offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
+    if abs(g_db) > 1.0 or abs(phase) > np.deg2rad(5):
+        flags.append(Flag("iq_imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
+                          "of strong targets appear mirrored in range"))
+    if not np.isnan(excess) and excess < 0:
+        flags.append(Flag("iq_order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
+                          "probably swapped (iq_swap=True) or the lane interleave is wrong (lanes=)"))
+    if p <= 1 and min_range_bin == 0:
+        flags.append(Flag("peak_at_dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
+                          "pass min_range_bin="))
+    if cfg is not None:
+        flags += [Flag("device_timing", msg) for msg in cfg.device_issues()]
+    peak = Peak(range_bin=p, doppler_bin=q, snr_db=snr_db, range=rng_m, velocity=vel)
+    return CaptureInspection(
+        files=info.files, form=info.form, layout=layout, config=cfg, frames=info.num_frames,
+        frames_read=frames_read, truncated_bytes=info.truncated_bytes, dropped_packets=dropped,
+        damaged_frames=tuple(damaged), peak=peak, range_profile=profile, range_doppler=rd,
+        doppler_bins=doppler_bins, clipped_words=clipped, clipped_fraction=clipped / (count * len(words)),
+        dc_offset=dc, iq_gain_imbalance_db=g_db, iq_phase_imbalance=phase, positive_frequency_excess_db=excess,
+        flags=tuple(flags), notes=info.notes)
+
+
+def plot_inspection(result: CaptureInspection, path: str | Path | None = None, *, dynamic_range_db: float = 60.0):
+    """Range profile and range–Doppler map of an inspection (matplotlib imported here only).
+
+    Parameters
+    ----------
+    result : CaptureInspection
+    path : path, optional
+        Write the figure there (PNG, PDF, … by suffix).
+    dynamic_range_db : float, default 60
+        Colour range of the map below its maximum [dB].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2)
+    prof_db = _db(np.maximum(result.range_profile, 1e-30))
+    ax1.plot(np.arange(prof_db.size), prof_db)
+    ax1.axvline(result.peak.range_bin, color="r", ls=":", label=f"peak bin {result.peak.range_bin}")
+    ax1.set(xlabel="range bin", ylabel="power [dB counts²]", title="range profile")
+    ax1.legend()
+    rd_db = _db(np.maximum(result.range_doppler, 1e-30))
+    top = rd_db.max()
+    d = result.doppler_bins
+    im = ax2.imshow(rd_db, aspect="auto", origin="lower", vmin=top - dynamic_range_db, vmax=top,
+                    extent=(-0.5, rd_db.shape[1] - 0.5, d[0] - 0.5, d[-1] + 0.5))
+    ax2.plot(result.peak.range_bin, result.peak.doppler_bin, "r+", ms=12)
+    ax2.set(xlabel="range bin", ylabel="Doppler bin (+ receding)", title="range-Doppler map")
+    fig.colorbar(im, ax=ax2, label="dB")
+    if path is not None:
+        fig.savefig(path)
+    return fig

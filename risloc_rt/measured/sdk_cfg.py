@@ -1,0 +1,291 @@
+"""mmWave SDK 3.x ``.cfg`` files (the CLI commands sent to the radar): parse and write.
+
+Only the commands that describe the waveform and the ADC are mapped (``channelCfg``, ``adcCfg``,
+``adcbufCfg``, ``profileCfg``, ``chirpCfg``, ``frameCfg``, ``dfeDataOutputMode``); the processing
+chain's commands (``cfarCfg``, ``guiMonitor``, …) are recognised and skipped. Field orders follow
+the SDK 3.5 CLI (``docs/measured-captures.md`` has the table).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import MeasuredFormatError
+from .ti_config import ADC_FORMATS, TiChirp, TiChirpConfig
+
+__all__ = ["ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg", "read_sdk_cfg"]
+
+#: Argument counts of the mapped commands in mmWave SDK 3.x (adcbufCfg: 4 in SDK 1.x).
+ARGUMENT_COUNTS: dict[str, tuple[int, ...]] = {
+    "dfeDataOutputMode": (1,), "channelCfg": (3,), "adcCfg": (2,), "adcbufCfg": (4, 5),
+    "profileCfg": (14,), "chirpCfg": (8,), "frameCfg": (7,), "lowPower": (2,),
+}
+#: Commands of the SDK demos that say nothing about the raw data; skipped.
+SKIPPED = frozenset({
+    "sensorStop", "sensorStart", "flushCfg", "guiMonitor", "cfarCfg", "cfarFovCfg", "aoaFovCfg",
+    "multiObjBeamForming", "clutterRemoval", "calibDcRangeSig", "extendedMaxVelocity", "bpmCfg",
+    "lvdsStreamCfg", "compRangeBiasAndRxChanPhase", "measureRangeBiasAndRxChanPhase",
+    "CQRxSatMonitor", "CQSigImgMonitor", "analogMonitor", "calibData", "idlePowerCycle",
+    "dynamicRACfarCfg", "staticRACfarCfg", "dynamicRangeAngleCfg", "dynamic2DAngleCfg",
+    "staticRangeAngleCfg", "antGeometry0", "antGeometry1", "antPhaseRot", "fovCfg", "SceneryParam",
+    "GatingParam", "StateParam", "AllocationParam", "MaxAcceleration", "trackingCfg",
+    "presenceBoundaryBox", "sensorPosition", "boundaryBox", "staticBoundaryBox", "mpdBoundaryBox",
+    "clusterCfg", "gatingParam", "stateParam", "allocationParam", "maxAcceleration", "zoneDef",
+    "nearFieldCfg", "rangeSelCfg", "vitalSignsCfg", "motionDetection", "configDataPort",
+    "queryDemoStatus", "mmwDemoCfg", "compressionCfg", "heatmapGenCfg", "intfMitigCfg", "gpAdcMeasConfig",
+})
+
+
+@dataclass(frozen=True)
+class ParsedSdkCfg:
+    """Result of :func:`parse_sdk_cfg`.
+
+    Attributes
+    ----------
+    config : TiChirpConfig
+        The waveform and ADC description, SI units.
+    skipped : tuple of (int, str)
+        ``(line number, command)`` of the recognised commands that were not used.
+    source : str
+        The file name (or ``"<text>"``) the errors quote.
+    """
+
+    config: TiChirpConfig
+    skipped: tuple[tuple[int, str], ...]
+    source: str
+
+
+def _number(tok: str, where: str, field: str) -> float:
+    try:
+        return float(tok)
+    except ValueError:
+        raise MeasuredFormatError(f"{where}: {field}={tok!r} is not a number") from None
+
+
+def _integer(tok: str, where: str, field: str) -> int:
+    try:
+        return int(tok, 0)
+    except ValueError:
+        try:
+            value = float(tok)
+        except ValueError:
+            value = None
+        if value is not None and value.is_integer():
+            return int(value)
+        raise MeasuredFormatError(f"{where}: {field}={tok!r} must be an integer (decimal or 0x hex)") from None
+
+
+def read_sdk_cfg(path: str | Path, *, strict: bool = True) -> ParsedSdkCfg:
+    """:func:`parse_sdk_cfg` of a file (UTF-8 or ASCII)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise MeasuredFormatError(f"cannot read the config {path}: {exc.strerror}") from None
+    return parse_sdk_cfg(text, source=str(path), strict=strict)
+
+
+def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> ParsedSdkCfg:
+    """Parse an mmWave SDK 3.x ``.cfg`` into a :class:`TiChirpConfig`.
+
+    Parameters
+    ----------
+    text : str
+        The file's content: one ``command arg arg …`` per line; ``%`` starts a comment.
+    source : str
+        Name used in error messages.
+    strict : bool, default True
+        Unknown commands raise (they usually mean another SDK or a typo); with ``False`` they are
+        skipped and listed in :attr:`ParsedSdkCfg.skipped`.
+
+    Raises
+    ------
+    MeasuredFormatError
+        A missing required command, a wrong argument count, a non-numeric field, an unknown
+        command (``strict``), or inconsistent commands; the message names the line.
+    """
+    found: dict[str, tuple[int, list[str]]] = {}
+    profiles: dict[int, tuple[int, list[str]]] = {}
+    chirp_lines: list[tuple[int, list[str]]] = []
+    skipped: list[tuple[int, str]] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("%", 1)[0].strip()
+        if not line:
+            continue
+        cmd, *args = line.split()
+        where = f"{source}:{lineno}"
+        if cmd in SKIPPED:
+            skipped.append((lineno, cmd))
+            continue
+        if cmd in ("advFrameCfg", "subFrameCfg"):
+            raise MeasuredFormatError(f"{where}: {cmd} (advanced frame) is not supported; "
+                                      "use a legacy frameCfg with dfeDataOutputMode 1")
+        if cmd not in ARGUMENT_COUNTS:
+            if strict:
+                raise MeasuredFormatError(f"{where}: unknown command {cmd!r} (not an mmWave SDK 3.x CLI command); "
+                                          "fix the typo, remove it, or pass strict=False to skip it")
+            skipped.append((lineno, cmd))
+            continue
+        counts = ARGUMENT_COUNTS[cmd]
+        if len(args) not in counts:
+            hint = (" (a newer MCU+ SDK cfg, e.g. for AWR294x? only SDK 3.x field orders are supported)"
+                    if len(args) > max(counts) else "")
+            raise MeasuredFormatError(f"{where}: {cmd} takes {' or '.join(map(str, counts))} arguments in mmWave "
+                                      f"SDK 3.x, got {len(args)}{hint}")
+        if cmd == "profileCfg":
+            pid = _integer(args[0], where, "profileId")
+            if pid in profiles:
+                raise MeasuredFormatError(f"{where}: profileCfg {pid} defined again (first at line "
+                                          f"{profiles[pid][0]}); keep one")
+            profiles[pid] = (lineno, args)
+        elif cmd == "chirpCfg":
+            chirp_lines.append((lineno, args))
+        else:
+            if cmd in found:
+                raise MeasuredFormatError(f"{where}: {cmd} given again (first at line {found[cmd][0]}); keep one")
+            found[cmd] = (lineno, args)
+
+    for cmd in ("channelCfg", "adcCfg", "frameCfg"):
+        if cmd not in found:
+            raise MeasuredFormatError(f"{source}: no {cmd} line; a raw capture needs channelCfg, adcCfg, "
+                                      "profileCfg, chirpCfg and frameCfg")
+    if not profiles:
+        raise MeasuredFormatError(f"{source}: no profileCfg line; add the profile the chirps use")
+    if not chirp_lines:
+        raise MeasuredFormatError(f"{source}: no chirpCfg line; add one chirpCfg per chirp of the loop")
+
+    if "dfeDataOutputMode" in found:
+        ln, args = found["dfeDataOutputMode"]
+        mode = _integer(args[0], f"{source}:{ln}", "modeType")
+        if mode != 1:
+            raise MeasuredFormatError(f"{source}:{ln}: dfeDataOutputMode {mode} is not supported "
+                                      "(only 1, frame-based chirps)")
+
+    ln, args = found["channelCfg"]
+    w = f"{source}:{ln}"
+    rx_mask, tx_mask = _integer(args[0], w, "rxChannelEn"), _integer(args[1], w, "txChannelEn")
+    if rx_mask <= 0 or rx_mask > 0xFF:
+        raise MeasuredFormatError(f"{w}: channelCfg rxChannelEn={args[0]} enables no receiver")
+
+    ln, args = found["adcCfg"]
+    w = f"{source}:{ln}"
+    bits_code, fmt_code = _integer(args[0], w, "numADCBits"), _integer(args[1], w, "adcOutputFmt")
+    if bits_code not in (0, 1, 2):
+        raise MeasuredFormatError(f"{w}: adcCfg numADCBits={bits_code} must be 0, 1 or 2 (12, 14, 16 bits)")
+    if fmt_code not in (0, 1, 2):
+        raise MeasuredFormatError(f"{w}: adcCfg adcOutputFmt={fmt_code} must be 0 (real), 1 (complex1x) "
+                                  "or 2 (complex2x)")
+    adc_format = ADC_FORMATS[fmt_code]
+    iq_swap = False
+    if "adcbufCfg" in found:
+        ln2, args2 = found["adcbufCfg"]
+        w2 = f"{source}:{ln2}"
+        off = 1 if len(args2) == 5 else 0
+        buf_fmt = _integer(args2[off], w2, "adcOutputFmt")
+        if buf_fmt not in (0, 1):
+            raise MeasuredFormatError(f"{w2}: adcbufCfg adcOutputFmt={buf_fmt} must be 0 (complex) or 1 (real)")
+        if (buf_fmt == 1) != (adc_format == "real"):
+            raise MeasuredFormatError(
+                f"{w2}: adcbufCfg says {'real' if buf_fmt else 'complex'} samples but adcCfg (line {ln}) says "
+                f"{adc_format}; make them agree")
+        iq_swap = _integer(args2[off + 1], w2, "sampleSwap") == 1
+
+    ln, args = found["frameCfg"]
+    wf = f"{source}:{ln}"
+    start_idx, end_idx = _integer(args[0], wf, "chirpStartIdx"), _integer(args[1], wf, "chirpEndIdx")
+    num_loops, num_frames = _integer(args[2], wf, "numLoops"), _integer(args[3], wf, "numFrames")
+    period = _number(args[4], wf, "framePeriodicity") / 1e3
+    if end_idx < start_idx:
+        raise MeasuredFormatError(f"{wf}: frameCfg chirpEndIdx={end_idx} < chirpStartIdx={start_idx}")
+    if num_loops < 1:
+        raise MeasuredFormatError(f"{wf}: frameCfg numLoops={num_loops} must be >= 1")
+    if num_frames < 0:
+        raise MeasuredFormatError(f"{wf}: frameCfg numFrames={num_frames} must be >= 0 (0 = until stopped)")
+
+    by_index: dict[int, tuple[int, list[str]]] = {}
+    for lnc, a in chirp_lines:
+        wc = f"{source}:{lnc}"
+        lo, hi = _integer(a[0], wc, "startIdx"), _integer(a[1], wc, "endIdx")
+        if hi < lo:
+            raise MeasuredFormatError(f"{wc}: chirpCfg endIdx={hi} < startIdx={lo}")
+        for idx in range(lo, hi + 1):
+            if idx in by_index:
+                raise MeasuredFormatError(f"{wc}: chirp {idx} defined again (first at line {by_index[idx][0]})")
+            by_index[idx] = (lnc, a)
+    chirps: list[TiChirp] = []
+    profile_ids: set[int] = set()
+    for idx in range(start_idx, end_idx + 1):
+        if idx not in by_index:
+            raise MeasuredFormatError(f"{wf}: frameCfg uses chirp {idx}, which no chirpCfg defines")
+        lnc, a = by_index[idx]
+        wc = f"{source}:{lnc}"
+        pid = _integer(a[2], wc, "profileId")
+        if pid not in profiles:
+            raise MeasuredFormatError(f"{wc}: chirpCfg uses profile {pid}, which no profileCfg defines")
+        profile_ids.add(pid)
+        mask = _integer(a[7], wc, "txEnable")
+        if mask & ~tx_mask:
+            raise MeasuredFormatError(f"{wc}: chirpCfg txEnable=0b{mask:b} uses transmitters that channelCfg "
+                                      f"(line {found['channelCfg'][0]}) does not enable (0b{tx_mask:b})")
+        chirps.append(TiChirp(tx_mask=mask, start_frequency_offset=_number(a[3], wc, "startFreqVar"),
+                              slope_offset=_number(a[4], wc, "freqSlopeVar") * 1e9,
+                              idle_time_offset=_number(a[5], wc, "idleTimeVar") / 1e6,
+                              adc_start_time_offset=_number(a[6], wc, "adcStartTimeVar") / 1e6))
+    if len(profile_ids) > 1:
+        raise MeasuredFormatError(f"{wf}: the frame's chirps use profiles {sorted(profile_ids)}; only one "
+                                  "profile per frame is supported")
+    lnp, p = profiles[profile_ids.pop()]
+    wp = f"{source}:{lnp}"
+    try:
+        config = TiChirpConfig(
+            start_frequency=_number(p[1], wp, "startFreq") * 1e9,
+            idle_time=_number(p[2], wp, "idleTime") / 1e6,
+            adc_start_time=_number(p[3], wp, "adcStartTime") / 1e6,
+            ramp_end_time=_number(p[4], wp, "rampEndTime") / 1e6,
+            slope=_number(p[7], wp, "freqSlopeConst") * 1e12,
+            tx_start_time=_number(p[8], wp, "txStartTime") / 1e6,
+            num_samples=_integer(p[9], wp, "numAdcSamples"),
+            sample_rate=_number(p[10], wp, "digOutSampleRate") * 1e3,
+            rx_gain_db=_number(p[13], wp, "rxGain"),
+            rx_mask=rx_mask, tx_mask=tx_mask, chirps=tuple(chirps), num_loops=num_loops,
+            num_frames=num_frames, frame_periodicity=period, adc_bits=(12, 14, 16)[bits_code],
+            adc_format=adc_format, iq_swap=iq_swap)
+    except MeasuredFormatError as exc:
+        raise MeasuredFormatError(f"{wp}: profileCfg: {exc}") from None
+    return ParsedSdkCfg(config=config, skipped=tuple(skipped), source=source)
+
+
+def _g(value: float) -> str:
+    """Shortest text that reads back as the same float."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def format_sdk_cfg(config: TiChirpConfig, *, comment: str | None = None) -> str:
+    """The mmWave SDK 3.x ``.cfg`` text of ``config`` (the inverse of :func:`parse_sdk_cfg`).
+
+    Writes ``sensorStop``, ``flushCfg``, ``dfeDataOutputMode 1``, ``channelCfg``, ``adcCfg``,
+    ``adcbufCfg -1 …``, ``lowPower 0 0``, ``profileCfg 0 …``, one ``chirpCfg`` per chirp of the
+    loop, ``frameCfg`` and ``sensorStart``; ``comment`` lines go first, after ``%``.
+    Transmit power, phase shifter and HPF corners are written as 0.
+    """
+    c = config
+    lines = [f"% {ln}" for ln in (comment or "").splitlines()]
+    lines += ["sensorStop", "flushCfg", "dfeDataOutputMode 1",
+              f"channelCfg {c.rx_mask} {c.tx_mask} 0",
+              f"adcCfg {(12, 14, 16).index(c.adc_bits)} {ADC_FORMATS.index(c.adc_format)}",
+              f"adcbufCfg -1 {0 if c.is_complex else 1} {int(c.iq_swap)} 1 1",
+              "lowPower 0 0",
+              "profileCfg 0 " + " ".join([
+                  _g(c.start_frequency / 1e9), _g(c.idle_time * 1e6), _g(c.adc_start_time * 1e6),
+                  _g(c.ramp_end_time * 1e6), "0", "0", _g(c.slope / 1e12), _g(c.tx_start_time * 1e6),
+                  str(c.num_samples), _g(c.sample_rate / 1e3), "0", "0",
+                  _g(c.rx_gain_db if c.rx_gain_db is not None else 30)])]
+    for i, ch in enumerate(c.chirps):
+        lines.append(f"chirpCfg {i} {i} 0 {_g(ch.start_frequency_offset)} {_g(ch.slope_offset / 1e9)} "
+                     f"{_g(ch.idle_time_offset * 1e6)} {_g(ch.adc_start_time_offset * 1e6)} {ch.tx_mask}")
+    lines.append(f"frameCfg 0 {c.chirps_per_loop - 1} {c.num_loops} {c.num_frames} "
+                 f"{_g(c.frame_periodicity * 1e3)} 1 0")
+    lines.append("sensorStart")
+    return "\n".join(lines) + "\n"

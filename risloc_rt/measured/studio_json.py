@@ -1,0 +1,200 @@
+"""mmWave Studio's JSON export (``*.mmwave.json``): the waveform, ADC and LVDS settings.
+
+Path read (``mmWaveDevices`` may be a list of devices or a single object)::
+
+    mmWaveDevices[i].rfConfig.rlChanCfg_t            rxChannelEn, txChannelEn
+    mmWaveDevices[i].rfConfig.rlAdcOutCfg_t.fmt      b2AdcBits (0/1/2 = 12/14/16), b2AdcOutFmt (0/1/2)
+    mmWaveDevices[i].rfConfig.rlProfiles[j].rlProfileCfg_t
+        startFreqConst_GHz, idleTimeConst_usec, adcStartTimeConst_usec, rampEndTime_usec,
+        freqSlopeConst_MHz_usec, txStartTime_usec, numAdcSamples, digOutSampleRate (ksps), rxGain_dB
+    mmWaveDevices[i].rfConfig.rlChirps[j].rlChirpCfg_t
+        chirpStartIdx, chirpEndIdx, profileId, startFreqVar_MHz, freqSlopeVar_KHz_usec,
+        idleTimeVar_usec, adcStartTimeVar_usec, txEnable
+    mmWaveDevices[i].rfConfig.rlFrameCfg_t           chirpStartIdx, chirpEndIdx, numLoops, numFrames,
+                                                     framePeriodicity_msec
+    mmWaveDevices[i].rawDataCaptureConfig.rlDevDataFmtCfg_t.iqSwapSel   (optional)
+    mmWaveDevices[i].rawDataCaptureConfig.rlDevLaneEnable_t.laneEn      (optional, lane bit mask)
+
+Masks and codes may be numbers or strings (``"0xF"``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .errors import MeasuredFormatError
+from .ti_config import ADC_FORMATS, TiChirp, TiChirpConfig
+
+__all__ = ["ParsedStudioJson", "parse_studio_json", "read_studio_json"]
+
+
+@dataclass(frozen=True)
+class ParsedStudioJson:
+    """Result of :func:`parse_studio_json`.
+
+    Attributes
+    ----------
+    config : TiChirpConfig
+        The waveform and ADC description, SI units.
+    lanes : int or None
+        LVDS lanes enabled (popcount of ``laneEn``), None when the export does not say.
+    device_index : int
+        Which entry of ``mmWaveDevices`` was read.
+    source : str
+        File name used in messages.
+    """
+
+    config: TiChirpConfig
+    lanes: int | None
+    device_index: int
+    source: str
+
+
+class _Node:
+    """A JSON object with its dotted path, for error messages that say where a key is missing."""
+
+    def __init__(self, value: Any, path: str, source: str) -> None:
+        self.value, self.path, self.source = value, path, source
+
+    def child(self, key: str | int, *, optional: bool = False) -> "_Node | None":
+        v = self.value
+        ok = (isinstance(key, int) and isinstance(v, list) and -len(v) <= key < len(v)) or \
+             (isinstance(key, str) and isinstance(v, dict) and key in v)
+        path = f"{self.path}[{key}]" if isinstance(key, int) else f"{self.path}.{key}".lstrip(".")
+        if not ok:
+            if optional:
+                return None
+            raise MeasuredFormatError(f"{self.source}: {path} is missing; is this an mmWave Studio JSON export?")
+        return _Node(v[key], path, self.source)
+
+    def number(self, key: str) -> float:
+        node = self.child(key)
+        v = node.value
+        try:
+            return float(int(v, 0)) if isinstance(v, str) and v.lower().startswith("0x") else float(v)
+        except (TypeError, ValueError):
+            raise MeasuredFormatError(f"{self.source}: {node.path}={v!r} is not a number") from None
+
+    def integer(self, key: str) -> int:
+        node = self.child(key)
+        v = node.value
+        try:
+            if isinstance(v, str):
+                return int(v, 0)
+            if isinstance(v, float) and v.is_integer():
+                return int(v)
+            if isinstance(v, int) and not isinstance(v, bool):
+                return v
+        except ValueError:
+            pass
+        raise MeasuredFormatError(f"{self.source}: {node.path}={v!r} must be an integer (or '0x…' text)")
+
+
+def read_studio_json(path: str | Path, *, device_index: int = 0) -> ParsedStudioJson:
+    """:func:`parse_studio_json` of a file."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise MeasuredFormatError(f"cannot read the config {path}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise MeasuredFormatError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    return parse_studio_json(data, source=str(path), device_index=device_index)
+
+
+def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int = 0) -> ParsedStudioJson:
+    """Map an mmWave Studio JSON export onto a :class:`TiChirpConfig`.
+
+    Parameters
+    ----------
+    data : dict
+        The decoded JSON document.
+    source : str
+        Name used in error messages.
+    device_index : int, default 0
+        Device of ``mmWaveDevices`` to read (cascade boards list several).
+
+    Raises
+    ------
+    MeasuredFormatError
+        A missing key (named by its path), a non-numeric field, several profiles in the frame,
+        or a frame using chirps no ``rlChirps`` entry defines.
+    """
+    root = _Node(data, "", source)
+    devices = root.child("mmWaveDevices")
+    dev = devices.child(device_index) if isinstance(devices.value, list) else devices
+    rf = dev.child("rfConfig")
+    chan = rf.child("rlChanCfg_t")
+    rx_mask, tx_mask = chan.integer("rxChannelEn"), chan.integer("txChannelEn")
+    fmt = rf.child("rlAdcOutCfg_t").child("fmt")
+    bits_code, fmt_code = fmt.integer("b2AdcBits"), fmt.integer("b2AdcOutFmt")
+    if bits_code not in (0, 1, 2):
+        raise MeasuredFormatError(f"{source}: {fmt.path}.b2AdcBits={bits_code} must be 0, 1 or 2 (12/14/16 bits)")
+    if fmt_code not in (0, 1, 2):
+        raise MeasuredFormatError(f"{source}: {fmt.path}.b2AdcOutFmt={fmt_code} must be 0 (real), "
+                                  "1 (complex1x) or 2 (complex2x)")
+    frame = rf.child("rlFrameCfg_t")
+    start_idx, end_idx = frame.integer("chirpStartIdx"), frame.integer("chirpEndIdx")
+    if end_idx < start_idx:
+        raise MeasuredFormatError(f"{source}: {frame.path}: chirpEndIdx={end_idx} < chirpStartIdx={start_idx}")
+
+    chirp_nodes = rf.child("rlChirps")
+    by_index: dict[int, _Node] = {}
+    for j in range(len(chirp_nodes.value) if isinstance(chirp_nodes.value, list) else 0):
+        c = chirp_nodes.child(j).child("rlChirpCfg_t")
+        for idx in range(c.integer("chirpStartIdx"), c.integer("chirpEndIdx") + 1):
+            by_index[idx] = c
+    chirps, profile_ids = [], set()
+    for idx in range(start_idx, end_idx + 1):
+        if idx not in by_index:
+            raise MeasuredFormatError(f"{source}: {frame.path} uses chirp {idx}, which no rlChirps entry defines")
+        c = by_index[idx]
+        profile_ids.add(c.integer("profileId"))
+        chirps.append(TiChirp(tx_mask=c.integer("txEnable"),
+                              start_frequency_offset=c.number("startFreqVar_MHz") * 1e6,
+                              slope_offset=c.number("freqSlopeVar_KHz_usec") * 1e9,
+                              idle_time_offset=c.number("idleTimeVar_usec") / 1e6,
+                              adc_start_time_offset=c.number("adcStartTimeVar_usec") / 1e6))
+    if len(profile_ids) > 1:
+        raise MeasuredFormatError(f"{source}: the frame's chirps use profiles {sorted(profile_ids)}; "
+                                  "only one profile per frame is supported")
+    pid = profile_ids.pop()
+    profiles = rf.child("rlProfiles")
+    prof = None
+    for j in range(len(profiles.value) if isinstance(profiles.value, list) else 0):
+        p = profiles.child(j).child("rlProfileCfg_t")
+        if p.integer("profileId") == pid:
+            prof = p
+    if prof is None:
+        raise MeasuredFormatError(f"{source}: {profiles.path} has no profile {pid}, which the chirps use")
+
+    raw = dev.child("rawDataCaptureConfig", optional=True)
+    iq_swap, lanes = False, None
+    if raw is not None:
+        dfmt = raw.child("rlDevDataFmtCfg_t", optional=True)
+        if dfmt is not None and dfmt.child("iqSwapSel", optional=True) is not None:
+            iq_swap = dfmt.integer("iqSwapSel") == 1
+        lane = raw.child("rlDevLaneEnable_t", optional=True)
+        if lane is not None and lane.child("laneEn", optional=True) is not None:
+            lanes = bin(lane.integer("laneEn")).count("1")
+    gain = prof.child("rxGain_dB", optional=True)
+    try:
+        config = TiChirpConfig(
+            start_frequency=prof.number("startFreqConst_GHz") * 1e9,
+            idle_time=prof.number("idleTimeConst_usec") / 1e6,
+            adc_start_time=prof.number("adcStartTimeConst_usec") / 1e6,
+            ramp_end_time=prof.number("rampEndTime_usec") / 1e6,
+            slope=prof.number("freqSlopeConst_MHz_usec") * 1e12,
+            tx_start_time=prof.number("txStartTime_usec") / 1e6,
+            num_samples=prof.integer("numAdcSamples"),
+            sample_rate=prof.number("digOutSampleRate") * 1e3,
+            rx_gain_db=None if gain is None else prof.number("rxGain_dB"),
+            rx_mask=rx_mask, tx_mask=tx_mask, chirps=tuple(chirps), num_loops=frame.integer("numLoops"),
+            num_frames=frame.integer("numFrames"), frame_periodicity=frame.number("framePeriodicity_msec") / 1e3,
+            adc_bits=(12, 14, 16)[bits_code], adc_format=ADC_FORMATS[fmt_code], iq_swap=iq_swap)
+    except MeasuredFormatError as exc:
+        raise MeasuredFormatError(f"{source}: {dev.path or 'mmWaveDevices'}: {exc}") from None
+    return ParsedStudioJson(config=config, lanes=lanes, device_index=device_index, source=source)

@@ -1,0 +1,365 @@
+"""The TI chirp/frame description of a capture (SI units) and its mapping onto ``dsp.RadarConfig``.
+
+:class:`TiChirpConfig` holds what an mmWave SDK ``.cfg`` file or an mmWave Studio JSON export says
+about the waveform and the ADC, converted to SI units (Hz, s, Hz/s). It is the single source the
+raw-data layout (:class:`risloc_rt.measured.layout.RawLayout`), the ``.cfg`` writer and
+:meth:`TiChirpConfig.to_radar_config` are built from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, Literal
+
+from .errors import MeasuredFormatError, check_float, check_int
+
+if TYPE_CHECKING:                       # dsp is imported where it is used, so parsing works without it
+    import dsp
+
+__all__ = ["AdcFormat", "TiChirp", "TiChirpConfig", "slope_step", "start_frequency_step"]
+
+AdcFormat = Literal["real", "complex1x", "complex2x"]
+ADC_FORMATS: tuple[str, ...] = ("real", "complex1x", "complex2x")
+ADC_BITS: tuple[int, ...] = (12, 14, 16)
+
+
+def _band_reference(start_frequency: float) -> float:
+    """Synthesizer reference of the part's band: 2.7 GHz (57-64 GHz parts), 3.6 GHz (76-81 GHz)."""
+    return 2.7e9 if start_frequency < 70e9 else 3.6e9
+
+
+def slope_step(start_frequency: float) -> float:
+    """Programmable frequency-slope step of the device [Hz/s].
+
+    ``f_ref·900/2^26`` per µs with f_ref = 2.7 GHz for 60 GHz parts (36.21 kHz/µs) and 3.6 GHz
+    for 77 GHz parts (48.28 kHz/µs), the LSB of mmWaveLink's ``freqSlopeConst``.
+    """
+    return _band_reference(start_frequency) * 900.0 / 2**26 * 1e6
+
+
+def start_frequency_step(start_frequency: float) -> float:
+    """Programmable start-frequency step ``f_ref/2^26`` [Hz] (40.2 Hz at 60 GHz, 53.6 Hz at 77 GHz)."""
+    return _band_reference(start_frequency) / 2**26
+
+
+@dataclass(frozen=True)
+class TiChirp:
+    """One chirp of the loop (an mmWave ``chirpCfg`` entry expanded to a single index).
+
+    Parameters
+    ----------
+    tx_mask : int
+        Transmitters enabled during the chirp (bit i = TX i).
+    start_frequency_offset : float, default 0
+        ``startFreqVar`` added to the profile's start frequency [Hz].
+    slope_offset : float, default 0
+        ``freqSlopeVar`` added to the profile's slope [Hz/s].
+    idle_time_offset : float, default 0
+        ``idleTimeVar`` added to the profile's idle time [s].
+    adc_start_time_offset : float, default 0
+        ``adcStartTimeVar`` added to the profile's ADC start time [s].
+    """
+
+    tx_mask: int
+    start_frequency_offset: float = 0.0
+    slope_offset: float = 0.0
+    idle_time_offset: float = 0.0
+    adc_start_time_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tx_mask", check_int(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF))
+        for name, unit in (("start_frequency_offset", "Hz"), ("slope_offset", "Hz/s"),
+                           ("idle_time_offset", "s"), ("adc_start_time_offset", "s")):
+            object.__setattr__(self, name, check_float(getattr(self, name), name, unit))
+
+    @property
+    def varies(self) -> bool:
+        """True when any per-chirp variation is non-zero."""
+        return any((self.start_frequency_offset, self.slope_offset, self.idle_time_offset,
+                    self.adc_start_time_offset))
+
+
+@dataclass(frozen=True)
+class TiChirpConfig:
+    """A TI single-profile, frame-based (legacy frame) chirp configuration, SI units inside.
+
+    Parameters
+    ----------
+    start_frequency : float
+        Profile start frequency f_0 [Hz] (``profileCfg`` startFreq, GHz in the file).
+    slope : float
+        Frequency slope S as programmed [Hz/s] (``freqSlopeConst``, MHz/µs in the file).
+    idle_time : float
+        Idle time before each ramp [s].
+    adc_start_time : float
+        Time from the ramp start to the first ADC sample [s].
+    ramp_end_time : float
+        Ramp duration [s].
+    num_samples : int
+        ADC samples per chirp and receiver, N (complex samples in the complex modes).
+    sample_rate : float
+        ADC output sample rate f_s (``digOutSampleRate``, ksps in the file) [Hz].
+    rx_mask : int
+        Enabled receivers (bit i = RX i), ``channelCfg`` rxChannelEn.
+    tx_mask : int
+        Enabled transmitters, ``channelCfg`` txChannelEn.
+    chirps : tuple of TiChirp
+        The chirps of one loop in transmission order (``frameCfg`` chirpStartIdx…chirpEndIdx);
+        with TDM-MIMO each enables one transmitter.
+    num_loops : int
+        Loops per frame: chirps per virtual channel per frame, K.
+    num_frames : int
+        Frames to transmit; 0 means until stopped.
+    frame_periodicity : float
+        Frame period [s] (ms in the file).
+    adc_bits : {12, 14, 16}
+        ADC resolution; samples are stored as signed int16 in every case.
+    adc_format : {"real", "complex1x", "complex2x"}
+        ``adcCfg`` adcOutputFmt 0/1/2.
+    iq_swap : bool, default False
+        The configuration's I/Q swap flag (``adcbufCfg`` sampleSwap, Studio ``iqSwapSel``).
+        Recorded only: it does not reliably tell a file's I/Q order (``docs/measured-captures.md``).
+    tx_start_time : float, default 0
+        Tx start time relative to the ramp [s].
+    rx_gain_db : float or None
+        Rx gain [dB], nominal.
+    """
+
+    start_frequency: float
+    slope: float
+    idle_time: float
+    adc_start_time: float
+    ramp_end_time: float
+    num_samples: int
+    sample_rate: float
+    rx_mask: int
+    tx_mask: int
+    chirps: tuple[TiChirp, ...]
+    num_loops: int
+    num_frames: int
+    frame_periodicity: float
+    adc_bits: int = 16
+    adc_format: AdcFormat = "complex1x"
+    iq_swap: bool = False
+    tx_start_time: float = 0.0
+    rx_gain_db: float | None = None
+
+    def __post_init__(self) -> None:
+        set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        set_("start_frequency", check_float(self.start_frequency, "start_frequency", "Hz", positive=True))
+        set_("slope", check_float(self.slope, "slope", "Hz/s", positive=True))
+        set_("idle_time", check_float(self.idle_time, "idle_time", "s", non_negative=True))
+        set_("adc_start_time", check_float(self.adc_start_time, "adc_start_time", "s", non_negative=True))
+        set_("ramp_end_time", check_float(self.ramp_end_time, "ramp_end_time", "s", positive=True))
+        set_("tx_start_time", check_float(self.tx_start_time, "tx_start_time", "s"))
+        set_("num_samples", check_int(self.num_samples, "num_samples", minimum=1))
+        set_("sample_rate", check_float(self.sample_rate, "sample_rate", "Hz", positive=True))
+        set_("rx_mask", check_int(self.rx_mask, "rx_mask", minimum=1, maximum=0xFF))
+        set_("tx_mask", check_int(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF))
+        set_("num_loops", check_int(self.num_loops, "num_loops", minimum=1))
+        set_("num_frames", check_int(self.num_frames, "num_frames", minimum=0))
+        set_("frame_periodicity", check_float(self.frame_periodicity, "frame_periodicity", "s",
+                                              non_negative=True))
+        set_("chirps", tuple(self.chirps))
+        if not self.chirps or not all(isinstance(c, TiChirp) for c in self.chirps):
+            raise MeasuredFormatError("chirps must be a non-empty tuple of TiChirp (one per chirp of the loop)")
+        for i, chirp in enumerate(self.chirps):
+            if chirp.tx_mask & ~self.tx_mask:
+                raise MeasuredFormatError(
+                    f"chirp {i} enables tx_mask=0b{chirp.tx_mask:b}, outside the enabled "
+                    f"tx_mask=0b{self.tx_mask:b}: enable those transmitters in channelCfg or fix chirpCfg")
+        if self.adc_bits not in ADC_BITS:
+            raise MeasuredFormatError(f"adc_bits={self.adc_bits!r} must be one of {ADC_BITS}")
+        if self.adc_format not in ADC_FORMATS:
+            raise MeasuredFormatError(f"adc_format={self.adc_format!r} must be one of {ADC_FORMATS}")
+        set_("iq_swap", bool(self.iq_swap))
+        if self.rx_gain_db is not None:
+            set_("rx_gain_db", check_float(self.rx_gain_db, "rx_gain_db", "dB"))
+
+    # ------------------------------------------------------------------ counts
+    @property
+    def rx_channels(self) -> tuple[int, ...]:
+        """Indices of the enabled receivers, ascending (the file's receiver order)."""
+        return tuple(i for i in range(8) if self.rx_mask >> i & 1)
+
+    @property
+    def num_rx(self) -> int:
+        """Enabled receivers R."""
+        return len(self.rx_channels)
+
+    @property
+    def chirps_per_loop(self) -> int:
+        """Chirps per loop C (the TDM-MIMO transmitter slots)."""
+        return len(self.chirps)
+
+    @property
+    def chirps_per_frame(self) -> int:
+        """Chirps per frame, ``num_loops · chirps_per_loop``."""
+        return self.num_loops * self.chirps_per_loop
+
+    @property
+    def num_virtual(self) -> int:
+        """Virtual channels V = C·R, ordered chirp-of-the-loop major, receiver minor."""
+        return self.chirps_per_loop * self.num_rx
+
+    @property
+    def tx_order(self) -> tuple[int, ...]:
+        """Tx mask of each chirp of the loop, in transmission order (e.g. TX0, TX2, TX1)."""
+        return tuple(c.tx_mask for c in self.chirps)
+
+    @property
+    def is_complex(self) -> bool:
+        """True for the complex1x and complex2x ADC formats."""
+        return self.adc_format != "real"
+
+    # ------------------------------------------------------------------ timing
+    @property
+    def chirp_period(self) -> float:
+        """Idle plus ramp time of one chirp (profile values) [s]."""
+        return self.idle_time + self.ramp_end_time
+
+    @property
+    def loop_period(self) -> float:
+        """Time between two chirps of the same virtual channel, Σ over the loop of (idle + ramp) [s]."""
+        return sum(self.chirp_period + c.idle_time_offset for c in self.chirps)
+
+    @property
+    def frame_active_time(self) -> float:
+        """Chirping time of one frame, ``num_loops · loop_period`` [s]."""
+        return self.num_loops * self.loop_period
+
+    @property
+    def adc_sampling_time(self) -> float:
+        """ADC window N / f_s [s]."""
+        return self.num_samples / self.sample_rate
+
+    @property
+    def ramp_bandwidth(self) -> float:
+        """Bandwidth swept by the whole ramp, S · ramp_end_time [Hz]."""
+        return self.slope * self.ramp_end_time
+
+    @property
+    def sampled_bandwidth(self) -> float:
+        """Bandwidth swept while sampling, S · N / f_s [Hz]; it sets the range resolution."""
+        return self.slope * self.adc_sampling_time
+
+    @property
+    def quantized_slope(self) -> float:
+        """The slope the device actually programs: S rounded to :func:`slope_step` [Hz/s]."""
+        step = slope_step(self.start_frequency)
+        return round(self.slope / step) * step
+
+    def device_issues(self) -> tuple[str, ...]:
+        """Timing a real device would refuse or that makes the data suspect (empty when none)."""
+        issues = []
+        window = self.ramp_end_time - self.adc_start_time
+        if self.adc_sampling_time > window * (1 + 1e-9):
+            issues.append(f"ADC window N/f_s = {self.adc_sampling_time * 1e6:.3f} us is longer than "
+                          f"ramp_end_time - adc_start_time = {window * 1e6:.3f} us: samples fall outside the ramp")
+        f_end = self.start_frequency + self.ramp_bandwidth
+        low, high = (57e9, 64e9) if self.start_frequency < 70e9 else (76e9, 81e9)
+        if self.start_frequency < low or f_end > high:
+            issues.append(f"the ramp sweeps {self.start_frequency / 1e9:.3f}-{f_end / 1e9:.3f} GHz, "
+                          f"outside the device band {low / 1e9:g}-{high / 1e9:g} GHz")
+        if self.frame_periodicity and self.frame_active_time > self.frame_periodicity:
+            issues.append(f"frame active time {self.frame_active_time * 1e3:.3f} ms exceeds the frame period "
+                          f"{self.frame_periodicity * 1e3:.3f} ms")
+        if any(c.varies for c in self.chirps):
+            issues.append("chirps of the loop vary start frequency, slope, idle or ADC start time: "
+                          "the mapping uses the profile values")
+        if any(bin(c.tx_mask).count("1") != 1 for c in self.chirps) and self.chirps_per_loop > 1:
+            issues.append("some chirps enable no or several transmitters: virtual channels are not plain TDM")
+        return tuple(issues)
+
+    # ------------------------------------------------------------------ mapping
+    def to_radar_config(self, *, timing: Literal["repetition", "ramp"] = "repetition",
+                        carrier: Literal["start", "center"] = "start", quantize_slope: bool = True,
+                        **radar_fields: Any) -> "dsp.RadarConfig":
+        """The project's radar parameters (``dsp.RadarConfig``) for this configuration.
+
+        Parameters
+        ----------
+        timing : {"repetition", "ramp"}, default "repetition"
+            What ``RadarConfig.chirp_duration`` T stands for. ``"repetition"``: the time between
+            two chirps of one virtual channel (:attr:`loop_period`), so the slow-time phase
+            ``2π f_c ν k T`` of eq. (1) and the velocity axis are right; the bandwidth is then
+            ``B = S·T``, a bookkeeping value that keeps the slope S = B/T exact (it is not the swept
+            RF bandwidth). ``"ramp"``: T = ramp_end_time and B = S·ramp_end_time, the swept
+            bandwidth; the range axis is right, the velocity axis is wrong by T_loop/T_ramp.
+        carrier : {"start", "center"}, default "start"
+            f_c = the start frequency, or the frequency at the middle of the ADC window
+            ``f_0 + S·(adc_start_time + N/(2 f_s))``.
+        quantize_slope : bool, default True
+            Use the slope the device programs (:attr:`quantized_slope`) rather than the value
+            written in the file. Convert bins to metres with the quantized one.
+        **radar_fields
+            Other ``RadarConfig`` fields (``tx_power_dbm``, ``noise_power_dbm``, …), nominal.
+
+        Returns
+        -------
+        dsp.RadarConfig
+            ``num_samples`` = N, ``sample_rate`` = f_s, ``num_chirps`` = num_loops,
+            ``if_bandwidth`` = f_s (complex) or f_s/2 (real). With a real ADC the DSP's complex
+            model only holds for beat frequencies in [0, f_s/2).
+        """
+        import dsp
+
+        slope = self.quantized_slope if quantize_slope else self.slope
+        if timing == "repetition":
+            duration = self.loop_period
+        elif timing == "ramp":
+            duration = self.ramp_end_time
+        else:
+            raise MeasuredFormatError(f"timing={timing!r} must be 'repetition' or 'ramp'")
+        if carrier == "start":
+            fc = self.start_frequency
+        elif carrier == "center":
+            fc = self.start_frequency + slope * (self.adc_start_time + self.adc_sampling_time / 2)
+        else:
+            raise MeasuredFormatError(f"carrier={carrier!r} must be 'start' or 'center'")
+        fields = dict(carrier_frequency=fc, bandwidth=slope * duration, chirp_duration=duration,
+                      num_samples=self.num_samples, sample_rate=self.sample_rate,
+                      if_bandwidth=self.sample_rate if self.is_complex else self.sample_rate / 2,
+                      num_chirps=self.num_loops)
+        fields.update(radar_fields)
+        try:
+            return dsp.RadarConfig(**fields)
+        except ValueError as exc:
+            raise MeasuredFormatError(f"cannot map the TI configuration onto dsp.RadarConfig ({exc}); "
+                                      f"with timing='repetition' B = S·T_loop may exceed f_c: "
+                                      f"try timing='ramp'") from None
+
+    @classmethod
+    def from_radar(cls, radar: "dsp.RadarConfig", *, rx_mask: int = 0b1111, tx_order: tuple[int, ...] = (1,),
+                   adc_start_time: float = 6e-6, ramp_margin: float = 1e-6, num_frames: int = 0,
+                   frame_periodicity: float | None = None, adc_bits: int = 16,
+                   adc_format: AdcFormat = "complex1x") -> "TiChirpConfig":
+        """A TI configuration that reproduces ``radar``'s S, f_s, N, K and chirp spacing.
+
+        The loop holds one chirp per entry of ``tx_order`` (Tx masks); the chirp spacing
+        ``radar.chirp_duration`` is split evenly among them as idle + ramp, the ramp being
+        ``adc_start_time + N/f_s + ramp_margin``. Raises if T is too short for that ramp
+        (Table I: 600 samples at 10 Msps need 60 µs, more than its 50 µs chirp).
+        """
+        tx_order = tuple(tx_order)
+        ramp = adc_start_time + radar.adc_window + ramp_margin
+        per_chirp = radar.chirp_duration / max(len(tx_order), 1)
+        if ramp > per_chirp * (1 + 1e-12):
+            raise MeasuredFormatError(
+                f"radar.chirp_duration={radar.chirp_duration * 1e6:.3f} us leaves {per_chirp * 1e6:.3f} us per chirp, "
+                f"less than the ramp adc_start_time + N/f_s + margin = {ramp * 1e6:.3f} us; "
+                "lower num_samples, raise sample_rate or lengthen chirp_duration")
+        chirps = tuple(TiChirp(tx_mask=m) for m in tx_order)
+        tx_mask = 0
+        for m in tx_order:
+            tx_mask |= m
+        period = radar.num_chirps * radar.chirp_duration if frame_periodicity is None else frame_periodicity
+        return cls(start_frequency=radar.carrier_frequency, slope=radar.slope, idle_time=per_chirp - ramp,
+                   adc_start_time=adc_start_time, ramp_end_time=ramp, num_samples=radar.num_samples,
+                   sample_rate=radar.sample_rate, rx_mask=rx_mask, tx_mask=tx_mask, chirps=chirps,
+                   num_loops=radar.num_chirps, num_frames=num_frames, frame_periodicity=period,
+                   adc_bits=adc_bits, adc_format=adc_format)
+
+    def with_frames(self, num_frames: int) -> "TiChirpConfig":
+        """A copy with another ``num_frames``."""
+        return replace(self, num_frames=num_frames)
