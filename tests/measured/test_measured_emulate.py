@@ -1,0 +1,114 @@
+"""Emulator: quantization, clipping, impairments; write -> read gives back the codes; physics in bins and metres."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from risloc_rt.measured import (AdcImpairments, MeasuredFormatError, Recording, combine_channels, inspect_capture,
+                                plot_inspection, quantize_cube, read_raw, read_sdk_cfg, write_raw_capture)
+
+
+@pytest.mark.parametrize("form", ["raw", "packets"])
+@pytest.mark.parametrize("lanes, fmt, swap", [(2, "complex1x", False), (2, "complex2x", True), (4, "complex1x", True),
+                                              (2, "real", False), (4, "real", False)])
+def test_write_then_read_gives_the_quantized_samples_exactly(tmp_path, make_config, make_tone, form, lanes, fmt, swap):
+    cfg = make_config(adc_format=fmt)
+    cube = make_tone(cfg, 3, range_bin=4.3, doppler_bin=1, amplitude=0.7)
+    em = write_raw_capture(cube, cfg, tmp_path, recording=Recording(form=form, lanes=lanes, iq_swap=swap,
+                                                                    payload_size=1000))
+    parsed = read_sdk_cfg(em.cfg_path).config
+    assert parsed == em.config and parsed.num_frames == 3
+    cap = read_raw(em.files[0], em.layout, expected_frames=parsed.num_frames)
+    assert cap.info.form == form and cap.cube.dtype == np.complex64 and cap.cube.shape == (3, 8, 8, 32)
+    np.testing.assert_array_equal(cap.cube, em.quantized.as_complex())
+    # and the codes are the cube (same convention in and out) at 2^15 counts per full scale, ±½ LSB
+    ref = (cube.real if fmt == "real" else cube) * 2 ** 15
+    assert np.max(np.abs(cap.cube - ref)) <= 0.5 * np.sqrt(2) + 1e-6
+
+
+def test_quantization_levels_and_clipping():
+    cube = np.array([0.0, 0.5, -1.0, 1.0, 2.0, 1 / 2 ** 15 * 0.49, -3.0]).reshape(1, 1, 1, 7).astype(complex)
+    q = quantize_cube(cube, adc_bits=16, real=True)
+    np.testing.assert_array_equal(q.i.ravel(), [0, 16384, -32768, 32767, 32767, 0, -32768])
+    assert q.clipped == 3                                       # +1.0 -> 32768 clipped, 2.0, -3.0
+    q12 = quantize_cube(cube, adc_bits=12, real=True)
+    np.testing.assert_array_equal(q12.i.ravel(), [0, 1024, -2048, 2047, 2047, 0, -2048])
+
+
+def test_iq_imbalance_and_dc_offset_are_recovered_by_inspect(tmp_path, make_config):
+    cfg = make_config()
+    rng = np.random.default_rng(7)
+    shape = (4, 8, 8, 32)
+    noise = (rng.normal(size=shape) + 1j * rng.normal(size=shape)) * 0.05
+    imp = AdcImpairments(dc_offset=0.02 - 0.01j, iq_gain_imbalance_db=1.5, iq_phase_imbalance=np.deg2rad(6))
+    em = write_raw_capture(noise, cfg, tmp_path, impairments=imp)
+    res = inspect_capture(em.files[0], em.cfg_path)
+    assert res.dc_offset.real == pytest.approx(0.02 * 2 ** 15, abs=30)          # counts; noise σ/√n ≈ 0.05·2^15/90
+    assert res.dc_offset.imag == pytest.approx(-0.01 * 2 ** 15, abs=30)
+    assert res.iq_gain_imbalance_db == pytest.approx(1.5, abs=0.2)
+    assert np.rad2deg(res.iq_phase_imbalance) == pytest.approx(6, abs=1)
+    assert {"dc_offset", "iq_imbalance"} <= {f.name for f in res.flags}
+
+
+def test_noise_is_seeded_and_needs_a_generator(make_config, make_tone):
+    cfg = make_config()
+    cube = make_tone(cfg, 1, range_bin=3, amplitude=0.1)
+    imp = AdcImpairments(noise_rms=0.01)
+    a = quantize_cube(cube, impairments=imp, rng=np.random.default_rng(5))
+    b = quantize_cube(cube, impairments=imp, rng=np.random.default_rng(5))
+    np.testing.assert_array_equal(a.i, b.i)
+    with pytest.raises(MeasuredFormatError, match="noise_rms > 0 needs rng"):
+        quantize_cube(cube, impairments=imp)
+
+
+def test_emulated_target_lands_in_its_range_and_doppler_bin_and_metres(tmp_path, make_config):
+    cfg = make_config()
+    radar = cfg.to_radar_config()
+    distance, velocity = 3.0, 10.0                             # [m] (< 5 m unambiguous), [m/s] receding
+    tau, nu = 2 * distance / 299_792_458.0, 2 * velocity / 299_792_458.0
+    n, k = np.arange(cfg.num_samples), np.arange(cfg.num_loops)
+    # eq. (1): exp(-j2π (S τ + f_c ν) n T_s) exp(-j2π f_c ν k T)
+    y = 0.3 * np.exp(-2j * np.pi * ((radar.slope * tau + radar.carrier_frequency * nu) * n[None, :] / radar.sample_rate
+                                    + radar.carrier_frequency * nu * k[:, None] * radar.chirp_duration))
+    cube = np.broadcast_to(y[None, :, None, :], (2, cfg.num_loops, cfg.num_virtual, cfg.num_samples))
+    em = write_raw_capture(cube, cfg, tmp_path, impairments=AdcImpairments(noise_rms=1e-3),
+                           rng=np.random.default_rng(0))
+    res = inspect_capture(em.files[0], em.cfg_path)
+    expect_bin = round(radar.slope * tau * cfg.num_samples / radar.sample_rate)
+    assert res.peak.range_bin == expect_bin
+    assert res.peak.range == pytest.approx(distance, abs=radar.range_resolution)
+    assert res.peak.doppler_bin == round(radar.carrier_frequency * nu * cfg.num_loops * radar.chirp_duration) > 0
+    assert res.peak.velocity == pytest.approx(velocity, abs=radar.velocity_resolution)
+    doc = json.loads(res.to_json())
+    assert doc["peak"]["range_bin"] == expect_bin and doc["frames"] == 2 and doc["channels"] == 8
+    out = tmp_path / "inspect.png"
+    plot_inspection(res, out)
+    assert out.stat().st_size > 10_000
+
+
+def test_inspect_flags_lost_packets_clipping_and_truncation(tmp_path, make_config, make_tone):
+    cfg = make_config()
+    cube = make_tone(cfg, 4, range_bin=6, amplitude=1.5)                   # beyond full scale: clips
+    em = write_raw_capture(cube, cfg, tmp_path, recording=Recording(form="packets", drop_packets=(4,),
+                                                                    truncate_bytes=10))
+    res = inspect_capture(em.files[0], em.cfg_path)
+    names = {f.name for f in res.flags}
+    assert {"dropped_packets", "truncated_frame", "clipping"} <= names
+    assert res.frames == 3 and res.dropped_packets == 1 and res.damaged_frames == (0,)
+    assert res.clipped_fraction > 0.1 and res.peak.range_bin == 6
+
+
+def test_combine_channels_gives_the_localization_cube(make_config, make_tone):
+    cfg = make_config()
+    cube = make_tone(cfg, 2, range_bin=3).astype(np.complex64)             # random phase per channel
+    one = combine_channels(cube, channels=5)
+    assert one.shape == (2, 8, 32) and np.array_equal(one, cube[:, :, 5])
+    phases = cube[0, 0, :, 0] / np.abs(cube[0, 0, :, 0])
+    beam = combine_channels(cube, channels=None, weights=np.conj(phases))   # phase-aligned: full amplitude
+    assert np.allclose(np.abs(beam), 0.5, atol=1e-5)
+    assert np.abs(combine_channels(cube, channels=None)).max() < 0.5       # unaligned sum loses amplitude
+    with pytest.raises(MeasuredFormatError, match="outside the 8 virtual channels"):
+        combine_channels(cube, channels=8)
