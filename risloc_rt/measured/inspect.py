@@ -244,7 +244,7 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
     if cfg is not None:
         radar = cfg.to_radar_config()
         rng_m = float(p * radar.range_resolution)
-        vel = float(q / (K * radar.carrier_frequency * radar.chirp_duration) * scipy.constants.c / 2)
+        vel = float(q / (K * radar.carrier_frequency * radar.chirp_interval) * scipy.constants.c / 2)
 
     mean_i, mean_q = s1 / count
     var_i, var_q = s2[0] / count - mean_i ** 2, s2[1] / count - mean_q ** 2

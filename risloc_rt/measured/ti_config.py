@@ -272,20 +272,18 @@ class TiChirpConfig:
         return tuple(issues)
 
     # ------------------------------------------------------------------ mapping
-    def to_radar_config(self, *, timing: Literal["repetition", "ramp"] = "repetition",
-                        carrier: Literal["start", "center"] = "start", quantize_slope: bool = True,
+    def to_radar_config(self, *, carrier: Literal["start", "center"] = "start", quantize_slope: bool = True,
                         **radar_fields: Any) -> "dsp.RadarConfig":
         """The project's radar parameters (``dsp.RadarConfig``) for this configuration.
 
+        The ramp sets the slope, the TDM loop the slow-time spacing: ``chirp_duration`` T =
+        ``ramp_end_time`` and ``bandwidth`` B = S·T (so S = B/T is the programmed slope and B the
+        swept RF bandwidth), ``chirp_period`` T_c = :attr:`loop_period` (the time between two
+        chirps of one virtual channel, which sets the velocity axis), ``frame_period`` = the
+        frame periodicity (when it is set and holds the frame's chirps).
+
         Parameters
         ----------
-        timing : {"repetition", "ramp"}, default "repetition"
-            What ``RadarConfig.chirp_duration`` T stands for. ``"repetition"``: the time between
-            two chirps of one virtual channel (:attr:`loop_period`), so the slow-time phase
-            ``2π f_c ν k T`` of eq. (1) and the velocity axis are right; the bandwidth is then
-            ``B = S·T``, a bookkeeping value that keeps the slope S = B/T exact (it is not the swept
-            RF bandwidth). ``"ramp"``: T = ramp_end_time and B = S·ramp_end_time, the swept
-            bandwidth; the range axis is right, the velocity axis is wrong by T_loop/T_ramp.
         carrier : {"start", "center"}, default "start"
             f_c = the start frequency, or the frequency at the middle of the ADC window
             ``f_0 + S·(adc_start_time + N/(2 f_s))``.
@@ -305,19 +303,16 @@ class TiChirpConfig:
         import dsp
 
         slope = self.quantized_slope if quantize_slope else self.slope
-        if timing == "repetition":
-            duration = self.loop_period
-        elif timing == "ramp":
-            duration = self.ramp_end_time
-        else:
-            raise MeasuredFormatError(f"timing={timing!r} must be 'repetition' or 'ramp'")
         if carrier == "start":
             fc = self.start_frequency
         elif carrier == "center":
             fc = self.start_frequency + slope * (self.adc_start_time + self.adc_sampling_time / 2)
         else:
             raise MeasuredFormatError(f"carrier={carrier!r} must be 'start' or 'center'")
-        fields = dict(carrier_frequency=fc, bandwidth=slope * duration, chirp_duration=duration,
+        frame = self.frame_periodicity if self.frame_periodicity and \
+            self.frame_periodicity >= self.num_loops * self.loop_period else None
+        fields = dict(carrier_frequency=fc, bandwidth=slope * self.ramp_end_time, chirp_duration=self.ramp_end_time,
+                      chirp_period=self.loop_period, frame_period=frame,
                       num_samples=self.num_samples, sample_rate=self.sample_rate,
                       if_bandwidth=self.sample_rate if self.is_complex else self.sample_rate / 2,
                       num_chirps=self.num_loops)
@@ -326,8 +321,7 @@ class TiChirpConfig:
             return dsp.RadarConfig(**fields)
         except ValueError as exc:
             raise MeasuredFormatError(f"cannot map the TI configuration onto dsp.RadarConfig ({exc}); "
-                                      f"with timing='repetition' B = S·T_loop may exceed f_c: "
-                                      f"try timing='ramp'") from None
+                                      "check the profileCfg/chirpCfg/frameCfg values it names") from None
 
     @classmethod
     def from_radar(cls, radar: "dsp.RadarConfig", *, rx_mask: int = 0b1111, tx_order: tuple[int, ...] = (1,),
@@ -337,23 +331,23 @@ class TiChirpConfig:
         """A TI configuration that reproduces ``radar``'s S, f_s, N, K and chirp spacing.
 
         The loop holds one chirp per entry of ``tx_order`` (Tx masks); the chirp spacing
-        ``radar.chirp_duration`` is split evenly among them as idle + ramp, the ramp being
+        ``radar.chirp_interval`` is split evenly among them as idle + ramp, the ramp being
         ``adc_start_time + N/f_s + ramp_margin``. Raises if T is too short for that ramp
         (Table I: 600 samples at 10 Msps need 60 µs, more than its 50 µs chirp).
         """
         tx_order = tuple(tx_order)
         ramp = adc_start_time + radar.adc_window + ramp_margin
-        per_chirp = radar.chirp_duration / max(len(tx_order), 1)
+        per_chirp = radar.chirp_interval / max(len(tx_order), 1)
         if ramp > per_chirp * (1 + 1e-12):
             raise MeasuredFormatError(
-                f"radar.chirp_duration={radar.chirp_duration * 1e6:.3f} us leaves {per_chirp * 1e6:.3f} us per chirp, "
+                f"radar.chirp_interval={radar.chirp_interval * 1e6:.3f} us leaves {per_chirp * 1e6:.3f} us per chirp, "
                 f"less than the ramp adc_start_time + N/f_s + margin = {ramp * 1e6:.3f} us; "
-                "lower num_samples, raise sample_rate or lengthen chirp_duration")
+                "lower num_samples, raise sample_rate or lengthen chirp_period")
         chirps = tuple(TiChirp(tx_mask=m) for m in tx_order)
         tx_mask = 0
         for m in tx_order:
             tx_mask |= m
-        period = radar.num_chirps * radar.chirp_duration if frame_periodicity is None else frame_periodicity
+        period = radar.frame_interval if frame_periodicity is None else frame_periodicity
         return cls(start_frequency=radar.carrier_frequency, slope=radar.slope, idle_time=per_chirp - ramp,
                    adc_start_time=adc_start_time, ramp_end_time=ramp, num_samples=radar.num_samples,
                    sample_rate=radar.sample_rate, rx_mask=rx_mask, tx_mask=tx_mask, chirps=chirps,

@@ -8,11 +8,13 @@ import pytest
 from risloc_rt.measured import MeasuredFormatError, TiChirpConfig, slope_step
 
 
-def test_repetition_timing_keeps_slope_and_slow_time_period(make_config):
+def test_ramp_sets_the_slope_and_the_tdm_loop_the_slow_time_period(make_config):
     cfg = make_config()
     radar = cfg.to_radar_config(quantize_slope=False)
     t_loop = 2 * (7e-6 + 24e-6)                                  # two TDM chirps of idle + ramp
-    assert radar.chirp_duration == pytest.approx(t_loop)
+    assert radar.chirp_duration == pytest.approx(24e-6)           # the ramp
+    assert radar.bandwidth == pytest.approx(60e12 * 24e-6)        # the swept RF bandwidth
+    assert radar.chirp_interval == pytest.approx(t_loop)
     assert radar.slope == pytest.approx(60e12, rel=1e-12)         # S = B/T preserved
     assert radar.carrier_frequency == 60.25e9
     assert (radar.num_samples, radar.sample_rate, radar.num_chirps) == (32, 2e6, 8)
@@ -20,9 +22,9 @@ def test_repetition_timing_keeps_slope_and_slow_time_period(make_config):
     assert radar.max_velocity == pytest.approx(dsp.SPEED_OF_LIGHT / 60.25e9 / (4 * t_loop))
 
 
-def test_ramp_timing_and_centre_carrier(make_config):
+def test_centre_carrier(make_config):
     cfg = make_config()
-    radar = cfg.to_radar_config(timing="ramp", carrier="center", quantize_slope=False)
+    radar = cfg.to_radar_config(carrier="center", quantize_slope=False)
     assert radar.bandwidth == pytest.approx(60e12 * 24e-6)
     assert radar.carrier_frequency == pytest.approx(60.25e9 + 60e12 * (6e-6 + 8e-6))
 
@@ -49,7 +51,7 @@ def test_from_radar_round_trip(make_config):
     radar = dsp.RadarConfig(num_samples=64, sample_rate=4e6, num_chirps=16, chirp_duration=100e-6, bandwidth=3e9)
     cfg = TiChirpConfig.from_radar(radar, tx_order=(1, 4))
     back = cfg.to_radar_config(quantize_slope=False)
-    assert back.slope == pytest.approx(radar.slope) and back.chirp_duration == pytest.approx(radar.chirp_duration)
+    assert back.slope == pytest.approx(radar.slope) and back.chirp_interval == pytest.approx(radar.chirp_interval)
     with pytest.raises(MeasuredFormatError, match="less than the ramp"):
         TiChirpConfig.from_radar(dsp.RadarConfig())                # Table I: 60 µs of samples in a 50 µs chirp
 
