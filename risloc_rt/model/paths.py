@@ -9,7 +9,7 @@ import numpy as np
 
 from dsp._validate import as_finite_array
 
-__all__ = ["PathSet"]
+__all__ = ["PathFrames", "PathSet"]
 
 
 @dataclass(frozen=True)
@@ -99,4 +99,126 @@ class PathSet:
     @property
     def power(self) -> np.ndarray:
         """|γ_l|² [L] [W] (RIS paths before the array response)."""
+        return np.abs(self.gain) ** 2
+
+
+@dataclass(frozen=True)
+class PathFrames:
+    """The same L paths seen from where the UE is during each of M frames (one frame per beam).
+
+    A moving radar (or target) changes every path's delay, delay rate, gain and RIS angles from
+    one sweep beam to the next; :func:`risloc_rt.model.beat.beat_cube` synthesises frame m of
+    the cube from row m. Path l is the same propagation path in every frame (same label, and it
+    goes through the RIS in all frames or in none).
+
+    Attributes
+    ----------
+    gain : complex array [M, L]
+        γ_{m,l} as in :class:`PathSet`: the carrier phase ``exp(-j2π f_c τ)`` at the frame's
+        first chirp [√W].
+    delay : float array [M, L]
+        τ_{m,l}, the round-trip delay at the centre of frame m, which sets the beat frequency
+        (no range migration within a frame, as eq. (1)) [s].
+    delay_rate : float array [M, L]
+        ν_{m,l} during frame m [s/s].
+    ris_incidence, ris_departure : float array [M, L, 2]
+        RIS angles during frame m; NaN for paths that do not pass through the RIS [rad].
+    labels : tuple of str, length L
+    times : float array [M]
+        Centre time of each frame from the start of the sweep (``RadarConfig.beam_times``) [s].
+    """
+
+    gain: np.ndarray
+    delay: np.ndarray
+    delay_rate: np.ndarray
+    ris_incidence: np.ndarray
+    ris_departure: np.ndarray
+    labels: tuple[str, ...]
+    times: np.ndarray
+
+    def __post_init__(self) -> None:
+        gain = np.asarray(self.gain, dtype=complex)
+        if gain.ndim != 2:
+            raise ValueError(f"gain has shape {list(gain.shape)}, expected [M, L] (frames, paths)")
+        m, n = gain.shape
+        if m < 1:
+            raise ValueError("a PathFrames needs at least one frame")
+        gain = as_finite_array(gain, "gain", shape=(m, n), dtype=complex, allow_empty=True)
+        delay = as_finite_array(self.delay, "delay", shape=(m, n), allow_empty=True)
+        rate = as_finite_array(self.delay_rate, "delay_rate", shape=(m, n), allow_empty=True)
+        times = as_finite_array(self.times, "times", shape=(m,))
+        inc = np.asarray(self.ris_incidence, dtype=float).reshape(m, n, 2)
+        dep = np.asarray(self.ris_departure, dtype=float).reshape(m, n, 2)
+        for name, value in (("ris_incidence", inc), ("ris_departure", dep)):
+            if np.any(np.isinf(value)):
+                raise ValueError(f"{name} contains infinite values; use NaN for non-RIS paths")
+        via = ~np.isnan(inc).any(axis=2)  # [M, L]
+        if not np.array_equal(via, ~np.isnan(dep).any(axis=2)):
+            raise ValueError("ris_incidence and ris_departure must be NaN on the same paths")
+        if not np.all(via == via[:1]):
+            raise ValueError("a path must pass through the RIS in every frame or in none (NaN angles "
+                             "on the same paths in every frame)")
+        if np.any(delay < 0):
+            raise ValueError(f"delay contains negative values (min {delay.min():.3e} s); delays are >= 0")
+        labels = tuple(str(x) for x in self.labels)
+        if len(labels) != n:
+            raise ValueError(f"labels has {len(labels)} entries, expected {n} (one per path)")
+        for name, value in (("gain", gain), ("delay", delay), ("delay_rate", rate),
+                            ("ris_incidence", inc), ("ris_departure", dep), ("times", times)):
+            value = value.copy()
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "labels", labels)
+
+    @classmethod
+    def from_frames(cls, frames: Any, times: Any) -> "PathFrames":
+        """Stack M :class:`PathSet` (the same L paths in each) into one ``PathFrames``."""
+        frames = list(frames)
+        if not frames:
+            raise ValueError("from_frames needs at least one PathSet")
+        labels = frames[0].labels
+        for i, f in enumerate(frames):
+            if f.labels != labels:
+                raise ValueError(f"frame {i} has other paths ({len(f)} labelled {f.labels[:3]}...) than frame 0")
+        return cls(
+            gain=np.stack([f.gain for f in frames]),
+            delay=np.stack([f.delay for f in frames]),
+            delay_rate=np.stack([f.delay_rate for f in frames]),
+            ris_incidence=np.stack([f.ris_incidence for f in frames]),
+            ris_departure=np.stack([f.ris_departure for f in frames]),
+            labels=labels,
+            times=times,
+        )
+
+    @classmethod
+    def repeat(cls, paths: PathSet, times: Any) -> "PathFrames":
+        """The same paths in every frame (a static geometry), one frame per entry of ``times``."""
+        m = np.asarray(times).shape[0]
+        tile = lambda x: np.broadcast_to(x, (m,) + x.shape)  # noqa: E731
+        return cls(gain=tile(paths.gain), delay=tile(paths.delay), delay_rate=tile(paths.delay_rate),
+                   ris_incidence=tile(paths.ris_incidence), ris_departure=tile(paths.ris_departure),
+                   labels=paths.labels, times=times)
+
+    def frame(self, m: int) -> PathSet:
+        """The paths of frame ``m`` as a :class:`PathSet`."""
+        return PathSet(gain=self.gain[m], delay=self.delay[m], delay_rate=self.delay_rate[m],
+                       ris_incidence=self.ris_incidence[m], ris_departure=self.ris_departure[m],
+                       labels=self.labels)
+
+    @property
+    def num_frames(self) -> int:
+        """M, the number of frames (one per sweep beam)."""
+        return int(self.gain.shape[0])
+
+    def __len__(self) -> int:
+        return int(self.gain.shape[1])
+
+    @property
+    def via_ris(self) -> np.ndarray:
+        """Mask [L] of the RIS loop-back paths (those with RIS angles)."""
+        return ~np.isnan(self.ris_incidence[0]).any(axis=1)
+
+    @property
+    def power(self) -> np.ndarray:
+        """|γ_{m,l}|² [M, L] [W] (RIS paths before the array response)."""
         return np.abs(self.gain) ** 2
