@@ -60,15 +60,21 @@ class Truth:
     Attributes
     ----------
     ue_position : float array [3]
-        World frame [m].
+        Where the UE is at ``reference_time``, world frame [m].
     ue_velocity : float array [3]
-        World frame [m/s].
+        World frame, constant over the sweep [m/s].
     distance : float
-        UE-RIS distance [m].
+        UE-RIS distance at ``reference_time`` [m].
     velocity : float
-        Rate of change of the UE-RIS distance, positive receding [m/s].
+        Rate of change of the UE-RIS distance at ``reference_time``, positive receding [m/s].
     aod : float array [2]
-        ``[az, el]`` of the UE seen from the RIS, RIS frame [rad].
+        ``[az, el]`` of the UE seen from the RIS at ``reference_time``, RIS frame [rad].
+    reference_time : float or None, default None
+        Time at which the position, distance and AoD hold, from the start of the sweep's first
+        frame (the clock of ``RadarConfig.beam_times``): the middle of the sweep,
+        ``mean(beam_times(M))`` (:func:`risloc_rt.model.motion.sweep_reference_time`) [s].
+        ``None`` in captures written before the radar moved during a sweep (frozen geometry:
+        the truth held over the whole sweep).
     """
 
     ue_position: np.ndarray
@@ -76,25 +82,40 @@ class Truth:
     distance: float
     velocity: float
     aod: np.ndarray
+    reference_time: float | None = None
+
+    def position_at(self, time: float) -> np.ndarray:
+        """The UE's position at ``time`` from the sweep start, ``p + v (t - t_ref)`` [3] [m].
+
+        With no ``reference_time`` (a frozen-geometry capture) the position is the same at
+        every time.
+        """
+        if self.reference_time is None:
+            return np.asarray(self.ue_position, dtype=float).copy()
+        return self.ue_position + self.ue_velocity * (float(time) - self.reference_time)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON dictionary [SI units, rad]."""
         return {"ue_position": np.asarray(self.ue_position).tolist(),
                 "ue_velocity": np.asarray(self.ue_velocity).tolist(),
                 "distance": float(self.distance), "velocity": float(self.velocity),
-                "aod": np.asarray(self.aod).tolist()}
+                "aod": np.asarray(self.aod).tolist(),
+                "reference_time": None if self.reference_time is None else float(self.reference_time)}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "Truth":
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`; files without ``reference_time`` (older) read it as None."""
         from dsp._validate import dataclass_from_dict
 
+        if isinstance(data, dict):
+            data = {"reference_time": None, **data}
         t = dataclass_from_dict(cls, data, "truth", require_all=True)
         return cls(
             ue_position=as_finite_array(t.ue_position, "truth.ue_position", shape=(3,)),
             ue_velocity=as_finite_array(t.ue_velocity, "truth.ue_velocity", shape=(3,)),
             distance=float(t.distance), velocity=float(t.velocity),
             aod=as_finite_array(t.aod, "truth.aod", shape=(2,)),
+            reference_time=None if t.reference_time is None else float(t.reference_time),
         )
 
 
@@ -107,12 +128,15 @@ class Scenario:
     radar, ris, sweep, processing
         Radar, RIS, beam sweep and processing parameters.
     ue_position : float array [3]
-        World frame [m].
+        Where the UE is at the middle of the sweep, t_ref = ``mean(radar.beam_times(M))``
+        (:func:`risloc_rt.model.motion.sweep_reference_time`), world frame [m].
     ue_velocity : float array [3], default 0
-        World frame [m/s]. The geometry is frozen over the sweep (eq. (1)); the velocity only
-        sets the delay rates within each frame.
+        World frame, constant [m/s]: the UE is at ``ue_position + ue_velocity (t - t_ref)`` at
+        time t from the sweep start. :func:`risloc_rt.model.simulate.simulate` places it there
+        in every frame (``motion="sweep"``, ``docs/moving-radar.md``), or freezes the geometry
+        at t_ref as eq. (1) does (``motion="frozen"``: the velocity only sets the delay rates).
     targets : tuple of PointTarget
-        Other scatterers (the paper's l > 0 paths).
+        Other scatterers (the paper's l > 0 paths); ``position`` is theirs at t_ref too.
     name : str
     """
 
@@ -148,7 +172,7 @@ class Scenario:
 
     @property
     def truth(self) -> Truth:
-        """The quantities the DSP should recover."""
+        """The quantities the DSP should recover, at the middle of the sweep (``reference_time``)."""
         offset = self.ue_position - self.ris.pose.position
         d = float(np.linalg.norm(offset))
         return Truth(
@@ -157,6 +181,7 @@ class Scenario:
             distance=d,
             velocity=float(self.ue_velocity @ offset / d),
             aod=self.ris.pose.angles_to(self.ue_position),
+            reference_time=float(np.mean(self.radar.beam_times(self.sweep.num_beams))),
         )
 
 

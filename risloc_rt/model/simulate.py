@@ -2,24 +2,30 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 from .beat import add_noise, beat_cube
 from .capture import Capture, provenance
-from .paths import PathSet
+from .motion import advance_paths, analytic_frame_paths, sweep_reference_time
+from .paths import PathFrames, PathSet
 from .scenario import Scenario, analytic_paths
 
 __all__ = ["simulate"]
+
+Motion = Literal["sweep", "frozen"]
 
 
 def simulate(
     scenario: Scenario,
     *,
     rng: np.random.Generator,
-    paths: PathSet | None = None,
+    paths: PathSet | PathFrames | None = None,
     noise: bool = True,
     seed: int | None = None,
     provenance_extra: dict | None = None,
+    motion: Motion = "sweep",
 ) -> Capture:
     """One realization of the beat cube for ``scenario``.
 
@@ -28,37 +34,60 @@ def simulate(
     scenario : Scenario
     rng : numpy.random.Generator
         Source of the receiver noise (``numpy.random.default_rng(seed)``).
-    paths : PathSet, optional
-        Paths to synthesise; by default the paper's analytic ones (:func:`analytic_paths`).
+    paths : PathSet or PathFrames, optional
+        Paths to synthesise; by default the paper's analytic ones. A ``PathSet`` holds at the
+        middle of the sweep (e.g. traced at ``scenario.ue_position``); a ``PathFrames`` is used
+        as given.
     noise : bool
         Add CN(0, σ_N²) noise (``False`` gives the noiseless cube of eq. (1)).
     seed : int, optional
         Recorded in the capture's provenance (the seed ``rng`` was made from).
     provenance_extra : dict, optional
         More provenance keys (e.g. the traced scene and its content hash).
+    motion : {"sweep", "frozen"}, default "sweep"
+        ``"sweep"``: the UE (and any moving target) is where it is during each frame
+        (``docs/moving-radar.md``): analytic paths recomputed per frame
+        (:func:`risloc_rt.model.motion.analytic_frame_paths`), a given ``PathSet`` advanced to
+        first order by its delay rates (:func:`risloc_rt.model.motion.advance_paths`).
+        ``"frozen"``: eq. (1)'s frozen geometry, the paths of the middle of the sweep in every
+        frame. Both give the same cube, bit for bit, when nothing moves.
 
     Returns
     -------
     Capture
-        complex128 cube [M, K, N] [√W] with the scenario's parameters and truth.
+        complex128 cube [M, K, N] [√W] with the scenario's parameters and truth (at the middle
+        of the sweep, ``truth.reference_time``).
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
+    if motion not in ("sweep", "frozen"):
+        raise ValueError(f"motion={motion!r} must be 'sweep' (the UE moves between frames) or 'frozen' (eq. (1))")
+    m = scenario.sweep.num_beams
     if paths is None:
-        paths = analytic_paths(scenario)
+        paths = analytic_frame_paths(scenario) if motion == "sweep" else analytic_paths(scenario)
+    elif isinstance(paths, PathSet) and motion == "sweep":
+        paths = advance_paths(paths, radar=scenario.radar, num_beams=m)
+    elif isinstance(paths, PathFrames) and motion == "frozen":
+        raise ValueError("motion='frozen' needs a PathSet (one geometry for the whole sweep), got a PathFrames")
     cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris)
     if noise:
-        cube = add_noise(cube, scenario.radar.noise_power, rng)
+        cube = add_noise(cube, scenario.radar.noise_power, rng, out=cube)
+    # The provenance lists the paths of the middle frame (the reference time) for a moving radar.
+    listed = paths
+    if isinstance(paths, PathFrames):
+        t_ref = sweep_reference_time(scenario.radar, m)
+        listed = paths.frame(int(np.argmin(np.abs(paths.times - t_ref))))
     return Capture(
         cube=cube,
         sweep=scenario.sweep,
         radar=scenario.radar,
         ris=scenario.ris,
         processing=scenario.processing,
-        frame_index=np.arange(scenario.sweep.num_beams),
+        frame_index=np.arange(m),
         provenance=provenance("simulation", scenario=scenario.name, seed=seed, noise=noise,
+                              motion=motion,
                               paths=[{"label": lab, "delay": float(t), "power_dbm": float(10 * np.log10(max(pw, 1e-300)) + 30)}
-                                     for lab, t, pw in zip(paths.labels, paths.delay, paths.power)],
+                                     for lab, t, pw in zip(listed.labels, listed.delay, listed.power)],
                               **(provenance_extra or {})),
         truth=scenario.truth,
     )
