@@ -1,9 +1,12 @@
-"""Factories shared by the test suite.
+"""Factory fixtures shared by the test suite.
 
-Every factory takes keyword overrides, so a test states only what it changes. The defaults are a
+Each fixture returns a factory function (``def test_x(make_radar): radar = make_radar(num_samples=64)``);
+every factory takes keyword overrides, so a test states only what it changes. The defaults are a
 *small* radar (N = 128 samples, K = 16 chirps, N_DFT = 2N - 1, K_DFT = 4K) with Table I's RF
 parameters (f_c, B, T, T_s), so the unambiguous range, slope and Doppler scale are the paper's;
 tests that need Table I itself use :func:`risloc_rt.model.scenario.paper_scenario` (see ``paper_run``).
+Constants come from the library: ``from dsp import SPEED_OF_LIGHT as C`` and
+``from risloc_rt.model.scenario import PAPER_DISTANCE, PAPER_RCS``.
 """
 
 from __future__ import annotations
@@ -14,40 +17,34 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, RisPose
+from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose
 from risloc_rt.model.paths import PathSet
 from risloc_rt.model.ris import RisConfig
-from risloc_rt.model.scenario import PointTarget, Scenario, paper_scenario
+from risloc_rt.model.scenario import PAPER_DISTANCE, PAPER_RCS, PointTarget, Scenario, paper_scenario
 from risloc_rt.model.simulate import simulate
 
-C = SPEED_OF_LIGHT
-#: UE-RIS distance of the paper [m].
-PAPER_DISTANCE = 13.38
-#: RCS used by the paper for "other objects" (and for the RIS structure) [m²].
-PAPER_RCS = 19.0
 
-
-def make_radar(**kw: Any) -> RadarConfig:
+def _make_radar(**kw: Any) -> RadarConfig:
     """Table I radar with N = 128 samples and K = 16 chirps unless overridden."""
     params: dict[str, Any] = {"num_samples": 128, "num_chirps": 16}
     params.update(kw)
     return RadarConfig(**params)
 
 
-def make_processing(radar: RadarConfig | None = None, **kw: Any) -> ProcessingConfig:
+def _make_processing(radar: RadarConfig | None = None, **kw: Any) -> ProcessingConfig:
     """N_DFT = 2N - 1 (as the paper) and K_DFT = 4K for ``radar`` unless overridden."""
-    radar = radar or make_radar()
+    radar = radar or _make_radar()
     params: dict[str, Any] = {"n_dft": 2 * radar.num_samples - 1, "k_dft": 4 * radar.num_chirps}
     params.update(kw)
     return ProcessingConfig(**params)
 
 
-def paper_sweep() -> BeamSweep:
+def _paper_sweep() -> BeamSweep:
     """-45° … 45° in 1.5° steps, elevation 0 (61 beams), as in the paper."""
     return BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))
 
 
-def make_ris(
+def _make_ris(
     *,
     mode: str = "relay",
     position: Any = (0.0, PAPER_DISTANCE, 0.0),
@@ -61,7 +58,7 @@ def make_ris(
     return RisConfig(pose=pose, mode=mode, **kw).with_rx_toward(np.asarray(rx_toward, float))
 
 
-def make_scenario(
+def _make_scenario(
     *,
     radar: RadarConfig | None = None,
     processing: ProcessingConfig | None = None,
@@ -80,17 +77,17 @@ def make_scenario(
     ``structure`` adds the RIS panel's structural reflection (σ = 19 m² at the RIS centre), as
     :func:`paper_scenario` does.
     """
-    radar = radar or make_radar()
-    processing = processing or make_processing(radar)
+    radar = radar or _make_radar()
+    processing = processing or _make_processing(radar)
     ue = np.asarray(ue_position, float)
     ris_pos = np.asarray(ris_position, float)
-    ris = make_ris(mode=mode, position=ris_pos, facing=ue if ris_facing is None else ris_facing,
-                   yaw=yaw, rx_toward=ue, **(ris_kw or {}))
+    ris = _make_ris(mode=mode, position=ris_pos, facing=ue if ris_facing is None else ris_facing,
+                    yaw=yaw, rx_toward=ue, **(ris_kw or {}))
     targets = (PointTarget(position=ris_pos, rcs=PAPER_RCS, label="ris_structure"),) if structure else ()
     return Scenario(
         radar=radar,
         ris=ris,
-        sweep=sweep or paper_sweep(),
+        sweep=sweep or _paper_sweep(),
         processing=processing,
         ue_position=ue,
         targets=targets,
@@ -98,7 +95,7 @@ def make_scenario(
     )
 
 
-def tone_paths(gain: Any, delay: Any, delay_rate: Any, *, label: str = "target") -> PathSet:
+def _tone_paths(gain: Any, delay: Any, delay_rate: Any, *, label: str = "target") -> PathSet:
     """Non-RIS paths (NaN RIS angles) with the given gains [√W], delays [s] and rates [s/s]."""
     g = np.atleast_1d(np.asarray(gain, complex))
     n = g.shape[0]
@@ -112,9 +109,65 @@ def tone_paths(gain: Any, delay: Any, delay_rate: Any, *, label: str = "target")
     )
 
 
-def delay_step(radar: RadarConfig, processing: ProcessingConfig) -> float:
+def _delay_step(radar: RadarConfig, processing: ProcessingConfig) -> float:
     """Spacing of the delay grid, max_delay / N_DFT [s]."""
     return radar.max_delay / processing.n_dft
+
+
+# Fixtures: each returns its factory (pure functions, so one per session).
+
+@pytest.fixture(scope="session")
+def make_radar():
+    """``make_radar(**kw) -> RadarConfig``: Table I radar with N = 128 samples and K = 16 chirps unless overridden."""
+    return _make_radar
+
+
+@pytest.fixture(scope="session")
+def make_processing():
+    """``make_processing(radar=None, **kw) -> ProcessingConfig``: N_DFT = 2N - 1 (as the paper) and
+    K_DFT = 4K for ``radar`` (default: ``make_radar()``) unless overridden."""
+    return _make_processing
+
+
+@pytest.fixture(scope="session")
+def paper_sweep():
+    """``paper_sweep() -> BeamSweep``: -45° … 45° in 1.5° steps, elevation 0 (61 beams), as in the paper."""
+    return _paper_sweep
+
+
+@pytest.fixture(scope="session")
+def make_ris():
+    """``make_ris(*, mode="relay", position=(0, PAPER_DISTANCE, 0), facing=(0, 0, 0), yaw=0.0,
+    rx_toward=(0, 0, 0), **kw) -> RisConfig``: RIS at ``position`` facing ``facing`` turned by ``yaw``
+    [rad], relay Rx beam toward ``rx_toward``; ``kw`` go to :class:`RisConfig`."""
+    return _make_ris
+
+
+@pytest.fixture(scope="session")
+def make_scenario():
+    """``make_scenario(*, radar=None, processing=None, mode="relay", yaw=0.0, ue_position=(0, 0, 0),
+    ris_position=(0, PAPER_DISTANCE, 0), ris_facing=None, structure=True, sweep=None, ris_kw=None, **kw)
+    -> Scenario``: paper-like scenario on the small radar (``make_radar()``, ``make_processing(radar)``,
+    ``paper_sweep()`` by default): UE, RIS facing it (or ``ris_facing``) turned by ``yaw`` [rad], relay Rx
+    beam on the UE.
+
+    ``structure`` adds the RIS panel's structural reflection (σ = 19 m² at the RIS centre), as
+    :func:`paper_scenario` does; ``kw`` go to :class:`Scenario`.
+    """
+    return _make_scenario
+
+
+@pytest.fixture(scope="session")
+def tone_paths():
+    """``tone_paths(gain, delay, delay_rate, *, label="target") -> PathSet``: non-RIS paths (NaN RIS
+    angles) with the given gains [√W], delays [s] and rates [s/s]."""
+    return _tone_paths
+
+
+@pytest.fixture(scope="session")
+def delay_step():
+    """``delay_step(radar, processing) -> float``: spacing of the delay grid, max_delay / N_DFT [s]."""
+    return _delay_step
 
 
 @functools.lru_cache(maxsize=None)
@@ -135,8 +188,3 @@ def rng() -> np.random.Generator:
     """A fresh, seeded Generator per test."""
     return np.random.default_rng(20240607)
 
-
-__all__ = [
-    "C", "PAPER_DISTANCE", "PAPER_RCS", "delay_step", "make_processing", "make_radar", "make_ris",
-    "make_scenario", "paper_sweep", "tone_paths",
-]

@@ -12,8 +12,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import C, make_processing, make_radar, tone_paths
 
+from dsp import SPEED_OF_LIGHT as C
 from dsp import BeamSweep, RisPose, delay_doppler_map, localize, scan_beams, window_vector
 from risloc_rt.model.beat import add_noise, beat_cube
 
@@ -35,7 +35,7 @@ def on_grid_tone(radar, processing, p: int, q: int):
     return tau, nu
 
 
-def tone_frame(radar, tau, nu, gain=GAMMA):
+def tone_frame(tone_paths, radar, tau, nu, gain=GAMMA):
     return beat_cube(tone_paths(gain, tau, nu), radar=radar, sweep=BeamSweep(np.zeros((1, 2))), ris=None)
 
 
@@ -49,11 +49,11 @@ TONE_CASES = [
 
 
 @pytest.mark.parametrize("p, q", TONE_CASES)
-def test_on_grid_tone_lands_in_its_bins_in_the_delay_doppler_map(p, q):
+def test_on_grid_tone_lands_in_its_bins_in_the_delay_doppler_map(p, q, make_processing, make_radar, tone_paths):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar)  # N_DFT = 127, K_DFT = 64
     tau, nu = on_grid_tone(radar, processing, p, q)
-    dd = delay_doppler_map(tone_frame(radar, tau, nu)[0], radar, processing)
+    dd = delay_doppler_map(tone_frame(tone_paths, radar, tau, nu)[0], radar, processing)
     assert dd.power.shape == (processing.k_dft, processing.n_dft)
     row, col = np.unravel_index(int(np.argmax(dd.power)), dd.power.shape)
     assert col == p
@@ -67,11 +67,11 @@ def test_on_grid_tone_lands_in_its_bins_in_the_delay_doppler_map(p, q):
 
 @pytest.mark.parametrize("search", ["zoom", "full"])
 @pytest.mark.parametrize("p, q", TONE_CASES)
-def test_on_grid_tone_lands_in_its_bins_in_scan_beams(p, q, search):
+def test_on_grid_tone_lands_in_its_bins_in_scan_beams(p, q, search, make_processing, make_radar, tone_paths):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, doppler_search=search)
     tau, nu = on_grid_tone(radar, processing, p, q)
-    scan = scan_beams(tone_frame(radar, tau, nu), BeamSweep(np.zeros((1, 2))), radar, processing)
+    scan = scan_beams(tone_frame(tone_paths, radar, tau, nu), BeamSweep(np.zeros((1, 2))), radar, processing)
     assert scan.delay_bin.tolist() == [p]
     assert scan.doppler_bin.tolist() == [q]
     assert scan.delay[0] == radar.delay_grid(processing.n_dft)[p]
@@ -85,11 +85,11 @@ def test_on_grid_tone_lands_in_its_bins_in_scan_beams(p, q, search):
 
 
 @pytest.mark.parametrize("window", ["hann", "hamming", "blackman", "boxcar"])
-def test_peak_power_is_normalised_by_the_coherent_gain_of_any_window(window):
+def test_peak_power_is_normalised_by_the_coherent_gain_of_any_window(window, make_processing, make_radar, tone_paths):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, window=window)
     tau, nu = on_grid_tone(radar, processing, 20, 3)
-    dd = delay_doppler_map(tone_frame(radar, tau, nu)[0], radar, processing)
+    dd = delay_doppler_map(tone_frame(tone_paths, radar, tau, nu)[0], radar, processing)
     assert dd.power.max() == pytest.approx(abs(GAMMA) ** 2, rel=POWER_RTOL)
 
 
@@ -99,7 +99,7 @@ def test_hann_is_the_papers_sin_squared_window():
 
 
 @pytest.mark.parametrize("window", ["hann", "boxcar"])
-def test_parseval_for_the_zero_padded_map(window, rng):
+def test_parseval_for_the_zero_padded_map(window, rng, make_processing, make_radar):
     # Σ_{p,q} |Z|² = N_DFT·K_DFT·Σ|w y|² for the unnormalised transform; the map is |Z|²/gain².
     radar = make_radar(num_samples=32, num_chirps=8)
     processing = make_processing(radar, window=window, n_dft=50, k_dft=24)
@@ -111,7 +111,7 @@ def test_parseval_for_the_zero_padded_map(window, rng):
     assert dd.power.sum() == pytest.approx(expected, rel=1e-12)
 
 
-def test_scan_beams_agrees_with_the_full_map_on_noise(rng):
+def test_scan_beams_agrees_with_the_full_map_on_noise(rng, make_processing, make_radar):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, delta=1.5e-9)  # ±1.5 ns: several delay bins in P_ave
     cube = add_noise(np.zeros((4, 16, 64), complex), 1.0, rng)
@@ -128,7 +128,7 @@ def test_scan_beams_agrees_with_the_full_map_on_noise(rng):
         assert scan.average_power[m] == pytest.approx(dd.power[row, window].mean(), rel=1e-9)
 
 
-def test_min_range_skips_near_returns():
+def test_min_range_skips_near_returns(make_processing, make_radar, tone_paths):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar)
     grid = radar.delay_grid(processing.n_dft)

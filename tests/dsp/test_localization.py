@@ -14,11 +14,11 @@ import functools
 
 import numpy as np
 import pytest
-from conftest import C, PAPER_RCS, delay_step, make_processing, make_radar, make_scenario
 
-from dsp import (BeamScan, BeamSweep, RisPose, delay_doppler_map, direction_from_angles, localize,
-                 self_localize)
-from risloc_rt.model.scenario import Scenario, analytic_paths
+from dsp import SPEED_OF_LIGHT as C
+from dsp import (BeamScan, BeamSweep, RadarConfig, RisPose, delay_doppler_map, direction_from_angles,
+                 localize, self_localize)
+from risloc_rt.model.scenario import PAPER_RCS, Scenario, analytic_paths
 from risloc_rt.model.simulate import simulate
 
 # Rounding in x_RIS + d·d(θ) for |x| ~ 15 m is ~1e-14 m; the issue asks for 1e-9 m.
@@ -34,7 +34,7 @@ def run(scenario: Scenario, cube=None):
 
 def half_step_distance(scenario: Scenario) -> float:
     """Half a delay-grid step in distance, (max_delay / N_DFT)·c/2 / 2 [m]."""
-    return delay_step(scenario.radar, scenario.processing) * C / 2 / 2
+    return scenario.radar.max_delay / scenario.processing.n_dft * C / 2 / 2
 
 
 def angle_between(a, b) -> float:
@@ -78,12 +78,12 @@ def test_paper_scenario_noiseless(case, aod_deg, mode, paper_loc):
 
 
 # ------------------------------------------------------------------------------ oblique RIS, 3-D
-def oblique_scenario(mode: str, ris_position, ue_position, ris_target, yaw_deg: float) -> Scenario:
+def oblique_scenario(make_scenario, mode: str, ris_position, ue_position, ris_target, yaw_deg: float) -> Scenario:
     """A RIS whose normal is along no world axis, the UE off its horizontal plane (el ≠ 0).
 
     The sweep is a 2-D az × el grid in 1.5° steps built around the true AoD, so it contains it.
     """
-    radar = make_radar(num_samples=600, num_chirps=16)  # Table I range resolution, few chirps
+    radar = RadarConfig(num_samples=600, num_chirps=16)  # Table I range resolution, few chirps
     pose = RisPose.facing(np.asarray(ris_position, float), np.asarray(ris_target, float), yaw=np.deg2rad(yaw_deg))
     aod = pose.angles_to(np.asarray(ue_position, float))
     step = np.deg2rad(1.5)
@@ -105,8 +105,8 @@ OBLIQUE = [
 
 @pytest.mark.parametrize("mode", ["relay", "reflective"])
 @pytest.mark.parametrize("ris_position, ue_position, ris_target, yaw_deg", OBLIQUE)
-def test_oblique_ris_in_3d(mode, ris_position, ue_position, ris_target, yaw_deg):
-    scenario = oblique_scenario(mode, ris_position, ue_position, ris_target, yaw_deg)
+def test_oblique_ris_in_3d(mode, ris_position, ue_position, ris_target, yaw_deg, make_scenario):
+    scenario = oblique_scenario(make_scenario, mode, ris_position, ue_position, ris_target, yaw_deg)
     normal = scenario.ris.pose.normal
     assert np.min(np.abs(normal)) > 0.05  # not along any world axis
     el = scenario.truth.aod[1]
@@ -117,7 +117,7 @@ def test_oblique_ris_in_3d(mode, ris_position, ue_position, ris_target, yaw_deg)
 
 # ------------------------------------------------------------------------------ velocity
 @pytest.mark.parametrize("speed", [4.2, -11.7])
-def test_velocity_sign_and_value(speed):
+def test_velocity_sign_and_value(speed, make_processing, make_radar, make_scenario):
     radar = make_radar(num_samples=600, num_chirps=32)
     processing = make_processing(radar, k_dft=256)
     scenario = make_scenario(radar=radar, processing=processing,
@@ -133,7 +133,7 @@ def test_velocity_sign_and_value(speed):
 
 
 # ------------------------------------------------------------------------------ structural vs loop-back
-def test_structure_and_retransmission_are_tau_rb_apart_and_the_later_one_is_chosen(paper_loc):
+def test_structure_and_retransmission_are_tau_rb_apart_and_the_later_one_is_chosen(paper_loc, delay_step):
     scenario, capture, loc = paper_loc("broadside", "relay")
     radar, processing, ris = scenario.radar, scenario.processing, scenario.ris
     dd = delay_doppler_map(capture.cube[loc.beam_index], radar, processing)
@@ -167,13 +167,13 @@ def test_structure_and_retransmission_are_tau_rb_apart_and_the_later_one_is_chos
 
 
 # ------------------------------------------------------------------------------ reflective ambiguity
-def thirty_degree_scenario(mode: str, structure: bool) -> Scenario:
+def thirty_degree_scenario(make_scenario, mode: str, structure: bool) -> Scenario:
     # Panel turned by -30° about the vertical: the UE is seen at azimuth +30° (on the sweep grid).
     return make_scenario(mode=mode, yaw=np.deg2rad(-30.0), structure=structure)
 
 
-def test_reflective_mode_is_ambiguous_for_a_ue_at_30deg():
-    scenario = thirty_degree_scenario("reflective", structure=False)
+def test_reflective_mode_is_ambiguous_for_a_ue_at_30deg(make_scenario):
+    scenario = thirty_degree_scenario(make_scenario, "reflective", structure=False)
     np.testing.assert_allclose(scenario.truth.aod, np.deg2rad([30.0, 0.0]), atol=1e-12)
     loc = run(scenario)
     sweep = scenario.sweep
@@ -196,18 +196,18 @@ def test_reflective_mode_is_ambiguous_for_a_ue_at_30deg():
     assert nearest <= half_step_distance(scenario) + POSITION_ATOL
 
 
-def test_reflective_ambiguity_with_the_structural_reflection():
+def test_reflective_ambiguity_with_the_structural_reflection(make_scenario):
     # With the panel's structural echo added the two maxima stay the top two (the echo does not
     # depend on the beam); only its interference breaks the tie slightly.
-    scenario = thirty_degree_scenario("reflective", structure=True)
+    scenario = thirty_degree_scenario(make_scenario, "reflective", structure=True)
     p_ave = run(scenario).scan.average_power
     top_two = set(np.argsort(p_ave)[-2:].tolist())
     sweep = scenario.sweep
     assert top_two == {sweep.index_of(np.deg2rad([30.0, 0.0])), sweep.index_of(np.deg2rad([-30.0, 0.0]))}
 
 
-def test_relay_mode_is_not_ambiguous_for_a_ue_at_30deg():
-    scenario = thirty_degree_scenario("relay", structure=False)
+def test_relay_mode_is_not_ambiguous_for_a_ue_at_30deg(make_scenario):
+    scenario = thirty_degree_scenario(make_scenario, "relay", structure=False)
     loc = run(scenario)
     check_estimate(scenario, loc)
     p_ave = loc.scan.average_power
@@ -216,7 +216,7 @@ def test_relay_mode_is_not_ambiguous_for_a_ue_at_30deg():
 
 
 # ------------------------------------------------------------------------------ reproducibility
-def test_seeded_localization_is_reproducible():
+def test_seeded_localization_is_reproducible(make_scenario):
     scenario = make_scenario(ue_velocity=(0.3, -1.0, 0.0))
     locs = [run(scenario, simulate(scenario, rng=np.random.default_rng(s)).cube) for s in (5, 5, 6)]
     a, b, c = locs
@@ -230,7 +230,7 @@ def test_seeded_localization_is_reproducible():
 
 
 # ------------------------------------------------------------------------------ localize formulae
-def test_localize_applies_the_position_formula():
+def test_localize_applies_the_position_formula(make_radar):
     pose = RisPose.facing([2.0, 5.0, 1.0], [0.0, 0.0, 0.0])
     radar = make_radar()
     angles = np.deg2rad([[-10.0, 5.0], [20.0, -7.5], [0.0, 0.0]])

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_processing, make_radar, make_scenario, tone_paths
 
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose, delay_doppler_map, scan_beams, self_localize
 from risloc_rt.model.beat import add_noise
 from risloc_rt.model.paths import PathSet
 from risloc_rt.model.simulate import simulate
 
-RADAR = make_radar(num_samples=64, num_chirps=16)
-PROCESSING = make_processing(RADAR)
+RADAR = RadarConfig(num_samples=64, num_chirps=16)
+PROCESSING = ProcessingConfig(n_dft=2 * 64 - 1, k_dft=4 * 16)  # N_DFT = 2N - 1, K_DFT = 4K
 M = 3
 SWEEP = BeamSweep(np.zeros((M, 2)))
 
@@ -94,7 +93,7 @@ def test_bandwidth_above_carrier_is_rejected():
     (63, 64, r"n_dft=63 is smaller than the number of ADC samples N=64"),
     (127, 15, r"k_dft=15 is smaller than the number of chirps K=16"),
 ])
-def test_dft_shorter_than_the_data(n_dft, k_dft, message):
+def test_dft_shorter_than_the_data(n_dft, k_dft, message, make_scenario):
     processing = ProcessingConfig(n_dft=n_dft, k_dft=k_dft)
     with pytest.raises(ValueError, match=message):
         scan_beams(good_cube(), SWEEP, RADAR, processing)
@@ -109,7 +108,7 @@ def test_unknown_window():
         ProcessingConfig(window="hanning-typo")
 
 
-def test_processing_enumerations_and_ranges():
+def test_processing_enumerations_and_ranges(make_processing):
     with pytest.raises(ValueError, match=r"doppler_search='fast' must be 'zoom' or 'full'"):
         ProcessingConfig(doppler_search="fast")
     with pytest.raises(ValueError, match=r"delta=-1e-09 must be a finite number >= 0"):
@@ -120,7 +119,7 @@ def test_processing_enumerations_and_ranges():
 
 # ------------------------------------------------------------------------------ randomness
 @pytest.mark.parametrize("rng", [np.random.RandomState(0), 0, None, np.random.default_rng(0).bit_generator])
-def test_rng_must_be_a_generator(rng):
+def test_rng_must_be_a_generator(rng, make_scenario):
     scenario = make_scenario(radar=RADAR)
     with pytest.raises(TypeError, match="rng must be a numpy.random.Generator"):
         simulate(scenario, rng=rng)
@@ -160,13 +159,13 @@ def test_azimuth_grid_in_degrees_is_rejected():
         BeamSweep.azimuth_grid(-45.0, 45.0, 1.5)
 
 
-def test_ue_behind_the_panel_is_rejected():
+def test_ue_behind_the_panel_is_rejected(make_scenario):
     with pytest.raises(ValueError, match=r"behind the RIS panel"):
         make_scenario(ris_facing=(0.0, 30.0, 0.0))  # the panel faces away from the UE
 
 
 # ------------------------------------------------------------------------------ paths and localize
-def test_path_set_validation():
+def test_path_set_validation(tone_paths):
     with pytest.raises(ValueError, match=r"delay contains negative values"):
         tone_paths(1.0, -1e-9, 0.0)
     with pytest.raises(ValueError, match=r"labels has 0 entries, expected 1"):

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from box_hall import write_wall
-from conftest import C
 
+from dsp import SPEED_OF_LIGHT as C
 from dsp import scan_beams, localize
 from risloc_rt.hall.antenna import RadarAntenna
 from risloc_rt.cli import main
@@ -28,8 +27,8 @@ DISTANCE = 13.38
 HEIGHT = 1.0
 
 
-def _write_scene(folder: Path, walls: list[str]) -> Path:
-    """A scene with only the given walls of a 30 x 18 x 7 m box (none: free space)."""
+def _write_scene(folder: Path, walls: list[str], write_wall) -> Path:
+    """A scene with only the given walls of a 30 x 18 x 7 m box (none: free space), written by ``write_wall``."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "meshes").mkdir(exist_ok=True)
     shapes = []
@@ -59,13 +58,13 @@ def _scenario_in(xml: Path, *, mode: str = "relay") -> HallScenario:
 
 
 @pytest.fixture(scope="module")
-def free_space(tmp_path_factory) -> HallScenario:
-    return _scenario_in(_write_scene(tmp_path_factory.mktemp("free"), []))
+def free_space(tmp_path_factory, box_hall) -> HallScenario:
+    return _scenario_in(_write_scene(tmp_path_factory.mktemp("free"), [], box_hall.write_wall))
 
 
 @pytest.mark.parametrize("mode", ["relay", "reflective"])
-def test_traced_free_space_loopback_is_the_paper_formula(tmp_path, mode):
-    hs = _scenario_in(_write_scene(tmp_path, []), mode=mode)
+def test_traced_free_space_loopback_is_the_paper_formula(tmp_path, mode, box_hall):
+    hs = _scenario_in(_write_scene(tmp_path, [], box_hall.write_wall), mode=mode)
     result = hall_paths(hs)
     assert result.counts == {"hall": 0, "ris_loopback": 1, "ris_structure": 1}
     loop = result.candidates.via_ris
@@ -77,8 +76,8 @@ def test_traced_free_space_loopback_is_the_paper_formula(tmp_path, mode):
     assert abs(result.candidates.delay[loop][0] - (2 * DISTANCE / C + ris.loopback_delay)) * C < 1e-3
 
 
-def test_a_wall_adds_leg_pairs_at_the_image_source_delays(tmp_path):
-    hs = _scenario_in(_write_scene(tmp_path, ["floor"]))
+def test_a_wall_adds_leg_pairs_at_the_image_source_delays(tmp_path, box_hall):
+    hs = _scenario_in(_write_scene(tmp_path, ["floor"], box_hall.write_wall))
     result = hall_paths(hs)
     ue, ris = hs.base.ue_position, hs.base.ris.pose.position
     image = ue * np.array([1, 1, -1])  # the radar mirrored in the floor z = 0

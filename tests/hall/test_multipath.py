@@ -9,8 +9,8 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import C, PAPER_DISTANCE, make_processing, make_radar, make_ris, paper_sweep
 
+from dsp import SPEED_OF_LIGHT as C
 from dsp import RadarConfig, RisPose
 from risloc_rt.hall.antenna import RadarAntenna
 from risloc_rt.model.link_budget import one_way_free_space_gain, point_target_gain, ris_loopback_gain
@@ -18,6 +18,7 @@ from risloc_rt.hall.multipath import monostatic_paths, ris_loopback_paths, ris_s
 from risloc_rt.model.plate import Plate, plate_rcs, plate_scattering
 from risloc_rt.hall.pruning import AliasWarning, ModelSettings, if_filter_gain, processed_noise_floor, prune_paths
 from risloc_rt.model.ris import ris_response
+from risloc_rt.model.scenario import PAPER_DISTANCE
 from risloc_rt.hall.traced import TracedPaths
 
 LAMBDA = C / 60e9
@@ -51,7 +52,7 @@ def db(x):
 
 # ------------------------------------------------------------------ RIS loop-back from legs
 @pytest.mark.parametrize("mode", ["relay", "reflective"])
-def test_direct_leg_in_free_space_reduces_to_the_paper_formula(mode):
+def test_direct_leg_in_free_space_reduces_to_the_paper_formula(mode, make_radar, make_ris):
     radar = make_radar()
     ue = np.zeros(3)
     ris = make_ris(mode=mode)
@@ -68,7 +69,7 @@ def test_direct_leg_in_free_space_reduces_to_the_paper_formula(mode):
     np.testing.assert_allclose(paths.ris_departure[0], [0.0, 0.0], atol=1e-12)
 
 
-def test_wall_adds_the_leg_pairs_at_the_geometric_delays():
+def test_wall_adds_the_leg_pairs_at_the_geometric_delays(make_radar, make_ris):
     # A wall at x = -3 m (normal +x): the radar->RIS leg via the wall comes from the image of the
     # radar in the wall plane; pairs (direct, wall) appear at τ_d + τ_w + τ_RB in both orders.
     ue = np.zeros(3)
@@ -91,7 +92,7 @@ def test_wall_adds_the_leg_pairs_at_the_geometric_delays():
     assert np.any(np.all(np.isclose(paths.ris_incidence, wall_angle, atol=1e-12), axis=1))
 
 
-def test_legs_from_behind_the_panel_get_no_ris_response():
+def test_legs_from_behind_the_panel_get_no_ris_response(make_ris, paper_sweep):
     ris = make_ris()  # at y = 13.38 facing -y
     behind = ris.pose.position + np.array([0.0, 5.0, 0.0])
     angles = ris.pose.angles_to(np.stack([np.zeros(3), behind]))
@@ -100,7 +101,7 @@ def test_legs_from_behind_the_panel_get_no_ris_response():
     assert np.all(r[:, 1] == 0)
 
 
-def test_leg_delay_rates_add():
+def test_leg_delay_rates_add(make_radar, make_ris):
     ue = np.zeros(3)
     ris = make_ris()
     v = np.array([0.0, 1.5, 0.0])  # toward the RIS: the distance shrinks
@@ -170,7 +171,7 @@ def test_plate_blocks_waves_crossing_it_and_scatters_from_its_back():
     assert abs(s[1]) == pytest.approx(abs(s[2]), rel=1e-12)
 
 
-def test_structural_pair_in_free_space_matches_the_radar_equation():
+def test_structural_pair_in_free_space_matches_the_radar_equation(make_radar, make_ris):
     radar = make_radar()
     ue = np.zeros(3)
     ris = make_ris()
@@ -184,7 +185,7 @@ def test_structural_pair_in_free_space_matches_the_radar_equation():
     assert not paths.via_ris.any()
 
 
-def test_structural_pairs_merge_reciprocal_orders():
+def test_structural_pairs_merge_reciprocal_orders(make_radar, make_ris):
     ue = np.zeros(3)
     ris = make_ris()
     leg = leg_set(ue, ris.pose.position, [ue, [-6.0, 0.0, 0.0], [0.0, 0.0, -3.0]], coefficients=[1, -0.4, -0.4])
@@ -194,7 +195,7 @@ def test_structural_pairs_merge_reciprocal_orders():
 
 
 # ------------------------------------------------------------------ monostatic echoes, antenna
-def test_monostatic_echo_gain_is_the_traced_coefficient_times_the_link_budget():
+def test_monostatic_echo_gain_is_the_traced_coefficient_times_the_link_budget(make_radar):
     radar = make_radar()
     ue = np.zeros(3)
     wall_image = np.array([0.0, 8.0, 0.0])  # a wall 4 m away in +y: round trip 8 m
@@ -220,7 +221,7 @@ def test_antenna_pattern_values():
 
 
 # ------------------------------------------------------------------ pruning and the IF filter
-def test_noise_floor_for_hann_is_sigma2_times_1p5_squared_over_nk():
+def test_noise_floor_for_hann_is_sigma2_times_1p5_squared_over_nk(make_processing, make_radar):
     radar = make_radar()
     floor = processed_noise_floor(radar, make_processing(radar))
     # Hann's equivalent noise bandwidth is 1.5 bins on each axis.
@@ -247,7 +248,7 @@ def _echo_paths(radar, distances, rcs=19.0):
                    ris_departure=np.full((d.size, 2), np.nan), labels=tuple(f"t{i}" for i in range(d.size)))
 
 
-def test_pruning_drops_paths_below_the_floor_margin_and_reports_them():
+def test_pruning_drops_paths_below_the_floor_margin_and_reports_them(make_processing, paper_sweep):
     radar = RadarConfig()
     processing = make_processing(radar)
     # Point targets from 2 m to 20 m with RCS spanning 100 dB: some far below the floor.
@@ -265,7 +266,7 @@ def test_pruning_drops_paths_below_the_floor_margin_and_reports_them():
     assert "kept 2 of 3" in report.summary()
 
 
-def test_ris_paths_are_judged_by_their_best_beam():
+def test_ris_paths_are_judged_by_their_best_beam(make_processing, make_ris, paper_sweep):
     # At -5 dBm the loop-back before the array gain (-135.8 dBm) is below the pruning threshold
     # (Table I noise floor -109.0 dBm, minus 20 dB); its best beam adds |r|² = N_RIS² (36.1 dB),
     # so it must be kept.
@@ -285,7 +286,7 @@ def test_ris_paths_are_judged_by_their_best_beam():
     assert report.kept == 1 and report.peak_power[0] > threshold
 
 
-def test_strong_return_beyond_the_unambiguous_range_warns_and_folds():
+def test_strong_return_beyond_the_unambiguous_range_warns_and_folds(make_processing, paper_sweep):
     radar = RadarConfig()  # unambiguous range 21.82 m
     processing = make_processing(radar)
     paths = _echo_paths(radar, [10.0, 24.0], rcs=1e4)  # 24 m: beat 11.0 MHz > 10 MHz sample rate

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from box_hall import PLANES, SIZE, make_box_hall, reflect, write_wall
 
 from dsp import SPEED_OF_LIGHT as C
 from risloc_rt.hall import raytrace as rr
@@ -72,20 +71,20 @@ def walls_of(paths: TracedPaths, i: int) -> list[str]:
     return [paths.object_names[o] for o in paths.objects[i] if o >= 0]
 
 
-def near_an_edge(paths: TracedPaths, i: int, *, margin: float) -> bool:
-    """True if a bounce point of path ``i`` lies within ``margin`` [m] of a wall other than its own."""
+def near_an_edge(paths: TracedPaths, i: int, planes, *, margin: float) -> bool:
+    """True if a bounce point of path ``i`` lies within ``margin`` [m] of a wall of ``planes`` other than its own."""
     for k, o in enumerate(paths.objects[i]):
         if o < 0:
             continue
         own = paths.object_names[o]
-        for wall, (axis, coordinate) in PLANES.items():
+        for wall, (axis, coordinate) in planes.items():
             if wall != own and abs(paths.vertices[i, k, axis] - coordinate) < margin:
                 return True
     return False
 
 
-def image_source(point: np.ndarray, walls: list[str]) -> np.ndarray:
-    """Image of ``point`` after reflecting in ``walls`` in propagation order."""
+def image_source(point: np.ndarray, walls: list[str], reflect) -> np.ndarray:
+    """Image of ``point`` after reflecting in ``walls`` in propagation order (``reflect(point, wall)``)."""
     for wall in walls:
         point = reflect(point, wall)
     return point
@@ -103,8 +102,8 @@ def assert_identical(a: TracedPaths, b: TracedPaths) -> None:
 
 
 @pytest.fixture(scope="module")
-def hall(tmp_path_factory) -> Path:
-    return make_box_hall(tmp_path_factory.mktemp("hall"))
+def hall(tmp_path_factory, box_hall) -> Path:
+    return box_hall.make(tmp_path_factory.mktemp("hall"))
 
 
 @pytest.fixture(scope="module")
@@ -116,14 +115,14 @@ def trace(hall):
 
 # --- monostatic paths -------------------------------------------------------------------------
 
-def test_single_bounce_delay_and_gain_match_image_source_and_p2040_slab(trace):
+def test_single_bounce_delay_and_gain_match_image_source_and_p2040_slab(trace, box_hall):
     mono = trace.monostatic
     single = np.flatnonzero(mono.depth == 1)
-    assert sorted(walls_of(mono, i)[0] for i in single) == sorted(PLANES), "one echo per wall"
+    assert sorted(walls_of(mono, i)[0] for i in single) == sorted(box_hall.planes), "one echo per wall"
     gamma = p2040_slab_normal(FREQUENCY, THICKNESS)
     for i in single:
         wall = walls_of(mono, i)[0]
-        axis, coordinate = PLANES[wall]
+        axis, coordinate = box_hall.planes[wall]
         distance = abs(RADAR[axis] - coordinate)
         assert abs(mono.delay[i] * C - 2 * distance) <= LENGTH_TOL, wall
         expected = (WAVELENGTH / (4 * np.pi * 2 * distance)) ** 2 * abs(gamma) ** 2
@@ -137,28 +136,29 @@ def test_single_bounce_delay_and_gain_match_image_source_and_p2040_slab(trace):
         assert np.all(np.isnan(mono.vertices[i, 1:])), "unused vertex slots must be NaN"
 
 
-def test_multi_bounce_monostatic_delays_match_image_sources(trace):
+def test_multi_bounce_monostatic_delays_match_image_sources(trace, box_hall):
     mono = trace.monostatic
     multi = np.flatnonzero(mono.depth >= 2)
     assert multi.size > 0
     for i in multi:
         walls = walls_of(mono, i)
-        length = np.linalg.norm(image_source(RADAR, walls) - RADAR)
+        length = np.linalg.norm(image_source(RADAR, walls, box_hall.reflect) - RADAR)
         assert abs(mono.delay[i] * C - length) <= LENGTH_TOL, mono.describe(i)
     # A monostatic double bounce returns to its start only between parallel walls: for two
     # perpendicular walls (floor → wall) the image line runs through the corner edge, a set of
     # measure zero. So the depth-2 echoes are exactly the 6 ordered parallel pairs.
     pairs = sorted(tuple(walls_of(mono, i)) for i in np.flatnonzero(mono.depth == 2))
-    parallel = sorted((a, b) for a in PLANES for b in PLANES if a != b and PLANES[a][0] == PLANES[b][0])
+    planes = box_hall.planes
+    parallel = sorted((a, b) for a in planes for b in planes if a != b and planes[a][0] == planes[b][0])
     assert pairs == parallel
 
 
-def test_bounce_points_lie_on_their_walls(trace):
+def test_bounce_points_lie_on_their_walls(trace, box_hall):
     for paths in (trace.monostatic, *trace.legs):
         for i in range(len(paths)):
             for k, o in enumerate(paths.objects[i]):
                 if o >= 0:
-                    axis, coordinate = PLANES[paths.object_names[o]]
+                    axis, coordinate = box_hall.planes[paths.object_names[o]]
                     assert abs(paths.vertices[i, k, axis] - coordinate) <= LENGTH_TOL, paths.describe(i)
 
 
@@ -184,31 +184,31 @@ def test_leg_line_of_sight_delay_direction_and_free_space_gain(trace, r):
 
 
 @pytest.mark.parametrize("r", [0, 1])
-def test_leg_wall_bounces_arrive_from_the_image_source(trace, r):
+def test_leg_wall_bounces_arrive_from_the_image_source(trace, r, box_hall):
     leg = trace.legs[r]
     bounced = np.flatnonzero(leg.depth >= 1)
-    assert {walls_of(leg, i)[0] for i in bounced if leg.depth[i] == 1} == set(PLANES)
+    assert {walls_of(leg, i)[0] for i in bounced if leg.depth[i] == 1} == set(box_hall.planes)
     for i in bounced:
-        image = image_source(RADAR, walls_of(leg, i))
+        image = image_source(RADAR, walls_of(leg, i), box_hall.reflect)
         assert abs(leg.delay[i] * C - np.linalg.norm(RIS[r] - image)) <= LENGTH_TOL, leg.describe(i)
         assert angle_between(leg.arrival[i], image - RIS[r]) <= ANGLE_TOL, leg.describe(i)
 
 
-def test_leg_corner_path_floor_then_wall(trace):
+def test_leg_corner_path_floor_then_wall(trace, box_hall):
     # floor → wall_yW toward RIS 0 (0.5 m in front of wall_yW): image of the radar in both planes
     leg = trace.legs[0]
     found = [i for i in range(len(leg)) if walls_of(leg, i) == ["floor", "wall_yW"]]
     assert len(found) == 1
-    image = reflect(reflect(RADAR, "floor"), "wall_yW")
+    image = box_hall.reflect(box_hall.reflect(RADAR, "floor"), "wall_yW")
     assert abs(leg.delay[found[0]] * C - np.linalg.norm(RIS[0] - image)) <= LENGTH_TOL
 
 
 # --- delay rates ----------------------------------------------------------------------------
 
-def test_single_bounce_delay_rate_is_minus_two_v_dot_k_over_c(trace):
+def test_single_bounce_delay_rate_is_minus_two_v_dot_k_over_c(trace, box_hall):
     mono = trace.monostatic
     for i in np.flatnonzero(mono.depth == 1):
-        axis, coordinate = PLANES[walls_of(mono, i)[0]]
+        axis, coordinate = box_hall.planes[walls_of(mono, i)[0]]
         k = np.zeros(3)
         k[axis] = np.sign(coordinate - RADAR[axis])  # exact geometric direction to the wall
         expected = -2 * VELOCITY @ k / C
@@ -236,7 +236,7 @@ def test_delay_rate_matches_sionna_doppler(hall):
             assert abs(-tp.delay_rate[i] * FREQUENCY - fd) <= 1e-5 * scale, tp.describe(i)
 
 
-def test_delay_rate_is_the_derivative_of_delay(hall, trace):
+def test_delay_rate_is_the_derivative_of_delay(hall, trace, box_hall):
     # Central difference of delays traced at radar ± v·dt, for every path (multi-bounce included;
     # e.g. floor → ceiling → back is 2H long whatever the radar's height, so its rate is 0).
     dt = 0.05  # [s]: 4 cm of motion; the O(dt²) term is < 1e-15 s/s at ≥ 1 m from any wall
@@ -251,7 +251,7 @@ def test_delay_rate_is_the_derivative_of_delay(hall, trace):
         # more than 0.1 m (≫ the 4 cm of motion) from the other walls must be found in all three.
         for i in range(len(now)):
             if now.describe(i) not in common:
-                assert near_an_edge(now, i, margin=0.1), now.describe(i)
+                assert near_an_edge(now, i, box_hall.planes, margin=0.1), now.describe(i)
         assert len(common) >= 0.9 * len(now)
         for i in range(len(now)):
             name = now.describe(i)
@@ -290,7 +290,7 @@ def test_trace_in_another_process_is_bit_identical(hall, trace, tmp_path):
             assert_identical(paths, other)
 
 
-def test_moving_the_radar_reuses_the_loaded_scene(hall, trace, monkeypatch):
+def test_moving_the_radar_reuses_the_loaded_scene(hall, trace, monkeypatch, box_hall):
     import risloc_rt.hall.raytrace.tracer as tracer
 
     def no_reload(*args, **kwargs):
@@ -300,7 +300,7 @@ def test_moving_the_radar_reuses_the_loaded_scene(hall, trace, monkeypatch):
     moved = rr.trace_scene(hall, radar_position=RADAR + [1.0, 1.0, 0.5], ris_positions=RIS[:1],
                            frequency=FREQUENCY, settings=SETTINGS)
     ceiling = [i for i in range(len(moved.monostatic)) if walls_of(moved.monostatic, i) == ["ceiling"]]
-    assert abs(moved.monostatic.delay[ceiling[0]] * C - 2 * (SIZE[2] - 1.7)) <= LENGTH_TOL
+    assert abs(moved.monostatic.delay[ceiling[0]] * C - 2 * (box_hall.size[2] - 1.7)) <= LENGTH_TOL
 
 
 def test_cache_hit_is_bit_identical(hall, trace, tmp_path):
@@ -351,11 +351,11 @@ def test_cache_key_changes_with_every_input(hall):
     assert key not in keys.values() and len(set(keys.values())) == len(keys)
 
 
-def test_scene_hash_changes_with_any_xml_or_mesh_byte(tmp_path):
-    xml = make_box_hall(tmp_path / "a")
+def test_scene_hash_changes_with_any_xml_or_mesh_byte(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path / "a")
     digest = rr.scene_content_hash(xml)
     # Moving the folder does not change the content hash.
-    copy = make_box_hall(tmp_path / "b")
+    copy = box_hall.make(tmp_path / "b")
     assert rr.scene_content_hash(copy) == digest
     ply = tmp_path / "a" / "meshes" / "floor.ply"
     data = bytearray(ply.read_bytes())
@@ -367,13 +367,14 @@ def test_scene_hash_changes_with_any_xml_or_mesh_byte(tmp_path):
     assert rr.scene_content_hash(xml2) != digest
 
 
-def test_edited_mesh_misses_the_cache_and_is_retraced(tmp_path):
+def test_edited_mesh_misses_the_cache_and_is_retraced(tmp_path, box_hall):
     cache = rr.TraceCache(tmp_path / "cache")
-    xml = make_box_hall(tmp_path / "hall")
+    xml = box_hall.make(tmp_path / "hall")
     kwargs = dict(radar_position=RADAR, frequency=FREQUENCY, settings=SETTINGS, cache=cache)
     before = rr.trace_scene(xml, **kwargs)
     # raise the ceiling from 4.0 m to 4.5 m: the ceiling echo must move by 2 × 0.5 m
-    write_wall(tmp_path / "hall" / "meshes" / "ceiling.ply", "ceiling", (SIZE[0], SIZE[1], 4.5))
+    length, width, _ = box_hall.size
+    box_hall.write_wall(tmp_path / "hall" / "meshes" / "ceiling.ply", "ceiling", (length, width, 4.5))
     after = rr.trace_scene(xml, **kwargs)
     assert not after.cache_hit and after.scene_hash != before.scene_hash
     ceiling = [i for i in range(len(after.monostatic)) if walls_of(after.monostatic, i) == ["ceiling"]]
@@ -390,9 +391,9 @@ def test_cache_defaults_to_env_dir(monkeypatch, tmp_path):
 
 # --- scenes that cannot be used --------------------------------------------------------------
 
-def test_loaded_scene_reports_objects_and_p2040_concrete_at_60ghz(hall):
+def test_loaded_scene_reports_objects_and_p2040_concrete_at_60ghz(hall, box_hall):
     loaded = rr.load_scene(hall, frequency=FREQUENCY)
-    assert loaded.object_names == tuple(sorted(PLANES))
+    assert loaded.object_names == tuple(sorted(box_hall.planes))
     kind, eps_r, sigma, thickness = loaded.materials["concrete"]
     f_ghz = FREQUENCY / 1e9
     assert kind == "concrete"
@@ -407,45 +408,45 @@ def test_missing_scene_file(tmp_path):
         rr.load_scene(tmp_path / "nope.xml", frequency=FREQUENCY)
 
 
-def test_malformed_xml(tmp_path):
-    xml = make_box_hall(tmp_path)
+def test_malformed_xml(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path)
     xml.write_text(xml.read_text().replace("</scene>", ""))
     with pytest.raises(rr.SceneError, match=r"hall\.xml is not well-formed XML"):
         rr.trace_scene(xml, radar_position=RADAR, frequency=FREQUENCY)
 
 
-def test_missing_mesh(tmp_path):
-    xml = make_box_hall(tmp_path)
+def test_missing_mesh(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path)
     (tmp_path / "meshes" / "floor.ply").unlink()
     with pytest.raises(rr.SceneError, match=r"hall\.xml references 'meshes/floor\.ply'.*does not exist"):
         rr.load_scene(xml, frequency=FREQUENCY)
 
 
-def test_corrupt_mesh(tmp_path):
-    xml = make_box_hall(tmp_path)
+def test_corrupt_mesh(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path)
     (tmp_path / "meshes" / "floor.ply").write_bytes(
         b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nend_header\n\0")
     with pytest.raises(rr.SceneError, match=r"hall\.xml: mesh 'floor\.ply' cannot be read"):
         rr.load_scene(xml, frequency=FREQUENCY)
 
 
-def test_unknown_plugin(tmp_path):
-    xml = make_box_hall(tmp_path)
+def test_unknown_plugin(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path)
     xml.write_text(xml.read_text().replace('type="ply"', 'type="plyy"', 1))
     with pytest.raises(rr.SceneError, match=r"hall\.xml uses an unknown Mitsuba plugin type 'plyy'"):
         rr.load_scene(xml, frequency=FREQUENCY)
 
 
-def test_material_undefined_at_60ghz_is_refused(tmp_path):
+def test_material_undefined_at_60ghz_is_refused(tmp_path, box_hall):
     # brick: ITU-R P.2040 defines it for 1-40 GHz and 110-330 GHz only; sionna-rt would keep its
     # 3.5 GHz values and trace silently if the ValueError were ignored.
-    xml = make_box_hall(tmp_path, material="brick")
+    xml = box_hall.make(tmp_path, material="brick")
     with pytest.raises(rr.SceneError, match=r"material 'brick' .*not defined at 60 GHz"):
         rr.trace_scene(xml, radar_position=RADAR, frequency=FREQUENCY)
 
 
-def test_material_undefined_at_load_frequency(tmp_path):
-    xml = make_box_hall(tmp_path, material="floorboard")  # 50-100 GHz: fails at sionna's 3.5 GHz load
+def test_material_undefined_at_load_frequency(tmp_path, box_hall):
+    xml = box_hall.make(tmp_path, material="floorboard")  # 50-100 GHz: fails at sionna's 3.5 GHz load
     with pytest.raises(rr.SceneError, match=r"'floorboard' is not defined at sionna-rt's default 3\.5 GHz"):
         rr.load_scene(xml, frequency=FREQUENCY)
 

@@ -9,7 +9,6 @@ from typing import Any, Callable
 
 import numpy as np
 import pytest
-from conftest import make_scenario
 
 from dsp import self_localize
 from risloc_rt.model.capture import Capture
@@ -18,7 +17,7 @@ from risloc_rt.model.simulate import simulate
 
 
 @pytest.fixture
-def capture() -> Capture:
+def capture(make_scenario) -> Capture:
     scenario = make_scenario(mode="reflective", yaw=np.deg2rad(-12.0), ue_velocity=(0.5, -1.5, 0.0))
     return simulate(scenario, rng=np.random.default_rng(99), seed=99)
 

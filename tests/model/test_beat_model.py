@@ -12,14 +12,14 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from conftest import C, PAPER_RCS, make_radar, make_scenario, tone_paths
 
+from dsp import SPEED_OF_LIGHT as C
 from dsp import BeamSweep, RadarConfig
 from risloc_rt.model.beat import add_noise, beat_cube
 from risloc_rt.model.phase import wrapped_tone
 from risloc_rt.model.paths import PathSet
 from risloc_rt.model.ris import ris_response
-from risloc_rt.model.scenario import analytic_paths
+from risloc_rt.model.scenario import PAPER_RCS, analytic_paths
 from risloc_rt.model.simulate import simulate
 
 # Phase accuracy demanded of the synthesiser: |Y - Y_ref| / |γ| < 1e-12. A float64 frequency
@@ -49,7 +49,7 @@ def one_beam() -> BeamSweep:
 
 # ------------------------------------------------------------------------------ phase accuracy
 @pytest.mark.parametrize("rate_sign", [1.0, -1.0])
-def test_extreme_path_phase_at_the_largest_indices(rate_sign):
+def test_extreme_path_phase_at_the_largest_indices(rate_sign, tone_paths):
     radar = RadarConfig()  # Table I: the largest indices are n = 599, k = 127
     tau = radar.max_delay * (1 - 1e-6)
     nu = rate_sign * radar.max_delay_rate * (1 - 1e-3)
@@ -65,7 +65,7 @@ def test_extreme_path_phase_at_the_largest_indices(rate_sign):
         assert abs(cube[0, k, N - 1] - ref) < PHASE_TOL * abs(gain), f"k={k}"
 
 
-def test_phase_accuracy_over_many_extreme_paths():
+def test_phase_accuracy_over_many_extreme_paths(tone_paths):
     # The bound must hold for every extreme path, not just one: draw delays in the last 1 % of
     # the unambiguous delay and delay rates in the outer 10 % of ±max_delay_rate.
     radar = RadarConfig()
@@ -100,7 +100,7 @@ def test_wrapped_tone_matches_exact_reference(frequency, length):
 
 
 # ------------------------------------------------------------------------------ structure of eq. (1)
-def test_beat_cube_is_linear_in_the_paths():
+def test_beat_cube_is_linear_in_the_paths(make_radar, tone_paths):
     radar = make_radar()
     a = tone_paths([1e-3, 2e-4j], [20e-9, 55e-9], [0.0, 3e-8])
     b = tone_paths([5e-4 - 5e-4j], [80e-9], [-6e-8])
@@ -112,7 +112,7 @@ def test_beat_cube_is_linear_in_the_paths():
     assert both.shape == (2, radar.num_chirps, radar.num_samples)
 
 
-def test_ris_path_carries_the_ris_response_of_each_beam():
+def test_ris_path_carries_the_ris_response_of_each_beam(make_scenario, tone_paths):
     scenario = make_scenario(mode="relay", structure=False, yaw=np.deg2rad(-12.0))
     paths = analytic_paths(scenario)
     assert paths.via_ris.tolist() == [True]
@@ -125,7 +125,7 @@ def test_ris_path_carries_the_ris_response_of_each_beam():
     np.testing.assert_allclose(cube, r[:, None, None] * bare[None], rtol=1e-12, atol=0)
 
 
-def test_ris_path_without_ris_config_is_rejected():
+def test_ris_path_without_ris_config_is_rejected(make_scenario):
     scenario = make_scenario(structure=False)
     with pytest.raises(ValueError, match="RIS loop-back paths but no RisConfig"):
         beat_cube(analytic_paths(scenario), radar=scenario.radar, sweep=scenario.sweep, ris=None)
@@ -133,7 +133,7 @@ def test_ris_path_without_ris_config_is_rejected():
 
 # ------------------------------------------------------------------------------ link budget
 @pytest.mark.parametrize("mode", ["relay", "reflective"])
-def test_analytic_paths_follow_the_paper_link_budget(mode):
+def test_analytic_paths_follow_the_paper_link_budget(mode, make_scenario):
     scenario = make_scenario(mode=mode, ue_velocity=(0.0, -2.5, 0.0))
     radar, ris = scenario.radar, scenario.ris
     paths = analytic_paths(scenario)
@@ -157,7 +157,7 @@ def test_analytic_paths_follow_the_paper_link_budget(mode):
 
 
 # ------------------------------------------------------------------------------ noise and seeds
-def test_noise_has_the_configured_power_and_is_circular():
+def test_noise_has_the_configured_power_and_is_circular(make_radar):
     radar = make_radar()
     sigma2 = radar.noise_power
     w = add_noise(np.zeros((50, 16, 128), complex), sigma2, np.random.default_rng(11))
@@ -169,7 +169,7 @@ def test_noise_has_the_configured_power_and_is_circular():
     assert abs(np.mean(w**2)) < 5 * sigma2 / np.sqrt(n)
 
 
-def test_seeded_simulation_is_bit_reproducible():
+def test_seeded_simulation_is_bit_reproducible(make_scenario):
     scenario = make_scenario()
     a = simulate(scenario, rng=np.random.default_rng(123)).cube
     b = simulate(scenario, rng=np.random.default_rng(123)).cube
@@ -183,7 +183,7 @@ def test_seeded_simulation_is_bit_reproducible():
     assert np.mean(np.abs(a - c) ** 2) == pytest.approx(2 * scenario.radar.noise_power, rel=0.02)
 
 
-def test_noiseless_simulation_ignores_the_rng():
+def test_noiseless_simulation_ignores_the_rng(make_scenario):
     scenario = make_scenario()
     a = simulate(scenario, rng=np.random.default_rng(1), noise=False).cube
     b = simulate(scenario, rng=np.random.default_rng(2), noise=False).cube
