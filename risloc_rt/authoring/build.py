@@ -11,9 +11,14 @@ timestamps, fixed float formatting, objects in spec order, meshes written by :fu
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
+import os
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +28,8 @@ from .shapes import SceneMesh, scene_meshes
 from .scene_folder import scene_content_hash
 from .spec import HallSpec, load_spec
 
-__all__ = ["BuiltScene", "build_scene", "content_hash", "ply_bytes", "scene_xml", "main"]
+__all__ = ["BuiltScene", "MANIFEST_NAME", "atomic_write", "build_outputs", "build_scene", "content_hash", "ply_bytes",
+           "read_manifest", "scene_xml", "stale_files", "main"]
 
 _FACE_DTYPE = np.dtype([("n", "u1"), ("idx", "<i4", (3,))])
 
@@ -129,43 +135,188 @@ def content_hash(xml_path: str | Path) -> str:
     return scene_content_hash(xml_path)
 
 
-def build_scene(spec: HallSpec | str | Path, out_dir: str | Path) -> BuiltScene:
-    """Write the scene folder of ``spec``.
+#: The build manifest in a scene folder: what the builder wrote there, with each file's sha256.
+MANIFEST_NAME = "build-manifest.json"
+_MANIFEST_FORMAT = "risloc-build-manifest"
+_MANIFEST_VERSION = 1
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a unique temporary file in its folder and ``os.replace``.
+
+    Readers never see a half-written file and concurrent writers never share a temporary file;
+    the temporary file is removed when the write fails or is interrupted.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+        tmp = None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def read_manifest(folder: str | Path) -> dict[str, Any] | None:
+    """The build manifest of ``folder`` (``{"spec_sha256", "files": {relpath: sha256}}``), or None.
+
+    A missing, unreadable or foreign manifest is None: the folder then counts as not built by
+    risloc (so nothing in it is overwritten unless its bytes already equal the build's).
+    """
+    path = Path(folder) / MANIFEST_NAME
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if (not isinstance(doc, dict) or doc.get("format") != _MANIFEST_FORMAT or doc.get("version") != _MANIFEST_VERSION
+            or not isinstance(doc.get("files"), dict)):
+        return None
+    files = {k: v for k, v in doc["files"].items() if isinstance(k, str) and isinstance(v, str)}
+    return {**doc, "files": files}
+
+
+def build_outputs(spec: HallSpec, out_dir: str | Path) -> dict[str, bytes]:
+    """Every file the build of ``spec`` into ``out_dir`` writes: ``{path relative to out_dir: bytes}``.
+
+    ``scene.xml``, ``meshes/<object>.ply``, ``spec.toml`` (unless it is the spec file itself) and,
+    when ``out_dir`` is not the spec's folder, a copy of every imported mesh source at the same
+    relative path, so that the copied spec builds and loads from ``out_dir`` too.
+
+    Raises
+    ------
+    SpecError
+        An imported mesh source would be overwritten by a generated file.
+    """
+    out = Path(out_dir).resolve()
+    meshes = scene_meshes(spec)
+    files: dict[str, bytes] = {}
+    for m in meshes:
+        files[f"meshes/{m.name}.ply"] = ply_bytes(m.vertices, m.faces)
+    files["scene.xml"] = scene_xml(spec, meshes).encode("utf-8")
+    spec_copy = out / "spec.toml"
+    if spec.source_path is None or spec_copy != spec.source_path:
+        files["spec.toml"] = spec.source
+    base = spec.base_dir.resolve()
+    for i, m in enumerate(spec.meshes):
+        rel = m.file.resolve().relative_to(base).as_posix()
+        if out / rel == m.file.resolve() and rel in files:
+            raise SpecError(f"meshes[{i}].file", f"{rel!r} is the file the builder writes the transformed mesh "
+                            f"{rel!r} to, so building would overwrite the source (and transform it again next time)",
+                            "keep source meshes outside meshes/, e.g. in parts/")
+        if rel in files:
+            raise SpecError(f"meshes[{i}].file", f"{rel!r} collides with a file the builder generates",
+                            "move the source mesh, e.g. into parts/")
+        if out / rel != m.file.resolve():
+            files[rel] = m.file.read_bytes()
+    if spec.source_path is not None and (out / "scene.xml" == spec.source_path
+                                         or spec.source_path.parent == out / "meshes"):
+        raise SpecError("", f"the spec {spec.source_path} lies where the builder writes its output",
+                        "keep the spec as spec.toml (or any .toml) in the scene folder, outside meshes/")
+    return files
+
+
+def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool = False) -> BuiltScene:
+    """Write the scene folder of ``spec``, touching only files the builder itself generated.
 
     Parameters
     ----------
     spec : HallSpec or path
         A spec, or the path of a spec file.
     out_dir : str or Path
-        Created if missing. Gets ``scene.xml``, ``meshes/<object>.ply`` (stale ``.ply`` files
-        there are removed: the folder belongs to the builder) and ``spec.toml``, a byte copy
-        of the spec's source.
+        Created if missing. Gets ``scene.xml``, ``meshes/<object>.ply``, ``spec.toml`` (a byte
+        copy of the spec's source), copies of imported mesh sources (when ``out_dir`` is not the
+        spec's folder) and :data:`MANIFEST_NAME`, the list of what was written with each file's
+        sha256.
+    force : bool
+        Also replace files the builder would write that it did not generate, or that were
+        edited since it did. Files it did not generate are never deleted.
 
     Returns
     -------
     BuiltScene
+
+    Raises
+    ------
+    SpecError
+        A file the build would write exists, differs, and is not the unchanged output of an
+        earlier build (its name and the fix in the message); nothing is written then.
+
+    Notes
+    -----
+    Building twice gives bit-identical files (the manifest included). A file the previous build
+    wrote and this one does not (a renamed object) is deleted only when its bytes are still the
+    ones the manifest records. Every file is written through a unique temporary file and
+    ``os.replace``; the manifest is written last.
     """
     if not isinstance(spec, HallSpec):
         spec = load_spec(spec)
     out = Path(out_dir)
-    mesh_dir = out / "meshes"
-    mesh_dir.mkdir(parents=True, exist_ok=True)
-    meshes = scene_meshes(spec)
-    paths = []
-    for m in meshes:
-        path = mesh_dir / f"{m.name}.ply"
-        path.write_bytes(ply_bytes(m.vertices, m.faces))
-        paths.append(path)
-    keep = {p.name for p in paths}
-    for stale in sorted(mesh_dir.glob("*.ply")):
-        if stale.name not in keep:
+    files = build_outputs(spec, out)
+    previous = read_manifest(out)
+    before = previous["files"] if previous else {}
+    writes: list[str] = []
+    conflicts: list[str] = []
+    for rel, data in files.items():
+        target = out / rel
+        if not target.exists():
+            writes.append(rel)
+            continue
+        if not target.is_file():
+            conflicts.append(f"{target} (not a regular file)")
+            continue
+        current = target.read_bytes()
+        if current == data:
+            continue
+        if force or before.get(rel) == _sha256(current):
+            writes.append(rel)
+        else:
+            why = "was edited after the last build" if rel in before else "was not written by 'risloc scene build'"
+            conflicts.append(f"{target} ({why})")
+    if conflicts:
+        raise SpecError("", f"building into {out} would overwrite {len(conflicts)} file(s) it did not generate: "
+                        + "; ".join(conflicts[:5]) + (" ..." if len(conflicts) > 5 else ""),
+                        "move them away, build into another folder with -o, or pass --force to replace them")
+    for rel in writes:
+        atomic_write(out / rel, files[rel])
+    for rel, digest in sorted(before.items()):
+        stale = out / rel
+        if rel not in files and stale.is_file() and _sha256(stale.read_bytes()) == digest:
             stale.unlink()
+    manifest = {"format": _MANIFEST_FORMAT, "version": _MANIFEST_VERSION,
+                "spec_sha256": _sha256(spec.source),
+                "files": {rel: _sha256(data) for rel, data in sorted({**files, "spec.toml": spec.source}.items())}}
+    atomic_write(out / MANIFEST_NAME, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode("utf-8"))
     xml_path = out / "scene.xml"
-    xml_path.write_bytes(scene_xml(spec, meshes).encode("utf-8"))
-    spec_copy = out / "spec.toml"
-    if spec.source_path is None or not (spec_copy.exists() and spec_copy.resolve() == spec.source_path):
-        spec_copy.write_bytes(spec.source)
-    return BuiltScene(xml_path=xml_path, content_hash=content_hash(xml_path), spec=spec, mesh_paths=tuple(paths))
+    mesh_paths = tuple(out / rel for rel in files if rel.startswith("meshes/") and rel.endswith(".ply")
+                       and rel[len("meshes/"):-len(".ply")] in spec.object_names)
+    return BuiltScene(xml_path=xml_path, content_hash=content_hash(xml_path), spec=spec, mesh_paths=mesh_paths)
+
+
+def stale_files(folder: str | Path, spec: HallSpec | None = None) -> list[str]:
+    """Files of a built scene folder that differ from what building its ``spec.toml`` gives.
+
+    Empty when ``scene.xml`` and every generated mesh equal a fresh build of ``spec.toml`` (built
+    in memory, nothing written): the folder is what the ray tracer should see. A non-empty list
+    means the spec was edited after the build, or a generated file was edited or deleted.
+    """
+    folder = Path(folder)
+    if spec is None:
+        spec = load_spec(folder / "spec.toml")
+    out: list[str] = []
+    for rel, data in build_outputs(spec, folder).items():
+        target = folder / rel
+        try:
+            if target.read_bytes() != data:
+                out.append(rel)
+        except OSError:
+            out.append(rel)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -174,10 +325,11 @@ def main(argv: list[str] | None = None) -> int:
                                      description="Build a hall spec (TOML) into a sionna-rt scene folder.")
     parser.add_argument("spec", type=Path, help="the spec file (TOML)")
     parser.add_argument("-o", "--out", type=Path, default=None, help="output folder (default: the spec's folder)")
+    parser.add_argument("--force", action="store_true", help="replace files in the output folder the build did not generate")
     args = parser.parse_args(argv)
     try:
-        built = build_scene(args.spec, args.out if args.out is not None else args.spec.parent)
-    except (SpecError, FileNotFoundError) as exc:
+        built = build_scene(args.spec, args.out if args.out is not None else args.spec.parent, force=args.force)
+    except (SpecError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"{built.xml_path}  sha256 {built.content_hash}")

@@ -348,6 +348,10 @@ def parse_mesh(t: Table, index: int, ctx: HallContext) -> ImportedMesh:
     """One ``[[meshes]]`` table."""
     file_str = t.string("file")
     file = (ctx.base_dir / file_str).resolve()
+    if not file.is_relative_to(ctx.base_dir.resolve()):
+        raise SpecError(t.key("file"), f"{file_str!r} lies outside the spec's folder {ctx.base_dir}",
+                        "copy the mesh into the spec's folder (e.g. parts/) and give its path relative to the spec, "
+                        "so the scene folder is self-contained")
     if file.suffix.lower() not in MESH_SUFFIXES:
         raise SpecError(t.key("file"), f"{file_str!r} is not a mesh type trimesh reads here",
                         f"use one of {', '.join(MESH_SUFFIXES)}")

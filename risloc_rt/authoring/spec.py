@@ -106,6 +106,14 @@ __all__ = ["HallSpec", "HallMaterials", "RisPanel", "RisSpec", "RadarSpec", "Spe
 
 _RESERVED = re.compile(r"^(floor|ceiling|wall_\d+)$")
 
+#: Largest hall extent (footprint span or height) a spec may have [m]: a larger one is almost
+#: always a hall written in millimetres (30000 for 30 m) and would be traced as a 30 km hall.
+MAX_HALL_EXTENT = 1000.0
+#: Smallest hall extent [m] (a smaller one is a hall written in kilometres or a typo).
+MIN_HALL_EXTENT = 0.5
+#: Carrier frequencies a spec may use [Hz] (sionna-rt's ITU materials span 1-100 GHz; custom ones more).
+FREQUENCY_RANGE = (1e8, 1e13)
+
 
 @dataclass(frozen=True)
 class HallMaterials:
@@ -268,17 +276,33 @@ def _parse_footprint(hall: Table) -> np.ndarray:
     return polygon.orient_ccw(pts)
 
 
+def _check_extent(hall: Table, footprint: np.ndarray, height: float) -> None:
+    """Refuse a hall whose size is outside :data:`MIN_HALL_EXTENT` … :data:`MAX_HALL_EXTENT` (wrong units)."""
+    span = float(np.max(np.ptp(footprint, axis=0)))
+    for key, value in ((hall.key("size" if hall.has("size") else "footprint"), span), (hall.key("height"), height)):
+        if value > MAX_HALL_EXTENT:
+            raise SpecError(key, f"the hall spans {value:g} m, more than the {MAX_HALL_EXTENT:g} m a hall spec allows "
+                            "(a hall written in millimetres?)", "give every length in metres, e.g. size = [30.0, 18.0]")
+        if value < MIN_HALL_EXTENT:
+            raise SpecError(key, f"the hall spans only {value:g} m, less than {MIN_HALL_EXTENT:g} m (a hall "
+                            "written in kilometres?)", "give every length in metres, e.g. size = [30.0, 18.0]")
+
+
 def _parse(data: dict[str, Any], *, source: bytes, source_path: Path | None, base_dir: Path) -> HallSpec:
     root = Table(data, "")
     scene = root.required_table("scene")
     name = check_name(scene.string("name"), scene.key("name"), what="scene")
     description = scene.string("description", default="")
     frequency = scene.number("frequency", unit="Hz", default=60e9, minimum=0.0, strict=True)
+    if not FREQUENCY_RANGE[0] <= frequency <= FREQUENCY_RANGE[1]:
+        raise SpecError(scene.key("frequency"), f"{frequency:g} Hz is outside {FREQUENCY_RANGE[0]:g} … "
+                        f"{FREQUENCY_RANGE[1]:g} Hz", "give the carrier in hertz, e.g. frequency = 60e9")
     scene.finish()
 
     hall = root.required_table("hall")
     footprint = _parse_footprint(hall)
     height = hall.number("height", unit="m", minimum=0.0, strict=True, example="7.0")
+    _check_extent(hall, footprint, height)
     wall_thickness = hall.number("wall_thickness", unit="m", default=0.2, minimum=0.0, strict=True)
     mats_t = hall.required_table("materials")
     registry: dict[str, MaterialSpec] = {}

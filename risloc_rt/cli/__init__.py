@@ -1,46 +1,163 @@
 """The ``risloc`` command line: one module per verb, each a thin layer over the library.
 
 ``demo``, ``simulate``, ``locate``, ``trace`` and ``scene`` (``build``, ``check``, ``show``).
-Every error is one line on stderr (``risloc VERB: error: ...``) with exit status 2.
+
+One error style (``docs/robustness.md``): every error is one line on stderr,
+``risloc VERB: error: ...``, naming what is wrong and how to fix it. Exit status 2 for bad input
+(a wrong argument, a missing or malformed file, a value out of range, a path that cannot be
+written), 1 for a failure of the run itself (out of memory, a ray-tracer failure, a full disk),
+130 when interrupted (Ctrl-C); outputs are written atomically, so an interrupted run leaves no
+partial file. ``RISLOC_DEBUG=1`` prints the traceback as well.
 """
 
 from __future__ import annotations
 
+import argparse
+import errno
+import os
+import re
 import sys
-from typing import Sequence
+from typing import Any, Sequence
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "EXIT_BAD_INPUT", "EXIT_FAILURE", "EXIT_INTERRUPTED"]
+
+#: Exit status for bad input (arguments, files, values).
+EXIT_BAD_INPUT = 2
+#: Exit status for a failure of the run (memory, ray tracer, disk).
+EXIT_FAILURE = 1
+#: Exit status after Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPTED = 130
+
+#: A value that starts with '-' but is a number or a comma-separated list of numbers (``-6,1,2``).
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
-def build_parser():
+class _Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line, ``PROG: error: ...``, exit status 2."""
+
+    def error(self, message: str) -> Any:  # noqa: D102 - argparse API
+        hint = f"; see '{self.prog} --help'"
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {_one_line(message)}{hint}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``risloc``."""
-    import argparse
+    from . import capture, demo, locate, scene, simulate, trace
 
-    from . import demo, locate, scene, simulate, trace
-
-    parser = argparse.ArgumentParser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
+    parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
     sub = parser.add_subparsers(dest="command", required=True)
     demo.add_parser(sub)
     simulate.add_parser(sub)
     trace.add_parser(sub)
     scene.add_parser(sub)
     locate.add_parser(sub)
+    capture.add_parser(sub)
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``risloc``; returns the exit status."""
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option string (of ``parser`` and its sub-parsers) that takes exactly one value."""
+    out: set[str] = set()
+    for action in parser._actions:  # argparse has no public walk over its actions
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                out |= _value_options(child)
+        elif action.option_strings and action.nargs is None:
+            out.update(action.option_strings)
+    return out
+
+
+def join_negative_values(argv: Sequence[str], value_options: set[str]) -> list[str]:
+    """``--ue -6,1,2`` -> ``--ue=-6,1,2``: a negative value after an option that takes one.
+
+    argparse takes ``-6,1,2`` for an option (only plain negative numbers such as ``-6`` are
+    recognised), so coordinates with a negative first component would need ``--ue=-6,1,2``;
+    this makes the form a user writes work as written.
+    """
+    out: list[str] = []
+    args = list(argv)
+    i = 0
+    while i < len(args):
+        token = args[i]
+        if (token in value_options and i + 1 < len(args) and _NEGATIVE_VALUE.match(args[i + 1])):
+            out.append(f"{token}={args[i + 1]}")
+            i += 2
+            continue
+        if token == "--":
+            out.extend(args[i:])
+            break
+        out.append(token)
+        i += 1
+    return out
+
+
+def _one_line(message: Any) -> str:
+    """``message`` as one line (newlines and runs of spaces collapsed)."""
+    return " ".join(str(message).split())
+
+
+def _command(args: argparse.Namespace | None) -> str:
+    if args is None:
+        return "risloc"
+    verb = getattr(args, "command", None) or ""
+    sub = getattr(args, "scene_command", None)
+    return " ".join(["risloc", verb] + ([sub] if sub else []))
+
+
+def _classify(exc: BaseException) -> tuple[int, str]:
+    """Exit status and one-line message of an exception escaping a verb."""
     from ..hall.raytrace.backend import BackendError
-    from ..io.capture_file import CaptureFormatError
+
+    if isinstance(exc, MemoryError):
+        return EXIT_FAILURE, ("out of memory" + (f" ({_one_line(exc)})" if str(exc) else "") +
+                              "; reduce the sizes (samples, chirps, DFT lengths, --samples, --depth) or free memory")
+    if isinstance(exc, BackendError):
+        return EXIT_FAILURE, _one_line(exc)
+    if isinstance(exc, OSError):
+        name = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""
+        reason = exc.strerror or _one_line(exc)
+        if exc.errno in (errno.ENOENT, errno.EACCES, errno.EPERM, errno.EISDIR, errno.ENOTDIR, errno.EROFS,
+                         errno.ENAMETOOLONG, errno.EEXIST, errno.ELOOP):
+            return EXIT_BAD_INPUT, (f"cannot use{name}: {reason}; check that the path exists (for inputs) "
+                                    "or that its folder is writable (for outputs)")
+        if exc.errno is None and isinstance(exc, FileNotFoundError):
+            return EXIT_BAD_INPUT, _one_line(exc)
+        return EXIT_FAILURE, f"I/O failure on{name}: {reason}; check the disk (space, permissions) and retry"
+    if isinstance(exc, (ValueError, TypeError, LookupError)):
+        return EXIT_BAD_INPUT, _one_line(exc)
+    if isinstance(exc, RuntimeError):
+        return EXIT_FAILURE, (f"the run failed: {type(exc).__name__}: {_one_line(exc)[:400]}; "
+                              "try smaller settings (--samples, --depth) or report it with RISLOC_DEBUG=1")
+    return EXIT_FAILURE, (f"internal error {type(exc).__name__}: {_one_line(exc)[:400]}; "
+                          "please report it with the output of RISLOC_DEBUG=1")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``risloc``; returns the exit status (0, 1 failure, 2 bad input, 130 interrupted)."""
     from .common import CliError
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    raw = list(sys.argv[1:] if argv is None else argv)
+    args = None
     try:
+        args = parser.parse_args(join_negative_values(raw, _value_options(parser)))
         return int(args.func(args))
-    except (CliError, CaptureFormatError, FileNotFoundError, ValueError, TypeError, BackendError) as exc:
-        print(f"risloc {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except SystemExit as exc:  # argparse: --help (0) and usage errors (2, already printed as one line)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"{_command(args)}: interrupted; no partial output was left", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except CliError as exc:
+        print(f"{_command(args)}: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # noqa: BLE001 - the one place every error becomes one line
+        if os.environ.get("RISLOC_DEBUG"):
+            import traceback
+
+            traceback.print_exc()
+        status, message = _classify(exc)
+        print(f"{_command(args)}: error: {message}", file=sys.stderr)
+        return status
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,25 +7,19 @@ stderr)."""
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
-
-from ..authoring._parse import SpecError
 
 __all__ = ["add_parser"]
 
 
 def _guarded(name: str, func: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
-    def run(args: argparse.Namespace) -> int:
-        from ..hall.raytrace.backend import BackendError
+    """``func`` under the name ``cmd_scene_<name>``; its errors reach :func:`risloc_rt.cli.main`, which
+    prints them as one line (``risloc scene NAME: error: ...``) with exit status 2 or 1."""
 
-        try:
-            return func(args)
-        except (SpecError, FileNotFoundError, ValueError, TypeError, BackendError) as exc:
-            print(f"risloc scene {name}: error: {exc}", file=sys.stderr)
-            return 2
+    def run(args: argparse.Namespace) -> int:
+        return func(args)
 
     run.__name__ = f"cmd_scene_{name}"
     return run
@@ -51,7 +45,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         spec = spec / "spec.toml"
     if not spec.is_file():
         raise FileNotFoundError(f"spec {str(spec)!r} does not exist")
-    built = build_scene(spec, args.out if args.out is not None else spec.parent)
+    built = build_scene(spec, args.out if args.out is not None else spec.parent, force=args.force)
     print(f"{built.xml_path}  sha256 {built.content_hash}")
     print(f"  {len(built.mesh_paths)} objects: {', '.join(built.object_names)}")
     return 0
@@ -122,6 +116,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     build = sub.add_parser("build", help="write scene.xml, meshes/*.ply and spec.toml (byte-identical run to run)")
     build.add_argument("spec", help="the spec file (TOML), a scene folder with its spec.toml, or a name in scenes/")
     build.add_argument("-o", "--out", type=Path, default=None, help="output folder (default: the spec's folder)")
+    build.add_argument("--force", action="store_true",
+                       help="replace files in the output folder that the build did not generate (or that were edited "
+                            "since); files it did not generate are never deleted")
     build.set_defaults(func=_guarded("build", _cmd_build))
 
     check = sub.add_parser("check", help="validate a spec or a built scene folder (exit 1 on errors)",

@@ -23,9 +23,9 @@ from .pruning import ModelSettings, PruneReport, prune_paths
 from .raytrace.tracer import TraceResult, TraceSettings
 from ..model.ris import RisMode
 from ..model.scenario import Scenario
-from ..authoring.scene_folder import DEFAULT_SCENE, scene_directory
+from ..authoring.scene_folder import DEFAULT_SCENE, SceneError, scene_directory
 
-__all__ = ["HallScenario", "HallPaths", "hall_paths", "hall_scenario"]
+__all__ = ["HallScenario", "HallPaths", "check_up_to_date", "hall_paths", "hall_scenario"]
 
 
 @dataclass(frozen=True)
@@ -136,6 +136,28 @@ def hall_paths(scenario: HallScenario, *, cache: Any = None) -> HallPaths:
     )
 
 
+def check_up_to_date(folder: Path, spec: Any = None) -> None:
+    """Refuse a scene folder whose ``scene.xml`` or meshes are not what its ``spec.toml`` builds.
+
+    The folder is built in memory and compared byte for byte, so a spec edited after its build,
+    a hand-edited XML or a changed or missing generated mesh is caught before the ray tracer would
+    silently trace the old geometry.
+
+    Raises
+    ------
+    SceneError
+        Naming the files that differ and the command that fixes it.
+    """
+    from ..authoring.build import stale_files
+
+    stale = stale_files(folder, spec)
+    if stale:
+        raise SceneError(
+            f"scene {folder} is out of date: {', '.join(stale[:4])}{' ...' if len(stale) > 4 else ''} differ(s) from "
+            "what its spec.toml builds (the spec was edited after the build, or a generated file was edited or "
+            f"removed); run 'risloc scene build {folder}' (add --force to replace hand-edited files)")
+
+
 def hall_scenario(
     scene: str | Path = DEFAULT_SCENE,
     *,
@@ -170,6 +192,7 @@ def hall_scenario(
 
     folder = scene_directory(scene)
     spec = load_spec(folder / "spec.toml")
+    check_up_to_date(folder, spec)
     ris_list = spec.ris_configs()
     if not ris_list:
         raise ValueError(f"scene {folder} has no RIS; add a [[ris]] table to its spec")

@@ -55,6 +55,16 @@ class Capture:
     truth: Truth | None = None
 
     def __post_init__(self) -> None:
+        dtype = getattr(self.cube, "dtype", None)
+        if dtype is None or not np.issubdtype(dtype, np.complexfloating):
+            kind = "a list" if dtype is None else f"{dtype} (real-valued)" if dtype.kind in "fiub" else str(dtype)
+            raise TypeError(
+                f"cube must be a complex array [M, K, N] of I/Q beat samples (complex64 or complex128), got {kind}; "
+                "real-sampled ADC data (TI adcCfg real) cannot be localized as if it were complex: its spectrum has "
+                "mirror images at negative beat frequencies that alias onto the range axis. Record complex (I/Q) "
+                "data, or convert real samples to the analytic signal first (scipy.signal.hilbert along the "
+                "sample axis, docs/robustness.md) and say so in the provenance"
+            )
         cube = check_cube(self.cube, self.radar)
         if self.sweep.num_beams != cube.shape[0]:
             raise ValueError(

@@ -142,7 +142,7 @@ def test_paper_hall_committed_scene_is_up_to_date(tmp_path):
     committed = tree_bytes(PAPER_DIR)
     assert tree_bytes(tmp_path) == committed, "scenes/paper_hall is stale: rerun risloc_rt.authoring.build"
     assert content_hash(PAPER_DIR / "scene.xml") == built.content_hash
-    assert sorted(committed) == ["meshes/ceiling.ply", "meshes/floor.ply", "meshes/wall_0.ply", "meshes/wall_1.ply",
+    assert sorted(committed) == ["build-manifest.json", "meshes/ceiling.ply", "meshes/floor.ply", "meshes/wall_0.ply", "meshes/wall_1.ply",
                                  "meshes/wall_2.ply", "meshes/wall_3.ply", "scene.xml", "spec.toml"]
 
 
@@ -167,7 +167,10 @@ def test_building_twice_gives_identical_bytes_and_hash(tmp_path):
     b = build_scene(tmp_path / "rich.toml", tmp_path / "b")
     files_a, files_b = tree_bytes(tmp_path / "a"), tree_bytes(tmp_path / "b")
     assert files_a == files_b
-    assert len(files_a) == 2 + len(a.spec.object_names)  # scene.xml, spec.toml, one PLY per object
+    # scene.xml, spec.toml, build-manifest.json, one PLY per object, and the copied source part_mm.stl
+    # (so the spec copy builds from the output folder too)
+    assert len(files_a) == 4 + len(a.spec.object_names)
+    assert files_a["part_mm.stl"] == (tmp_path / "part_mm.stl").read_bytes()
     assert files_a["spec.toml"] == (tmp_path / "rich.toml").read_bytes()
     assert a.content_hash == b.content_hash == content_hash(tmp_path / "b" / "scene.xml")
     again = build_scene(tmp_path / "rich.toml", tmp_path / "a")  # rebuilding in place changes nothing

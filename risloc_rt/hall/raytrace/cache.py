@@ -3,9 +3,12 @@
 A hit returns the stored arrays bit for bit. The key covers everything that changes the
 paths: the scene's content hash (XML and mesh bytes), the radar and RIS positions, the radar
 velocity, the frequency, the solver settings, the sionna-rt/mitsuba/drjit versions and the
-cache format. A file that cannot be read (truncated, corrupt, another format) counts as a miss
-and is overwritten by the next store; files are written to a temporary name and renamed, so a
-crash mid-write never leaves a half-written entry under the final name.
+cache format. Every entry carries its own checksum (sha256 over the names, dtypes, shapes and
+bytes of its arrays, :func:`arrays_checksum`): a file that cannot be read (truncated, corrupt,
+another format) or whose arrays do not match their checksum (tampered, bit rot) counts as a miss
+with a :class:`TraceCacheWarning`, is re-traced, and is overwritten by the next store. Files are
+written to a unique temporary name and renamed, so a crash mid-write never leaves a half-written
+entry under the final name.
 """
 
 from __future__ import annotations
@@ -25,10 +28,27 @@ from ..traced import TracedPaths
 from .backend import package_versions
 from .result import TraceResult, TraceSettings
 
-__all__ = ["CACHE_FORMAT_VERSION", "TraceCache", "default_cache_dir", "trace_key"]
+__all__ = ["CACHE_FORMAT_VERSION", "TraceCache", "TraceCacheWarning", "arrays_checksum", "default_cache_dir",
+           "trace_key"]
 
-#: Bump when the file layout or the meaning of a stored array changes.
-CACHE_FORMAT_VERSION = 1
+#: Bump when the file layout or the meaning of a stored array changes (2: per-entry checksum).
+CACHE_FORMAT_VERSION = 2
+
+
+class TraceCacheWarning(UserWarning):
+    """A trace cache entry was unreadable or failed its checksum; it is traced again."""
+
+
+def arrays_checksum(arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 (hex) over every array's name, dtype, shape and bytes, in name order."""
+    digest = hashlib.sha256(b"risloc-rt trace cache entry\0")
+    for name in sorted(arrays):
+        arr = np.ascontiguousarray(arrays[name])
+        head = json.dumps([name, arr.dtype.str, list(arr.shape)]).encode("utf-8")
+        digest.update(len(head).to_bytes(8, "little") + head)
+        data = arr.tobytes()
+        digest.update(len(data).to_bytes(8, "little") + data)
+    return digest.hexdigest()
 
 _log = logging.getLogger(__name__)
 
@@ -91,6 +111,11 @@ def trace_key(
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+def _entry_checksum(arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> str:
+    """The checksum of an entry: its arrays and its metadata (without the checksum itself)."""
+    return arrays_checksum({**arrays, "\0meta": np.array(json.dumps(meta, sort_keys=True))})
+
+
 class TraceCache:
     """Directory of cached :class:`TraceResult` files, ``<directory>/<key>.npz``.
 
@@ -127,8 +152,12 @@ class TraceCache:
                 meta = json.loads(str(data["meta"]))
                 if meta.get("format") != CACHE_FORMAT_VERSION or meta.get("key") != key:
                     raise ValueError(f"format {meta.get('format')!r} / key mismatch")
+                arrays = {name: data[name] for name in data.files if name != "meta"}
+                unsigned = {k: v for k, v in meta.items() if k != "checksum"}
+                if _entry_checksum(arrays, unsigned) != meta.get("checksum"):
+                    raise ValueError("its arrays do not match the entry's checksum (tampered or damaged)")
                 traced = [
-                    TracedPaths.from_arrays({name.split("/", 1)[1]: data[name] for name in data.files
+                    TracedPaths.from_arrays({name.split("/", 1)[1]: arrays[name] for name in arrays
                                              if name.startswith(f"{prefix}/")})
                     for prefix in ["mono"] + [f"leg{i}" for i in range(int(meta["num_legs"]))]
                 ]
@@ -141,8 +170,11 @@ class TraceCache:
                     settings=TraceSettings(**meta["settings"]),
                     radar_velocity=np.array([float(v) for v in meta["radar_velocity"]]),
                 )
-        except Exception as exc:  # corrupt or foreign file: a miss, overwritten by the next store
-            _log.warning("ignoring unreadable trace cache file %s (%s: %s)", path, type(exc).__name__, exc)
+        except Exception as exc:  # corrupt, tampered or foreign file: a miss, overwritten by the next store
+            message = (f"ignoring trace cache file {path} ({type(exc).__name__}: {' '.join(str(exc).split())[:200]}); "
+                       "tracing again")
+            _log.warning(message)
+            warnings.warn(message, TraceCacheWarning, stacklevel=2)
             return None
 
     def store(self, key: str, result: TraceResult) -> Path | None:
@@ -165,6 +197,7 @@ class TraceCache:
             "timing": result.timing,
             "radar_velocity": [repr(float(v)) for v in result.radar_velocity],
         }
+        meta["checksum"] = _entry_checksum(arrays, meta)
         arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
         tmp_name = None
         try:

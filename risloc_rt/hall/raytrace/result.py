@@ -13,7 +13,18 @@ import numpy as np
 
 from ..traced import TracedPaths
 
-__all__ = ["TraceResult", "TraceSettings"]
+__all__ = ["MAX_DEPTH", "MAX_SAMPLES", "TraceResult", "TraceSettings"]
+
+#: Deepest trace allowed: at 60 GHz each bounce off concrete costs >= 5 dB, so paths beyond 20
+#: interactions lie far below the noise floor, and their number (and sionna-rt's memory) grows
+#: geometrically with depth.
+MAX_DEPTH = 20
+#: Most rays (or paths) per source: Dr.Jit indexes them with 32-bit integers.
+MAX_SAMPLES = 2**31 - 1
+_WHY = {"max_depth": "deeper paths are far below the noise and cost memory geometrically",
+        "samples_per_src": "Dr.Jit indexes rays with 32-bit integers",
+        "max_num_paths_per_src": "Dr.Jit indexes paths with 32-bit integers",
+        "seed": "the ray sampler's seed is a 32-bit integer"}
 
 
 @dataclass(frozen=True)
@@ -47,13 +58,17 @@ class TraceSettings:
     seed: int = 42
 
     def __post_init__(self) -> None:
-        minimum = {"max_depth": 0, "samples_per_src": 1, "max_num_paths_per_src": 1, "seed": 0}
-        for name, low in minimum.items():
+        bounds = {"max_depth": (0, MAX_DEPTH), "samples_per_src": (1, MAX_SAMPLES),
+                  "max_num_paths_per_src": (1, MAX_SAMPLES), "seed": (0, 2**31 - 1)}
+        for name, (low, high) in bounds.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise TypeError(f"{name}={value!r} must be an int")
             if value < low:
                 raise ValueError(f"{name}={value!r} must be >= {low}")
+            if value > high:
+                why = _WHY[name]
+                raise ValueError(f"{name}={value!r} must be <= {high} ({why})")
             object.__setattr__(self, name, int(value))
         for name in ("specular_reflection", "diffuse_reflection", "refraction", "diffraction"):
             value = getattr(self, name)
@@ -64,6 +79,21 @@ class TraceSettings:
     def to_dict(self) -> dict[str, Any]:
         """Plain ``{field: value}`` (JSON-serialisable); inverse: ``TraceSettings(**d)``."""
         return asdict(self)
+
+    def memory_estimate(self, num_receivers: int = 2) -> int:
+        """Peak memory of one sionna-rt solve with these settings [bytes] (an upper estimate).
+
+        Notes
+        -----
+        Measured on the paper hall (sionna-rt 2.2, LLVM backend): 0.12 GB at depth 3, 0.64 GB at
+        depth 6 and 17 GB at depth 12 for 10⁵ rays. The candidate paths grow about 1.6× per extra
+        bounce until ``max_num_paths_per_src`` caps them, and each costs ~1.5 kB per interaction:
+        ``P = min(max_num_paths_per_src, 0.3·samples·1.6^(depth-3))``,
+        ``bytes = 1500·P·(depth+1) + 64·samples·(depth+1)·receivers + 300 MB``.
+        """
+        depth = self.max_depth + 1
+        paths = min(float(self.max_num_paths_per_src), 0.3 * self.samples_per_src * 1.6 ** max(self.max_depth - 3, 0))
+        return int(1500 * paths * depth + 64 * self.samples_per_src * depth * max(num_receivers, 1) + 300e6)
 
 
 @dataclass(frozen=True)

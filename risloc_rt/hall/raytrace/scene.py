@@ -136,6 +136,24 @@ def _set_frequency(scene: Any, xml_path: str, frequency: float) -> None:
         ) from None
 
 
+#: Largest extent a scene may have [m]: a larger one is almost always a hall in millimetres.
+MAX_SCENE_EXTENT = 1000.0
+
+
+def _check_extent(scene: Any, xml_path: str) -> None:
+    """Refuse a scene larger than :data:`MAX_SCENE_EXTENT` (meshes written in millimetres)."""
+    try:
+        bbox = scene.mi_scene.bbox()
+        extent = max(float(bbox.max[i]) - float(bbox.min[i]) for i in range(3))
+    except Exception:  # noqa: BLE001 - an empty or unusual scene: nothing to check
+        return
+    if math.isfinite(extent) and extent > MAX_SCENE_EXTENT:
+        raise SceneError(
+            f"scene file {xml_path} spans {extent:.4g} m, more than the {MAX_SCENE_EXTENT:g} m of any hall: its meshes "
+            "are not in metres (millimetres?); rebuild it from a spec with lengths in metres, or set scale = 0.001 "
+            "for an imported mesh in millimetres")
+
+
 def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedScene:
     """Load a Mitsuba XML scene into sionna-rt with materials evaluated at ``frequency``.
 
@@ -170,6 +188,7 @@ def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedS
         raise
     except Exception as exc:  # Mitsuba raises RuntimeError, sionna ValueError/TypeError
         raise _load_error(xml_path, exc) from exc
+    _check_extent(scene, xml_path)
     _set_frequency(scene, xml_path, frequency)
     return LoadedScene(
         scene=scene,

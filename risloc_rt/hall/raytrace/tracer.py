@@ -335,6 +335,12 @@ def trace_scene(
                                cache_hit=True, timing=timing, settings=hit.settings,
                                radar_velocity=hit.radar_velocity)
 
+    from dsp.budget import check_memory
+
+    check_memory(settings.memory_estimate(1 + len(ris)),
+                 f"tracing with max_depth={settings.max_depth} (--depth), samples_per_src={settings.samples_per_src} "
+                 f"(--samples), max_num_paths_per_src={settings.max_num_paths_per_src}",
+                 fix="lower --depth (3 finds every path above the noise in the example halls) or --samples")
     t = time.perf_counter()
     loaded, _reused = _scene_for(xml_path, frequency, scene_hash)
     timing["load"] = time.perf_counter() - t

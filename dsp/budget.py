@@ -1,0 +1,136 @@
+"""Memory budgets: estimate what a computation allocates and refuse it before it starts.
+
+A size read from a file or a flag (``processing.k_dft = 1e9``, a cube header claiming
+10¹² samples, ``--samples 1e12``) must end in an error that names the parameter, the estimate and
+the limit, not in a ``MemoryError`` traceback, a swapping machine or a killed process. The limit
+is :func:`memory_limit`: ``$RISLOC_MEMORY_LIMIT`` when set (bytes, or with a suffix: ``8G``,
+``512M``), else half the memory the machine has available when asked (``MemAvailable`` in
+``/proc/meminfo``, else half the physical memory), so the default follows the machine.
+
+Pure Python and numpy; used by the capture reader, the ray tracer's settings and the CLI.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from typing import Any
+
+__all__ = ["BudgetError", "MEMORY_LIMIT_ENV", "check_memory", "dsp_memory", "format_bytes", "memory_limit",
+           "parse_bytes"]
+
+#: Environment variable that overrides the memory limit (bytes, or ``8G``, ``512M``, ``2.5GiB``).
+MEMORY_LIMIT_ENV = "RISLOC_MEMORY_LIMIT"
+#: Fraction of the available memory one computation may plan to use by default.
+DEFAULT_FRACTION = 0.5
+_UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+
+
+class BudgetError(ValueError):
+    """A computation would need more memory than the limit; the message names the parameter,
+    the estimate, the limit and how to change either."""
+
+
+def parse_bytes(text: str) -> int:
+    """``"8G"`` -> 8 GiB, ``"512M"``, ``"1e9"``, ``"2.5GiB"`` -> bytes (binary units)."""
+    m = re.fullmatch(r"\s*([0-9.eE+]+)\s*([kKmMgGtT]?)(i?[bB])?\s*", str(text))
+    if not m:
+        raise ValueError(f"{MEMORY_LIMIT_ENV}={text!r} is not a size; write bytes or e.g. 8G, 512M")
+    try:
+        value = float(m.group(1)) * _UNITS[m.group(2).lower()]
+    except ValueError:
+        raise ValueError(f"{MEMORY_LIMIT_ENV}={text!r} is not a size; write bytes or e.g. 8G, 512M") from None
+    if not value > 0 or value != value or value == float("inf"):
+        raise ValueError(f"{MEMORY_LIMIT_ENV}={text!r} must be a positive size, e.g. 8G")
+    return int(value)
+
+
+def _available_memory() -> int:
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def memory_limit() -> tuple[int, str]:
+    """The memory limit [bytes] and where it comes from (for messages).
+
+    ``$RISLOC_MEMORY_LIMIT`` when set, else :data:`DEFAULT_FRACTION` of the available memory.
+    """
+    env = os.environ.get(MEMORY_LIMIT_ENV)
+    if env:
+        return parse_bytes(env), f"${MEMORY_LIMIT_ENV}"
+    return int(DEFAULT_FRACTION * _available_memory()), \
+        f"half the available memory; set ${MEMORY_LIMIT_ENV} (e.g. 32G) to change it"
+
+
+def format_bytes(n: float) -> str:
+    """``1.5 GiB``, ``92 MiB``, ``512 B``."""
+    n = float(n)
+    for unit, size in (("TiB", 1 << 40), ("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def check_memory(estimate: float, what: str, *, fix: str = "", limit: int | None = None) -> float:
+    """Raise :class:`BudgetError` when ``estimate`` [bytes] exceeds the memory limit.
+
+    Parameters
+    ----------
+    estimate : float
+        Bytes the computation would allocate at its peak.
+    what : str
+        The parameter(s) responsible, as the user wrote them (``"processing.k_dft=1000000000"``).
+    fix : str
+        How to bring the estimate down.
+    limit : int, optional
+        Override :func:`memory_limit`.
+
+    Returns
+    -------
+    float
+        ``estimate``.
+    """
+    if limit is None:
+        limit, source = memory_limit()
+    else:
+        source = "the given limit"
+    if not estimate <= limit:  # also catches NaN
+        raise BudgetError(f"{what} needs about {format_bytes(estimate)} of memory, more than the limit "
+                          f"{format_bytes(limit)} ({source})" + (f"; {fix}" if fix else ""))
+    return estimate
+
+
+def dsp_memory(shape: Any, *, n_dft: int, k_dft: int, itemsize: int = 16) -> int:
+    """Peak bytes of :func:`dsp.scan_beams` and one delay-Doppler map on a cube of ``shape``.
+
+    Parameters
+    ----------
+    shape : (M, K, N)
+        Beams, chirps, samples.
+    n_dft, k_dft : int
+        Fast- and slow-time DFT lengths.
+    itemsize : int
+        Bytes per complex sample of the cube (16 for complex128).
+
+    Notes
+    -----
+    The cube (``M·K·N·itemsize``), its windowed copy and the fast-time transform
+    ``[M, K, N_DFT]`` complex128, and the full slow-time transform of one beam
+    ``[K_DFT, N_DFT]`` complex128 plus its power (float64): the delay-Doppler map of the chosen
+    beam that the report draws, and the per-beam block of ``doppler_search="full"``. A 2× margin
+    covers FFT work buffers.
+    """
+    m, k, n = (int(v) for v in shape)
+    cube = m * k * n * (itemsize + 16)
+    fast = m * k * int(n_dft) * 16
+    beam = int(k_dft) * int(n_dft) * (16 + 8)
+    return int(cube + 2 * (fast + beam))
