@@ -286,7 +286,10 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
         atomic_write(out / rel, files[rel])
     for rel, digest in sorted(before.items()):
         stale = out / rel
-        if rel not in files and stale.is_file() and _sha256(stale.read_bytes()) == digest:
+        if (rel in files or rel == "spec.toml" or rel == MANIFEST_NAME
+                or (spec.source_path is not None and stale.resolve() == spec.source_path)):
+            continue  # never delete a spec, ours or the user's
+        if stale.is_file() and _sha256(stale.read_bytes()) == digest:
             stale.unlink()
     manifest = {"format": _MANIFEST_FORMAT, "version": _MANIFEST_VERSION,
                 "spec_sha256": _sha256(spec.source),

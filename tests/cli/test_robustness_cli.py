@@ -1,0 +1,84 @@
+"""Issue 11 regressions for the command line: one-line errors, exit statuses 2/1/130, negative
+coordinates, unwritable outputs, absurd sizes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from risloc_rt.cli import join_negative_values, main
+
+
+def _one_error_line(capsys, verb: str) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"risloc {verb}: error: "), err
+    return err[0]
+
+
+def test_issue_11_negative_coordinates_work_as_written(tmp_path, capsys):
+    # Defect 9: '--ue -6,1,2' was taken for an option.
+    assert join_negative_values(["simulate", "--ue", "-6,1,2", "-o", "x"], {"--ue", "-o"}) == \
+        ["simulate", "--ue=-6,1,2", "-o", "x"]
+    out = tmp_path / "neg.npz"
+    assert main(["simulate", "--no-noise", "--ue", "-0.5,-0.25,0", "--ue-velocity", "-1,0,0", "-o", str(out)]) == 0
+    from risloc_rt.io.capture_file import load_capture
+
+    np.testing.assert_allclose(load_capture(out).truth.ue_position, [-0.5, -0.25, 0.0])
+
+
+def test_issue_11_usage_errors_are_one_line_exit_2(capsys):
+    assert main(["trace"]) == 2
+    _one_error_line(capsys, "trace")
+    assert main(["locate"]) == 2
+    _one_error_line(capsys, "locate")
+
+
+def test_issue_11_unwritable_output_is_one_line_exit_2(tmp_path, capsys):
+    # Defect 5: OSError traceback.
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["simulate", "--no-noise", "-o", str(blocker / "sub" / "out.npz")]) == 2
+    line = _one_error_line(capsys, "simulate")
+    assert "file" in line
+
+
+def test_issue_11_absurd_samples_and_depth_are_refused(capsys):
+    # Defect 4/5: Dr.Jit RuntimeError, 8.7 GB and segfaults.
+    assert main(["trace", "paper_hall", "--ue", "6,9,1.2", "--samples", str(2**40)]) == 2
+    assert "samples_per_src" in _one_error_line(capsys, "trace")
+    assert main(["trace", "paper_hall", "--ue", "6,9,1.2", "--depth", "100"]) == 2
+    assert "max_depth=100 must be <= 20" in _one_error_line(capsys, "trace")
+
+
+def test_issue_11_memory_estimate_refuses_before_tracing(capsys, monkeypatch):
+    monkeypatch.setenv("RISLOC_MEMORY_LIMIT", "100M")
+    assert main(["trace", "paper_hall", "--ue", "6,9,1.2", "--depth", "12", "--no-cache"]) == 2
+    line = _one_error_line(capsys, "trace")
+    assert "max_depth=12 (--depth)" in line and "needs about" in line and "RISLOC_MEMORY_LIMIT" in line
+
+
+def test_issue_11_ctrl_c_exits_130_and_failures_exit_1(monkeypatch, capsys, tmp_path):
+    import risloc_rt.cli.simulate as sim
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sim, "simulate", interrupted)
+    assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+    def boom(*a, **k):
+        raise RuntimeError("drjit: kernel launch failed\nwith details")
+
+    monkeypatch.setattr(sim, "simulate", boom)
+    assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 1
+    assert "kernel launch failed with details" in _one_error_line(capsys, "simulate")
+
+
+def test_issue_11_scene_build_refusal_is_one_line(tmp_path, capsys):
+    spec = tmp_path / "spec.toml"
+    spec.write_text("[scene]\nname='t'\n[hall]\nsize=[30000.0, 18000.0]\nheight=7.0\n"
+                    "[hall.materials]\nwalls='concrete'\nfloor='concrete'\nceiling='concrete'\n")
+    assert main(["scene", "build", str(spec)]) == 2
+    assert "millimetres" in _one_error_line(capsys, "scene build")
