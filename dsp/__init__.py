@@ -8,14 +8,39 @@ delay-Doppler map is ``[K_DFT, N_DFT]``. SI units and radians throughout
 """
 
 from .beamscan import BeamScan, scan_beams
+from .crb import SweepBound, position_std, sweep_crb, tone_frequency_crb
+from .detection import Detection, check_beat_cube, detect
+from .flags import FLAG_CODES, Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
-from .localize import Localization, localize, self_localize
+from .localize import Localization, NoPositionError, localize, self_localize
+from .pattern import BeamPattern
+from .qualify import Uncertainty, elevation_for_height
+from .refine import AodFit, RefinedEstimate, beam_dtft, fit_aod, refine_estimate, residual_test
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map
 from .sweep import BeamSweep
 
 __all__ = [
+    "AodFit",
+    "BeamPattern",
+    "Detection",
+    "FLAG_CODES",
+    "Flag",
+    "NoPositionError",
+    "RefinedEstimate",
+    "SweepBound",
+    "Uncertainty",
+    "beam_dtft",
+    "check_beat_cube",
+    "detect",
+    "elevation_for_height",
+    "fit_aod",
+    "position_std",
+    "refine_estimate",
+    "residual_test",
+    "sweep_crb",
+    "tone_frequency_crb",
     "BeamScan",
     "BeamSweep",
     "DelayDopplerMap",

@@ -130,3 +130,25 @@ def dataclass_from_dict(cls: type, data: Any, what: str, *, require_all: bool = 
     if missing:
         raise ValueError(f"{what}: missing field(s) {missing}")
     return cls(**data)
+
+
+def fields_equal(a: Any, b: Any) -> bool:
+    """Field-by-field equality of two dataclasses holding arrays (NaN equals NaN).
+
+    For ``__eq__`` of frozen result dataclasses: the generated one compares arrays with ``==``
+    and fails on arrays of more than one element.
+    """
+    from dataclasses import fields
+
+    if type(a) is not type(b):
+        return NotImplemented
+    for f in fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            if not np.array_equal(np.asarray(x), np.asarray(y), equal_nan=np.asarray(x).dtype.kind in "fc"):
+                return False
+        elif isinstance(x, float) and isinstance(y, float) and np.isnan(x) and np.isnan(y):
+            continue
+        elif x != y:
+            return False
+    return True

@@ -41,8 +41,8 @@ class RadarConfig:
     bandwidth : float, default 3.4345e9
         Swept bandwidth B over the chirp duration [Hz].
     chirp_duration : float, default 50e-6
-        T: ramp duration, which sets the slope S = B/T, and chirp repetition interval, which
-        sets the slow-time phase ``2π f_c ν k T`` of eq. (1) [s].
+        T: ramp duration, which sets the slope S = B/T, and (unless ``chirp_period`` is given)
+        chirp repetition interval, which sets the slow-time phase ``2π f_c ν k T`` of eq. (1) [s].
     num_samples : int, default 600
         N, ADC samples per chirp.
     sample_rate : float, default 10e6
@@ -58,6 +58,21 @@ class RadarConfig:
         G_trx, combined Tx and Rx antenna gain [dBi] (link budget only).
     noise_power_dbm : float, default -63.64
         σ_N², complex noise power per ADC sample [dBm] (simulation only).
+    chirp_period : float or None, default None
+        T_c, chirp repetition interval (ramp + idle time) [s]: the slow-time sample spacing.
+        ``None`` means ``chirp_duration`` (back-to-back chirps, as eq. (1) and Table I assume).
+        Must be >= ``chirp_duration``.
+    frame_period : float or None, default None
+        Time between the starts of consecutive frames [s]. ``None`` means ``K·T_c`` (no idle
+        time between frames; the paper gives no frame period). Must be >= K·T_c.
+    frames_per_beam : int, default 1
+        Frames recorded while the RIS holds one beam (the paper: one frame per sweep angle);
+        the cube keeps one frame per beam, this only sets the timing of the sweep.
+
+    Notes
+    -----
+    The three timing fields were added after capture files existed: :meth:`from_dict` reads
+    files without them (``require_all=True`` included) and gives them the defaults above.
     """
 
     carrier_frequency: float = 60e9
@@ -70,6 +85,12 @@ class RadarConfig:
     tx_power_dbm: float = 20.0
     antenna_gain_dbi: float = 4.7712
     noise_power_dbm: float = -63.64
+    chirp_period: float | None = None
+    frame_period: float | None = None
+    frames_per_beam: int = 1
+
+    #: Fields a file written before they existed may lack; read with their defaults.
+    OPTIONAL_ON_READ = ("chirp_period", "frame_period", "frames_per_beam")
 
     def __post_init__(self) -> None:
         set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
@@ -83,6 +104,22 @@ class RadarConfig:
         set_("tx_power_dbm", finite(self.tx_power_dbm, "tx_power_dbm", "dBm"))
         set_("antenna_gain_dbi", finite(self.antenna_gain_dbi, "antenna_gain_dbi", "dBi"))
         set_("noise_power_dbm", finite(self.noise_power_dbm, "noise_power_dbm", "dBm"))
+        if self.chirp_period is not None:
+            set_("chirp_period", positive(self.chirp_period, "chirp_period", "s"))
+            if self.chirp_period < self.chirp_duration:
+                raise ValueError(
+                    f"chirp_period={self.chirp_period:g} s is shorter than chirp_duration="
+                    f"{self.chirp_duration:g} s; the repetition interval includes the ramp (use None "
+                    "for back-to-back chirps)"
+                )
+        set_("frames_per_beam", positive_int(self.frames_per_beam, "frames_per_beam"))
+        if self.frame_period is not None:
+            set_("frame_period", positive(self.frame_period, "frame_period", "s"))
+            if self.frame_period < self.num_chirps * self.chirp_interval * (1 - 1e-12):
+                raise ValueError(
+                    f"frame_period={self.frame_period:g} s is shorter than its K={self.num_chirps} chirps "
+                    f"(K·T_c = {self.num_chirps * self.chirp_interval:g} s); use None for back-to-back frames"
+                )
         if self.bandwidth >= self.carrier_frequency:
             raise ValueError(
                 f"bandwidth={self.bandwidth:g} Hz must be smaller than "
@@ -136,9 +173,37 @@ class RadarConfig:
         return self.delay_resolution * SPEED_OF_LIGHT / 2.0
 
     @property
+    def chirp_interval(self) -> float:
+        """T_c, the chirp repetition interval: ``chirp_period``, or T when it is None [s]."""
+        return self.chirp_duration if self.chirp_period is None else self.chirp_period
+
+    @property
+    def frame_duration(self) -> float:
+        """K·T_c, the span of one frame's chirps [s]."""
+        return self.num_chirps * self.chirp_interval
+
+    @property
+    def frame_interval(self) -> float:
+        """Start-to-start time of consecutive frames: ``frame_period`` or K·T_c [s]."""
+        return self.frame_duration if self.frame_period is None else self.frame_period
+
+    @property
+    def beam_interval(self) -> float:
+        """Start-to-start time of consecutive sweep beams, ``frames_per_beam · frame_interval`` [s]."""
+        return self.frames_per_beam * self.frame_interval
+
+    def beam_times(self, num_beams: int) -> np.ndarray:
+        """Centre time of each beam's (first) frame, from the start of the sweep [M] [s].
+
+        ``t_m = m · beam_interval + frame_duration / 2``.
+        """
+        m = positive_int(num_beams, "num_beams")
+        return np.arange(m) * self.beam_interval + 0.5 * self.frame_duration
+
+    @property
     def max_delay_rate(self) -> float:
-        """Unambiguous delay rate |ν| < 1/(2 f_c T) [s/s] (slow-time Nyquist)."""
-        return 1.0 / (2.0 * self.carrier_frequency * self.chirp_duration)
+        """Unambiguous delay rate |ν| < 1/(2 f_c T_c) [s/s] (slow-time Nyquist)."""
+        return 1.0 / (2.0 * self.carrier_frequency * self.chirp_interval)
 
     @property
     def max_velocity(self) -> float:
@@ -147,8 +212,8 @@ class RadarConfig:
 
     @property
     def velocity_resolution(self) -> float:
-        """Velocity resolution λ/(2·K·T) [m/s] (Table I: 0.39 m/s)."""
-        return self.wavelength / (2.0 * self.num_chirps * self.chirp_duration)
+        """Velocity resolution λ/(2·K·T_c) [m/s] (Table I: 0.39 m/s)."""
+        return self.wavelength / (2.0 * self.num_chirps * self.chirp_interval)
 
     @property
     def tx_power(self) -> float:
@@ -171,9 +236,9 @@ class RadarConfig:
         return np.arange(n) * (self.max_delay / n)
 
     def delay_rate_grid(self, k_dft: int) -> np.ndarray:
-        """Delay rate ν of each slow-time DFT bin in FFT order, ``fftfreq(K_DFT, f_c T)`` [K_DFT] [s/s]."""
+        """Delay rate ν of each slow-time DFT bin in FFT order, ``fftfreq(K_DFT, f_c T_c)`` [K_DFT] [s/s]."""
         k = positive_int(k_dft, "k_dft")
-        return np.fft.fftfreq(k, d=self.carrier_frequency * self.chirp_duration)
+        return np.fft.fftfreq(k, d=self.carrier_frequency * self.chirp_interval)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON dictionary of the fields (SI units except the named dB fields)."""
@@ -181,6 +246,15 @@ class RadarConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, require_all: bool = False) -> "RadarConfig":
-        """Inverse of :meth:`to_dict`; unknown (or, with ``require_all``, missing) keys raise."""
+        """Inverse of :meth:`to_dict`; unknown (or, with ``require_all``, missing) keys raise.
+
+        The timing fields of :attr:`OPTIONAL_ON_READ` may be missing even with ``require_all``
+        (files written before they existed): they take their defaults.
+        """
+        if isinstance(data, dict):
+            data = dict(data)
+            defaults = {"chirp_period": None, "frame_period": None, "frames_per_beam": 1}
+            for key in cls.OPTIONAL_ON_READ:
+                data.setdefault(key, defaults[key])
         return dataclass_from_dict(cls, data, "radar", require_all=require_all)
 

@@ -1,0 +1,250 @@
+"""Detection of the RIS return with a stated false-alarm probability (``docs/estimation.md``).
+
+Two tests on the un-padded, un-windowed 2-D DFT of every beam, ``X_m[q, p]`` (K × N cells per
+beam, independent under white noise):
+
+1. **Sweep-CFAR** (the detector proper). ``D[q, p] = Σ_m |X_m - X̄|² / σ̂²``, X̄ the mean over
+   beams. Anything identical in every frame (static clutter, the panel's structural reflection,
+   Tx→Rx leakage) cancels exactly, whatever its strength; the RIS return, whose power follows the
+   beam, does not. Under H0 (noise plus any static clutter) D ~ Gamma(M-1, 1) in every cell,
+   independently, so the threshold η with ``1 - (1 - Q(M-1, η))^C = P_FA`` gives exactly P_FA
+   per capture over the C searched cells (noise power known; σ̂² from the median of all cells).
+2. **Sweep-modulation test**, at each cell that crossed η (strongest first): the power profile
+   over the beams, P_m = |X_m|²/σ̂², must not be explainable by a return of constant amplitude
+   (clutter whose phase moves from frame to frame, e.g. for a moving radar). Under that
+   hypothesis 2P_m ~ χ'²(2, 2λ) independently; λ is estimated from the median over beams and the
+   strongest beam must exceed the level that M such beams would exceed with probability P_FA.
+
+The first cell that passes both is the detection. No cell above η: ``no-detection``; cells
+above η but none beam-dependent: ``no-beam-dependence`` (and no detection).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.fft
+import scipy.ndimage
+import scipy.optimize
+import scipy.special
+import scipy.stats
+
+from ._validate import as_finite_array, fields_equal, non_negative
+from .radar import SPEED_OF_LIGHT, RadarConfig
+
+__all__ = ["Detection", "detect", "check_beat_cube", "sweep_cfar_threshold"]
+
+#: Default false-alarm probability per capture.
+DEFAULT_PFA = 1e-3
+
+
+def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.ndarray:
+    """Validate a beat cube for detection/localization; return it as complex128 [M, K, N].
+
+    Raises a one-line :class:`ValueError` for an empty, non-finite or all-zero cube, one with
+    fewer than ``min_beams`` beams, or sizes that disagree with ``radar``.
+    """
+    try:
+        arr = np.asarray(cube, dtype=complex)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"cube must be a complex array [M, K, N], got {type(cube).__name__}: {exc}") from None
+    if arr.ndim != 3:
+        raise ValueError(f"cube has shape {list(arr.shape)}; it must be [M, K, N] = (beams, chirps, samples)")
+    if arr.size == 0:
+        raise ValueError(f"cube is empty (shape {list(arr.shape)}); record at least 2 beams of K chirps × N samples")
+    arr = as_finite_array(arr, "cube", shape=(None, None, None), dtype=complex)
+    m, k, n = arr.shape
+    if (k, n) != (radar.num_chirps, radar.num_samples):
+        raise ValueError(
+            f"cube has shape [M, K, N] = {list(arr.shape)} but the radar has K={radar.num_chirps} chirps and "
+            f"N={radar.num_samples} samples; pass the RadarConfig the cube was recorded with (axis order beams, chirps, samples)"
+        )
+    if m < min_beams:
+        raise ValueError(
+            f"cube has {m} beam(s); the AoD needs a sweep of at least {min_beams} beams (one frame per RIS beam)"
+        )
+    if not np.any(arr):
+        raise ValueError("cube is all zeros: nothing was recorded; check the capture (ADC, file) before localizing")
+    return arr
+
+
+def sweep_cfar_threshold(pfa: float, num_beams: int, num_cells: int) -> float:
+    """η such that the max over ``num_cells`` iid Gamma(M-1, 1) exceeds it with probability ``pfa``."""
+    per_cell = -np.expm1(np.log1p(-pfa) / num_cells)
+    return float(scipy.special.gammainccinv(num_beams - 1, per_cell))
+
+
+def _modulation_threshold(power: np.ndarray, pfa: float) -> float:
+    """Level the strongest of M constant-amplitude beams exceeds with probability ``pfa``."""
+    m = power.size
+    x = 2.0 * power  # ~ χ'²(2, 2λ) under constant amplitude
+    med = float(np.median(x))
+    nc = 0.0
+    per_beam = -np.expm1(np.log1p(-pfa) / m)
+    if med > 400.0:
+        # Strong constant return: χ'²(2, nc) is then Gaussian, mean 2 + nc, variance 4 + 4 nc.
+        nc = med - 2.0
+        z = float(scipy.stats.norm.isf(per_beam))
+        return (2.0 + nc + z * np.sqrt(4.0 + 4.0 * nc)) / 2.0
+    if med > scipy.stats.chi2.median(2):
+        f = lambda lam: scipy.stats.ncx2.median(2, lam) - med  # noqa: E731
+        hi = 2.0 * med + 10.0
+        nc = float(scipy.optimize.brentq(f, 1e-9, hi)) if f(1e-9) < 0 < f(hi) else 2.0 * med
+    if nc <= 0:
+        return float(scipy.stats.chi2.isf(per_beam, 2)) / 2.0
+    return float(scipy.stats.ncx2.isf(per_beam, 2, nc)) / 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """Outcome of :func:`detect`: was a beam-dependent return found, and how strong.
+
+    Attributes
+    ----------
+    detected : bool
+        A cell passed the sweep-CFAR and the sweep-modulation test.
+    snr_db : float
+        Sweep-integrated post-integration SNR of the strongest cell that passed the sweep-CFAR
+        (or of the strongest cell when none did), ``10 log10(D - (M-1))`` [dB]; -99 when D <= M-1.
+    threshold_db : float
+        The same quantity at the threshold, ``10 log10(η - (M-1))`` [dB]: detected needs
+        ``snr_db >= threshold_db``.
+    false_alarm_probability : float
+        P_FA: probability per capture that noise (plus static clutter) alone crosses η anywhere.
+    statistic, threshold : float
+        D at the cell and η [unitless, in units of the noise power per cell].
+    noise_power : float
+        σ̂², noise power per beat sample [W] (median estimate).
+    cell : (int, int)
+        (q, p): slow- and fast-time bin of the un-padded DFT (FFT order), -1 when none.
+    delay, delay_rate : float
+        Cell centre: τ (range-Doppler coupling removed) [s], ν [s/s]; NaN when none.
+    beam_power : float array [M]
+        P_m = |X_m|²/σ̂² at the cell [unitless]; empty when none.
+    beam_dependent : bool
+        The cell passed the sweep-modulation test.
+    rejected : int
+        Cells above η that failed the sweep-modulation test (stronger than the detection, or all).
+    num_cells : int
+        C, cells searched.
+    """
+
+    detected: bool
+    snr_db: float
+    threshold_db: float
+    false_alarm_probability: float
+    statistic: float = float("nan")
+    threshold: float = float("nan")
+    noise_power: float = float("nan")
+    cell: tuple[int, int] = (-1, -1)
+    delay: float = float("nan")
+    delay_rate: float = float("nan")
+    beam_power: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    beam_dependent: bool = False
+    rejected: int = 0
+    num_cells: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"detected", "snr_db", "threshold_db", "false_alarm_probability"}`` (plain JSON)."""
+        return {"detected": bool(self.detected), "snr_db": float(self.snr_db),
+                "threshold_db": float(self.threshold_db),
+                "false_alarm_probability": float(self.false_alarm_probability)}
+
+    def __eq__(self, other: object) -> bool:
+        return fields_equal(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+def _db(x: float) -> float:
+    return float(10.0 * np.log10(x)) if x > 0 else -99.0
+
+
+def detect(
+    cube: Any,
+    radar: RadarConfig,
+    *,
+    pfa: float = DEFAULT_PFA,
+    min_range: float = 0.0,
+    max_candidates: int = 5,
+) -> Detection:
+    """Detect the RIS return in a beat cube with false-alarm probability ``pfa`` per capture.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        Beat samples (beams, chirps, samples) [√W], M >= 2.
+    radar : RadarConfig
+    pfa : float, default 1e-3
+        False-alarm probability per capture, in (0, 1).
+    min_range : float, default 0
+        Cells whose delay (coupled, as on the DFT grid) is below ``2·min_range/c`` are not
+        searched [m].
+    max_candidates : int, default 5
+        Cells above η tried by the sweep-modulation test, strongest first.
+
+    Returns
+    -------
+    Detection
+    """
+    arr = check_beat_cube(cube, radar)
+    if not (isinstance(pfa, (float, int)) and 0 < pfa < 1):
+        raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
+    rmin = non_negative(min_range, "min_range", "m")
+    m, k, n = arr.shape
+    x = scipy.fft.ifft2(arr, axes=(1, 2), norm="forward", workers=-1)  # Σ y e^{+j2π(qk/K + pn/N)}, [M, K, N]
+    mean = x.mean(axis=0)  # [K, N]
+    energy = np.zeros((k, n))
+    for xm in x:  # Σ_m |X_m|², beam by beam (no [M, K, N] temporary)
+        energy += xm.real**2 + xm.imag**2
+    d_raw = np.maximum(energy - m * (mean.real**2 + mean.imag**2), 0.0)  # Σ_m |X_m - X̄|², [K, N]
+    # Under H0 d_raw/σ²_cell ~ Gamma(M-1, 1): its median over cells gives σ²_cell.
+    cell_noise = float(np.median(d_raw)) / float(scipy.special.gammaincinv(m - 1, 0.5))
+    if not cell_noise > 0:
+        cell_noise = float(d_raw.mean()) / (m - 1)
+    if not cell_noise > 0:
+        cell_noise = np.finfo(float).tiny
+    stat = d_raw / cell_noise  # [K, N]
+
+    fast = np.arange(n) / n  # beat frequency [cycles/sample] of bin p
+    first = int(np.searchsorted(fast, 2.0 * rmin / SPEED_OF_LIGHT * radar.slope * radar.sample_period))
+    if first >= n:
+        raise ValueError(f"min_range={rmin} m excludes every delay bin (max range {radar.max_range:.3f} m); lower it")
+    stat[:, :first] = -np.inf
+    num_cells = k * (n - first)
+    eta = sweep_cfar_threshold(pfa, m, num_cells)
+    thr_db = _db(eta - (m - 1))
+    noise_power = cell_noise / (k * n)
+
+    peak = np.unravel_index(int(np.argmax(stat)), stat.shape)
+    best = float(stat[peak])
+    if best < eta:
+        return Detection(False, _db(best - (m - 1)), thr_db, pfa, statistic=best, threshold=eta,
+                         noise_power=noise_power, num_cells=num_cells)
+    local = (scipy.ndimage.maximum_filter(stat, size=3, mode="wrap") == stat) & (stat >= eta)
+    qs, ps = np.nonzero(local)
+    order = np.argsort(stat[qs, ps])[::-1][: max(1, int(max_candidates))]
+    rejected = 0
+    chosen = None
+    for i in order:
+        q, p = int(qs[i]), int(ps[i])
+        power = (np.abs(x[:, q, p]) ** 2) / cell_noise
+        if power.max() > _modulation_threshold(power, pfa):
+            chosen = (q, p, power)
+            break
+        rejected += 1
+    if chosen is None:
+        q, p = int(qs[order[0]]), int(ps[order[0]])
+        power = (np.abs(x[:, q, p]) ** 2) / cell_noise
+        s = float(stat[q, p])
+        return Detection(False, _db(s - (m - 1)), thr_db, pfa, statistic=s, threshold=eta, noise_power=noise_power,
+                         cell=(q, p), beam_power=power, beam_dependent=False, rejected=rejected, num_cells=num_cells)
+    q, p, power = chosen
+    s = float(stat[q, p])
+    f2 = q / k if q <= k // 2 else q / k - 1.0
+    nu = f2 / (radar.carrier_frequency * radar.chirp_interval)
+    tau = p / (n * radar.slope * radar.sample_period) - radar.carrier_frequency * nu / radar.slope
+    return Detection(True, _db(s - (m - 1)), thr_db, pfa, statistic=s, threshold=eta, noise_power=noise_power,
+                     cell=(q, p), delay=float(tau), delay_rate=float(nu), beam_power=power, beam_dependent=True,
+                     rejected=rejected, num_cells=num_cells)

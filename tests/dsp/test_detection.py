@@ -1,0 +1,132 @@
+"""Detection of the RIS return (dsp/detection.py): stated false-alarm probability, Pd, sweep modulation.
+
+Oracles: under white Gaussian noise the mean-removed beam energy of each un-padded DFT cell is
+Gamma(M-1, 1) in units of the cell noise, independently per cell, so the sweep-CFAR's rate of
+threshold crossings on noise-only cubes is its stated P_FA (binomial tolerance, 3σ); a return that
+is the same in every beam cancels exactly, whatever its strength; a strong beam-dependent tone is
+always detected in its cell.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.special
+
+import dsp
+
+C = dsp.SPEED_OF_LIGHT
+RADAR = dsp.RadarConfig(num_samples=64, num_chirps=16)
+SWEEP = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-21.0, 21.0, 3.0]))  # M = 15
+PATTERN = dsp.BeamPattern().for_wavelength(RADAR.wavelength)
+
+
+def tone(radar, tau, nu):
+    """exp(-j2π((Sτ + f_c ν) n T_s + f_c ν k T)) of eq. (1), [K, N]."""
+    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
+    f2 = radar.carrier_frequency * nu * radar.chirp_interval
+    k, n = radar.num_chirps, radar.num_samples
+    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
+
+
+def noise(shape, rng, power=1.0):
+    return (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) * np.sqrt(power / 2)
+
+
+def ris_cube(rng, *, distance=5.0, velocity=0.4, az=np.deg2rad(4.3), peak_snr=10 ** 2.5):
+    """RIS tone across the sweep (amplitude β|A_m|, random phase per beam) + unit noise."""
+    m, k, n = SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples
+    tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
+    amp = np.abs(PATTERN.amplitude([az, 0.0], SWEEP.angles)) * np.sqrt(peak_snr / (k * n))
+    cube = (amp * np.exp(2j * np.pi * rng.random(m)))[:, None, None] * tone(RADAR, tau, nu)[None]
+    return cube + noise(cube.shape, rng), tau, nu
+
+
+def test_threshold_gives_the_stated_probability_for_iid_gamma_cells():
+    for pfa, m, cells in ((1e-3, 15, 1024), (0.1, 61, 76800)):
+        eta = dsp.detection.sweep_cfar_threshold(pfa, m, cells)
+        p_max = 1 - (1 - scipy.special.gammaincc(m - 1, eta)) ** cells
+        assert p_max == pytest.approx(pfa, rel=1e-9)
+
+
+def test_false_alarm_rate_on_noise_only_cubes_matches_the_stated_pfa():
+    rng = np.random.default_rng(11)
+    trials, pfa = 1500, 0.1
+    shape = (SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples)
+    crossed = detected = 0
+    for _ in range(trials):
+        det = dsp.detect(noise(shape, rng), RADAR, pfa=pfa)
+        crossed += det.statistic >= det.threshold
+        detected += det.detected
+    tol = 3 * np.sqrt(pfa * (1 - pfa) / trials)
+    assert abs(crossed / trials - pfa) < tol
+    assert detected / trials < pfa + tol  # the sweep-modulation test can only remove crossings
+
+
+def test_static_clutter_of_any_strength_leaves_the_false_alarm_rate_unchanged():
+    rng = np.random.default_rng(12)
+    trials, pfa = 800, 0.1
+    shape = (SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples)
+    crossed = 0
+    for _ in range(trials):
+        clutter = 1e3 * np.exp(2j * np.pi * rng.random()) * tone(RADAR, 2 * 4.0 / C, 0.0)  # 60 dB per sample
+        det = dsp.detect(clutter[None] + noise(shape, rng), RADAR, pfa=pfa)
+        crossed += det.statistic >= det.threshold
+    assert abs(crossed / trials - pfa) < 3 * np.sqrt(pfa * (1 - pfa) / trials)
+
+
+def test_strong_ris_return_is_detected_in_its_cell():
+    rng = np.random.default_rng(13)
+    for _ in range(20):
+        cube, tau, nu = ris_cube(rng, distance=rng.uniform(2, 15), velocity=rng.uniform(-2, 2))
+        det = dsp.detect(cube, RADAR)
+        assert det.detected and det.beam_dependent
+        # the cell centre is within half a resolution cell of the truth on both axes
+        assert abs(det.delay - tau) <= 0.5 * RADAR.delay_resolution + RADAR.carrier_frequency / RADAR.slope * abs(
+            det.delay_rate - nu)
+        assert abs(det.delay_rate - nu) * C / 2 <= 0.5 * RADAR.velocity_resolution + 1e-12
+        assert det.snr_db > det.threshold_db
+
+
+def test_detection_probability_rises_with_snr():
+    rng = np.random.default_rng(14)
+    rates = []
+    for snr_db in (0.0, 20.0):
+        hits = sum(dsp.detect(ris_cube(rng, peak_snr=10 ** (snr_db / 10))[0], RADAR).detected for _ in range(40))
+        rates.append(hits / 40)
+    assert rates[0] < 0.2 and rates[1] == 1.0
+
+
+def test_beam_independent_return_with_moving_phase_is_rejected_by_the_sweep_modulation_test():
+    # A clutter return of constant amplitude whose phase changes from frame to frame (a moving
+    # radar) survives the mean removal, but its power does not follow the sweep.
+    rng = np.random.default_rng(15)
+    m = SWEEP.num_beams
+    clutter = 30.0 * np.exp(2j * np.pi * rng.random(m))[:, None, None] * tone(RADAR, 2 * 6.0 / C, 0.0)[None]
+    det = dsp.detect(clutter + noise(clutter.shape, rng), RADAR)
+    assert det.statistic > det.threshold  # the sweep-CFAR fires...
+    assert not det.detected and det.rejected >= 1  # ...but it is not the RIS
+
+
+def test_to_dict_has_exactly_the_four_keys():
+    det = dsp.detect(ris_cube(np.random.default_rng(1))[0], RADAR)
+    assert set(det.to_dict()) == {"detected", "snr_db", "threshold_db", "false_alarm_probability"}
+    assert det.to_dict()["false_alarm_probability"] == dsp.detection.DEFAULT_PFA
+
+
+@pytest.mark.parametrize("cube, match", [
+    (np.zeros((0, 16, 64), complex), "empty"),
+    (np.zeros((15, 16, 64), complex), "all zeros"),
+    (np.full((15, 16, 64), np.nan, complex), "NaN"),
+    (np.ones((1, 16, 64), complex), "at least 2 beams"),
+    (np.ones((15, 64, 16), complex), "K=16 chirps and N=64 samples"),
+    (np.ones((16, 64), complex), r"\[M, K, N\]"),
+])
+def test_bad_cubes_get_one_line_errors(cube, match):
+    with pytest.raises(ValueError, match=match):
+        dsp.detect(cube, RADAR)
+
+
+def test_pfa_must_be_a_probability():
+    with pytest.raises(ValueError, match="pfa"):
+        dsp.detect(ris_cube(np.random.default_rng(2))[0], RADAR, pfa=1.5)

@@ -1,0 +1,204 @@
+"""Results that qualify themselves (dsp.self_localize): detection, uncertainty, flags, no position without a detection.
+
+Oracles: the geometry of each flag's cause, built into a synthetic cube (a UE beyond the sweep,
+a grating lobe of a reflective RIS at sin φ = sin θ - 1, a delay shorter than τ_RB, two returns
+closer than the resolution, a return at the range wrap); a known height puts the UE at that z;
+the paper path's numbers equal localize(scan_beams(...)) exactly; every code is documented in
+docs/flags.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dsp
+
+C = dsp.SPEED_OF_LIGHT
+TAU_RB = 1.78e-9
+RADAR = dsp.RadarConfig(num_samples=64, num_chirps=16)
+PROCESSING = dsp.ProcessingConfig(n_dft=127, k_dft=64)
+SWEEP = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-21.0, 21.0, 3.0]))  # M = 15
+RELAY = dsp.BeamPattern().for_wavelength(RADAR.wavelength)
+REFLECTIVE = dsp.BeamPattern.reflective().for_wavelength(RADAR.wavelength)
+POSE = dsp.RisPose.facing([0.0, 8.0, 1.5], [0.0, 0.0, 1.5])
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "flags.md"
+
+
+def tone(tau, nu):
+    f1 = (RADAR.slope * tau + RADAR.carrier_frequency * nu) * RADAR.sample_period
+    f2 = RADAR.carrier_frequency * nu * RADAR.chirp_interval
+    k, n = RADAR.num_chirps, RADAR.num_samples
+    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
+
+
+def cube_for(rng, *, distance=6.0, velocity=0.3, az=np.deg2rad(5.1), peak_snr=1e3, pattern=RELAY, sweep=SWEEP,
+             tau=None, extra=None):
+    m, k, n = sweep.num_beams, RADAR.num_chirps, RADAR.num_samples
+    tau = 2 * distance / C + TAU_RB if tau is None else tau
+    nu = 2 * velocity / C
+    amp = np.abs(pattern.amplitude([az, 0.0], sweep.angles)) * np.sqrt(peak_snr / (k * n))
+    cube = (amp * np.exp(2j * np.pi * rng.random(m)))[:, None, None] * tone(tau, nu)[None]
+    if extra is not None:
+        cube = cube + extra
+    return cube + (rng.standard_normal(cube.shape) + 1j * rng.standard_normal(cube.shape)) * np.sqrt(0.5)
+
+
+def locate(cube, *, sweep=SWEEP, estimator="refined", pattern=RELAY, **kw):
+    kw.setdefault("loopback_delay", TAU_RB)
+    return dsp.self_localize(cube, sweep=sweep, radar=RADAR, processing=PROCESSING, pose=POSE,
+                             estimator=estimator, pattern=pattern, **kw)
+
+
+def test_no_detection_means_no_position():
+    rng = np.random.default_rng(1)
+    loc = locate((rng.standard_normal((15, 16, 64)) + 1j * rng.standard_normal((15, 16, 64))) / np.sqrt(2))
+    assert not loc.detected and loc.flag_codes[0] == "no-detection"
+    for name in ("aod", "delay", "distance", "delay_rate", "velocity", "direction", "position"):
+        assert np.all(np.isnan(getattr(loc, name))), name
+    assert loc.std is None
+    with pytest.raises(dsp.NoPositionError, match="no RIS return"):
+        loc.checked_position()
+    assert set(loc.detection.to_dict()) == {"detected", "snr_db", "threshold_db", "false_alarm_probability"}
+    assert 0 <= loc.beam_index < 15  # still usable to draw the strongest beam
+
+
+def test_detected_estimate_carries_uncertainty_and_a_reference_time():
+    rng = np.random.default_rng(2)
+    loc = locate(cube_for(rng))
+    assert loc.detected and loc.detection.detected
+    assert np.all(np.isfinite(loc.checked_position()))
+    sd = loc.std
+    assert sd.kind == "crb" and 0 < sd.distance < RADAR.range_resolution
+    assert 0 < sd.aod[0] < np.deg2rad(3.0) and np.isnan(sd.aod[1])  # 1-D sweep: elevation unseen
+    assert sd.peb == pytest.approx(np.linalg.norm(sd.position))
+    assert 0 < loc.reference_time < 15 * RADAR.beam_interval
+    # the measured SNR is the synthesised one (30 dB) within a dB
+    assert sd.peak_snr_db == pytest.approx(30.0, abs=1.0)
+
+
+def test_paper_path_numbers_equal_the_paper_method():
+    rng = np.random.default_rng(3)
+    cube = cube_for(rng)
+    loc = locate(cube, estimator="paper")
+    ref = dsp.localize(dsp.scan_beams(cube, SWEEP, RADAR, PROCESSING), radar=RADAR, pose=POSE, loopback_delay=TAU_RB)
+    for f in dataclasses.fields(ref):
+        if f.name not in ("scan", "detection", "std", "flags", "estimator", "reference_time"):
+            np.testing.assert_array_equal(getattr(loc, f.name), getattr(ref, f.name), err_msg=f.name)
+    assert loc.std.kind == "crb+grid"
+
+
+def test_beam_edge_when_the_ue_is_outside_the_sweep():
+    # 25°: beyond the last beam (21°) but inside its main lobe (first null at Δu = 1/8)
+    loc = locate(cube_for(np.random.default_rng(4), az=np.deg2rad(25.0)))
+    assert "beam-edge" in loc.flag_codes
+    assert "beam-edge" not in locate(cube_for(np.random.default_rng(4), az=np.deg2rad(5.0))).flag_codes
+
+
+def test_grating_lobe_of_a_reflective_ris_lists_both_candidates():
+    sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 3.0]))
+    az = np.deg2rad(30.0)
+    loc = locate(cube_for(np.random.default_rng(5), az=az, pattern=REFLECTIVE, sweep=sweep), sweep=sweep,
+                 pattern=REFLECTIVE)
+    flag = next(f for f in loc.flags if f.code == "grating-lobe")
+    angles = sorted(float(a) for a in re.findall(r"([+-]\d+\.\d+)°", flag.message)[:2])
+    assert angles == pytest.approx([-30.0, 30.0], abs=0.5)
+
+
+def test_before_ris_delay_gives_a_flagged_negative_distance():
+    loc = locate(cube_for(np.random.default_rng(6), distance=1.0), loopback_delay=2 * 1.2 / C + TAU_RB)
+    assert loc.distance < 0 and "before-ris-delay" in loc.flag_codes
+
+
+def test_return_at_the_range_wrap_is_flagged_aliased():
+    tau = RADAR.max_delay - 0.5 * RADAR.delay_resolution
+    loc = locate(cube_for(np.random.default_rng(7), tau=tau, velocity=0.0))
+    assert "aliased" in loc.flag_codes
+
+
+def test_two_returns_within_the_resolution_are_flagged_unresolved():
+    rng = np.random.default_rng(8)
+    tau2 = 2 * 6.0 / C + TAU_RB + 0.45 * RADAR.delay_resolution
+    second = 0.7 * np.abs(RELAY.amplitude([np.deg2rad(5.1), 0.0], SWEEP.angles))[:, None, None] * np.sqrt(
+        1e3 / (16 * 64)) * tone(tau2, 2 * 0.3 / C)[None]
+    assert "unresolved-peaks" in locate(cube_for(rng, extra=second)).flag_codes
+    assert "unresolved-peaks" not in locate(cube_for(rng)).flag_codes
+
+
+def test_no_beam_dependence_when_the_only_strong_return_ignores_the_sweep():
+    rng = np.random.default_rng(9)
+    clutter = 30.0 * np.exp(2j * np.pi * rng.random(15))[:, None, None] * tone(2 * 3.0 / C, 0.0)[None]
+    loc = locate(clutter + (rng.standard_normal(clutter.shape) + 1j * rng.standard_normal(clutter.shape)) / np.sqrt(2))
+    assert loc.flag_codes == ("no-detection", "no-beam-dependence") and np.all(np.isnan(loc.position))
+
+
+def test_elevation_assumed_for_a_1d_sweep_and_solved_by_a_known_height():
+    rng = np.random.default_rng(10)
+    cube = cube_for(rng)
+    loc = locate(cube)
+    flag = next(f for f in loc.flags if f.code == "elevation-assumed")
+    assert "±1.00 m" in flag.message
+    height = 0.9  # 0.6 m below the RIS (z = 1.5 m)
+    solved = locate(cube, ue_height=height)
+    assert "elevation-assumed" not in solved.flag_codes
+    assert solved.position[2] == pytest.approx(height, abs=1e-9)
+    assert solved.distance == pytest.approx(loc.distance, abs=1e-12)
+    # the measured direction cosine along the row axis is kept
+    u = lambda a: np.cos(a[1]) * np.sin(a[0])  # noqa: E731
+    assert u(solved.aod) == pytest.approx(u(loc.aod), abs=1e-12)
+    assert np.isfinite(solved.std.aod[1])
+
+
+def test_reference_time_moves_the_distance_with_the_radial_velocity():
+    cube = cube_for(np.random.default_rng(11), velocity=1.5)
+    a = locate(cube)
+    b = locate(cube, reference_time=a.reference_time + 0.1)
+    assert b.distance - a.distance == pytest.approx(a.velocity * 0.1, rel=1e-9)
+    assert b.reference_time == pytest.approx(a.reference_time + 0.1)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"estimator": "best"}, "estimator"),
+    ({"sweep": dsp.BeamSweep(np.zeros((3, 2)))}, "sweep has 3 angles"),
+])
+def test_bad_arguments_are_rejected(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        locate(cube_for(np.random.default_rng(12)), **kwargs)
+
+
+def test_a_sweep_of_one_beam_is_an_error():
+    cube = cube_for(np.random.default_rng(13))[:1]
+    with pytest.raises(ValueError, match="at least 2 beams"):
+        locate(cube, sweep=dsp.BeamSweep(SWEEP.angles[:1]))
+
+
+def test_every_flag_code_is_documented_with_cause_and_remedy():
+    text = DOCS.read_text(encoding="utf-8")
+    for code in dsp.FLAG_CODES:
+        section = re.search(rf"^## `{re.escape(code)}`\n(.*?)(?=^## |\Z)", text, flags=re.S | re.M)
+        assert section, code
+        assert "**Cause.**" in section.group(1) and "**Remedy.**" in section.group(1), code
+    with pytest.raises(ValueError, match="not a flag code"):
+        dsp.Flag("made-up", "x")
+
+
+# ------------------------------------------------------------------------------ radar timing
+def test_radar_timing_defaults_and_old_files():
+    r = dsp.RadarConfig()
+    assert r.chirp_interval == r.chirp_duration == 50e-6
+    assert r.frame_interval == pytest.approx(128 * 50e-6) and r.frames_per_beam == 1
+    old = {k: v for k, v in r.to_dict().items() if k not in ("chirp_period", "frame_period", "frames_per_beam")}
+    assert dsp.RadarConfig.from_dict(old, require_all=True) == r
+    t = dsp.RadarConfig(chirp_period=60e-6, frame_period=10e-3, frames_per_beam=2)
+    assert t.velocity_resolution == pytest.approx(t.wavelength / (2 * 128 * 60e-6))
+    assert t.beam_interval == pytest.approx(20e-3)
+    assert t.beam_times(3) == pytest.approx(np.array([0.0, 20e-3, 40e-3]) + 128 * 60e-6 / 2)
+    assert dsp.RadarConfig.from_dict(t.to_dict(), require_all=True) == t
+    with pytest.raises(ValueError, match="chirp_period"):
+        dsp.RadarConfig(chirp_period=40e-6)
+    with pytest.raises(ValueError, match="frame_period"):
+        dsp.RadarConfig(frame_period=1e-3)
