@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -77,27 +80,62 @@ def save_path_set(path: str | os.PathLike[str], candidates: PathSet, report: Pru
     if out.suffix != ".npz":
         out = out.with_name(out.name + ".npz")
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".partial")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, gain=candidates.gain, delay=candidates.delay, delay_rate=candidates.delay_rate,
-                 ris_incidence=candidates.ris_incidence, ris_departure=candidates.ris_departure,
-                 peak_power=report.peak_power, kept=report.keep, labels=np.array(json.dumps(list(candidates.labels))),
-                 metadata=np.array(json.dumps({"format": "risloc-paths", "version": 1, "noise_floor": report.noise_floor,
-                                               **(metadata or {})})))
-    os.replace(tmp, out)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, gain=candidates.gain, delay=candidates.delay, delay_rate=candidates.delay_rate,
+                     ris_incidence=candidates.ris_incidence, ris_departure=candidates.ris_departure,
+                     peak_power=report.peak_power, kept=report.keep,
+                     labels=np.array(json.dumps(list(candidates.labels))),
+                     metadata=np.array(json.dumps({"format": "risloc-paths", "version": 1,
+                                                   "noise_floor": report.noise_floor, **(metadata or {})})))
+        os.replace(tmp, out)
+        tmp = None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
     return out
 
 
 def load_path_set(path: str | os.PathLike[str]) -> tuple[PathSet, np.ndarray, dict]:
-    """Read :func:`save_path_set`'s file: (all paths, kept mask [L], metadata)."""
-    with np.load(path, allow_pickle=False) as f:
-        missing = [k for k in ("gain", "delay", "delay_rate", "ris_incidence", "ris_departure", "kept", "labels", "metadata")
-                   if k not in f.files]
-        if missing:
-            raise ValueError(f"{path}: not a risloc path file, missing {missing}")
-        paths = PathSet(gain=f["gain"], delay=f["delay"], delay_rate=f["delay_rate"], ris_incidence=f["ris_incidence"],
-                        ris_departure=f["ris_departure"], labels=tuple(json.loads(str(f["labels"]))))
-        return paths, f["kept"].astype(bool), json.loads(str(f["metadata"]))
+    """Read :func:`save_path_set`'s file: (all paths, kept mask [L], metadata).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Not a path file, or damaged (flipped bytes, truncated): one line naming the file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"path file {str(p)!r} does not exist")
+    names = ("gain", "delay", "delay_rate", "ris_incidence", "ris_departure", "kept", "labels", "metadata")
+    try:
+        with np.load(p, allow_pickle=False) as f:
+            missing = [k for k in names if k not in f.files]
+            if missing:
+                raise ValueError(f"{p}: not a risloc path file, missing {missing}")
+            labels = json.loads(str(f["labels"]))
+            metadata = json.loads(str(f["metadata"]))
+            if not isinstance(labels, list) or not isinstance(metadata, dict) or metadata.get("format") != "risloc-paths":
+                raise ValueError(f"{p}: not a risloc path file (labels or metadata malformed)")
+            paths = PathSet(gain=f["gain"], delay=f["delay"], delay_rate=f["delay_rate"],
+                            ris_incidence=f["ris_incidence"], ris_departure=f["ris_departure"],
+                            labels=tuple(str(x) for x in labels))
+            kept = f["kept"]
+            if kept.dtype != bool or kept.shape != (len(paths.labels),):
+                raise ValueError(f"{p}: 'kept' must be a bool array [{len(paths.labels)}], got {kept.dtype} "
+                                 f"{list(kept.shape)}")
+            return paths, kept, metadata
+    except ValueError as exc:
+        if str(exc).startswith(str(p)):
+            raise
+        raise ValueError(f"{p}: damaged or not a path file ({' '.join(str(exc).split())[:200]})") from None
+    except (OSError, EOFError, KeyError, TypeError, zipfile.BadZipFile, zlib.error, RecursionError, NotImplementedError,
+            RuntimeError, UnicodeDecodeError, SyntaxError, OverflowError) as exc:
+        raise ValueError(f"{p}: damaged or not a path file ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:200]}); write it again") from None
 
 
 @dataclass(frozen=True)

@@ -173,7 +173,7 @@ class TraceCache:
         except Exception as exc:  # corrupt, tampered or foreign file: a miss, overwritten by the next store
             message = (f"ignoring trace cache file {path} ({type(exc).__name__}: {' '.join(str(exc).split())[:200]}); "
                        "tracing again")
-            _log.warning(message)
+            _log.debug(message)
             warnings.warn(message, TraceCacheWarning, stacklevel=2)
             return None
 

@@ -1,0 +1,430 @@
+"""Fuzzing benchmark (issue 11): generated unusual and bad inputs for every reader and entry point.
+
+Each entry point has a generator (a seeded ``numpy.random.Generator`` -> one input, mostly
+mutations of a valid one) and an oracle. Every input ends in one of
+
+* ``error``     a clear error: an expected exception type with a one-line message,
+* ``correct``   the call returned and the oracle accepts the result,
+* ``traceback`` any other exception (what a user would see as a Python traceback),
+* ``wrong``     the call returned but the oracle rejects the result (a silent wrong answer),
+* ``hang``      the input ran past the time limit.
+
+The table also gives each entry point's peak memory (max RSS growth of its worker process).
+The goal is zero in the last three columns.
+
+    .venv/bin/python benchmarks/fuzz.py --examples 100000 [--seed 0] [--time-limit 10]
+
+``tests/fuzz/`` drives the same entry points with Hypothesis (fewer examples, derandomized).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import multiprocessing
+import os
+import resource
+import signal
+import sys
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+
+class Hang(Exception):
+    """Raised by the alarm when an input runs past the time limit."""
+
+
+# ------------------------------------------------------------------------------------ the inputs
+
+
+def _expected_errors() -> tuple[type, ...]:
+    from dsp.budget import BudgetError
+    from risloc_rt.authoring._parse import SpecError
+    from risloc_rt.authoring.scene_folder import SceneError
+    from risloc_rt.io.capture_file import CaptureFormatError
+
+    return (CaptureFormatError, SpecError, SceneError, BudgetError, ValueError, TypeError, FileNotFoundError)
+
+
+class Workspace:
+    """Valid reference inputs, built once per worker in a temporary folder (:func:`make_workspace`)."""
+
+    folder: Path
+
+    def path(self, name: str) -> Path:
+        return self.folder / name
+
+
+def _mutate_bytes(rng: np.random.Generator, data: bytes) -> bytes:
+    data = bytearray(data)
+    kind = rng.integers(4)
+    if kind == 0:  # flip bytes
+        for pos in rng.integers(0, len(data), rng.integers(1, 4)):
+            data[pos] ^= int(rng.integers(1, 256))
+    elif kind == 1:  # truncate
+        data = data[: int(rng.integers(0, len(data)))]
+    elif kind == 2:  # insert garbage
+        pos = int(rng.integers(0, len(data)))
+        data[pos:pos] = rng.bytes(int(rng.integers(1, 64)))
+    else:  # overwrite a run
+        pos = int(rng.integers(0, len(data)))
+        data[pos:pos + 16] = rng.bytes(16)
+    return bytes(data)
+
+
+_WEIRD = [0, -1, 1e-300, 1e300, float("nan"), float("inf"), True, False, None, "x", "60e9", [], {}, [1, 2], 1e9,
+          10**12, -1e-9, 0.5, 2**31, 2**63 - 1]
+
+
+def _weird(rng: np.random.Generator) -> Any:
+    return _WEIRD[int(rng.integers(len(_WEIRD)))]
+
+
+def gen_capture(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    """A capture file: damaged bytes, mutated metadata, or replaced arrays."""
+    kind = rng.integers(3)
+    if kind == 0:
+        return "bytes", _mutate_bytes(rng, ws.capture_bytes)
+    with np.load(io.BytesIO(ws.capture_bytes), allow_pickle=False) as f:
+        content = {k: f[k] for k in f.files}
+    meta = json.loads(str(content["metadata"]))
+    if kind == 1:
+        block = ["radar", "processing", "ris", "truth", None][int(rng.integers(5))]
+        if block is None:
+            meta[str(rng.choice(["extra", "proccessing", "format", "version"]))] = _weird(rng)
+        else:
+            target = meta[block] if isinstance(meta[block], dict) else meta
+            key = str(rng.choice(sorted(target))) if target and rng.random() < 0.8 else "bogus"
+            if rng.random() < 0.2:
+                target.pop(key, None)
+            else:
+                target[key] = _weird(rng)
+        content["metadata"] = np.array(json.dumps(meta))
+    else:
+        name = str(rng.choice(["cube", "beam_angles", "frame_index"]))
+        arr = content[name]
+        choice = rng.integers(5)
+        if choice == 0:
+            arr = arr.real.astype(rng.choice([np.float64, np.int16, np.bool_]))
+        elif choice == 1:
+            arr = arr.reshape(-1)
+        elif choice == 2:
+            arr = np.full_like(arr, np.nan) if arr.dtype.kind in "fc" else arr[:-1]
+        elif choice == 3:
+            arr = np.zeros((0,) + arr.shape[1:], arr.dtype)
+        else:
+            arr = arr.astype(np.complex64) if arr.dtype.kind == "c" else arr.astype(np.float32)
+        content[name] = arr
+    buf = io.BytesIO()
+    np.savez(buf, **content)
+    return "bytes", buf.getvalue()
+
+
+def run_capture(inp: tuple[str, Any], ws: Workspace) -> str:
+    from risloc_rt.io.capture_file import load_capture
+
+    path = ws.path("fuzz.npz")
+    path.write_bytes(inp[1])
+    cap = load_capture(path)
+    # Oracle: whatever loads must be a usable, finite complex cube consistent with its radar, and
+    # an undamaged cube must be the reference's.
+    ok = (np.iscomplexobj(cap.cube) and cap.cube.shape[1:] == (cap.radar.num_chirps, cap.radar.num_samples)
+          and np.all(np.isfinite(cap.cube)))
+    if ok and cap.cube.shape == ws.capture.cube.shape and cap.radar == ws.capture.radar:
+        ok = np.allclose(cap.cube, ws.capture.cube, rtol=1e-6, atol=0) or cap.cube.dtype == np.complex64
+    return "correct" if ok else "wrong"
+
+
+def gen_spec(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    """A hall spec: text mutations or value replacements of a valid TOML."""
+    lines = ws.spec_text.splitlines()
+    kind = rng.integers(3)
+    if kind == 0:
+        text = _mutate_bytes(rng, ws.spec_text.encode()).decode("utf-8", "replace")
+    else:
+        idx = [i for i, ln in enumerate(lines) if "=" in ln and not ln.lstrip().startswith("#")]
+        i = int(rng.choice(idx))
+        key = lines[i].split("=", 1)[0]
+        w = _weird(rng)
+        value = json.dumps(w) if not isinstance(w, float) or np.isfinite(w) else ("nan" if w != w else "inf")
+        if value == "null":
+            value = '""'
+        lines[i] = f"{key}= {value}" if kind == 1 else f"{key.strip()}x = 1"
+        text = "\n".join(lines)
+    return "toml", text
+
+
+def run_spec(inp: tuple[str, Any], ws: Workspace) -> str:
+    from risloc_rt.authoring import loads_spec
+    from risloc_rt.authoring.spec import MAX_HALL_EXTENT
+
+    spec = loads_spec(inp[1], base_dir=ROOT / "scenes" / "l_hall")
+    fp = spec.footprint_array
+    ok = (0 < spec.height <= MAX_HALL_EXTENT and np.all(np.isfinite(fp)) and 1e8 <= spec.frequency <= 1e13
+          and all(np.isfinite(r.position).all() for r in spec.ris))
+    return "correct" if ok else "wrong"
+
+
+def gen_xml(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    return "xml", _mutate_bytes(rng, ws.xml_text.encode())
+
+
+def run_xml(inp: tuple[str, Any], ws: Workspace) -> str:
+    from risloc_rt.authoring.scene_folder import scene_content_hash, scene_references
+
+    xml = ws.path("scene") / "scene.xml"
+    xml.write_bytes(inp[1])
+    refs = scene_references(xml)
+    digest = scene_content_hash(xml)
+    ok = all(Path(p).is_file() and Path(p).is_relative_to(ws.folder) for _, p in refs) and len(digest) == 64
+    return "correct" if ok else "wrong"
+
+
+def gen_cache(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    return "bytes", _mutate_bytes(rng, ws.cache_bytes)  # type: ignore[attr-defined]
+
+
+def run_cache(inp: tuple[str, Any], ws: Workspace) -> str:
+    import warnings
+
+    path = ws.cache.path_for(ws.cache_key)
+    path.write_bytes(inp[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        got = ws.cache.load(ws.cache_key)
+    if got is None:
+        return "error"  # a miss with a warning: re-traced
+    ok = (got.monostatic.delay.tobytes() == ws.cache_result.monostatic.delay.tobytes()  # type: ignore[attr-defined]
+          and got.legs[0].amplitude.tobytes() == ws.cache_result.legs[0].amplitude.tobytes())  # type: ignore[attr-defined]
+    return "correct" if ok else "wrong"
+
+
+_FLAGS = ["--ue", "--ue-velocity", "--samples", "--depth", "--seed", "--tx-power-dbm", "--min-range", "--case",
+          "--mode", "--radar-index", "--doppler-search", "-o", "--scene", "--limit", "--bogus"]
+_VALUES = ["-6,1,2", "1,2", "nan,0,0", "1e999,0,0", "0", "-1", "1e12", "2147483648", "abc", "", "--", "-",
+           "relay", "full", "x.npz", "paper_hall", "atlantis", "1,2,3,4", "-0.5,-0.25,0", "6,9,1.2"]
+
+
+def gen_cli(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    verb = str(rng.choice(["simulate", "trace", "locate", "scene", "demo", "bogus"]))
+    argv = [verb]
+    for _ in range(int(rng.integers(0, 5))):
+        argv.append(str(rng.choice(_FLAGS)))
+        if rng.random() < 0.8:
+            argv.append(str(rng.choice(_VALUES)))
+    return "argv", argv
+
+
+def run_cli(inp: tuple[str, Any], ws: Workspace) -> str:
+    """Parse only (the verbs are not run: each would trace or simulate); errors must be one line, exit 2."""
+    from risloc_rt.cli import build_parser, join_negative_values, _value_options
+    from risloc_rt.cli.common import CliError, vector
+
+    parser = build_parser()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            args = parser.parse_args(join_negative_values(inp[1], _value_options(parser)))
+        except SystemExit as exc:
+            lines = err.getvalue().strip().splitlines()
+            return "error" if exc.code == 2 and len(lines) == 1 else "wrong"
+    for flag in ("ue", "ue_velocity"):
+        text = getattr(args, flag, None)
+        if text is not None:
+            try:
+                v = vector(text, f"--{flag}")
+            except CliError:
+                return "error"
+            if not np.all(np.isfinite(v)) or v.shape != (3,):
+                return "wrong"
+    return "correct"
+
+
+def gen_path_file(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    return "bytes", _mutate_bytes(rng, ws.path_file_bytes)  # type: ignore[attr-defined]
+
+
+def run_path_file(inp: tuple[str, Any], ws: Workspace) -> str:
+    from risloc_rt.hall.path_table import load_path_set
+
+    path = ws.path("paths.npz")
+    path.write_bytes(inp[1])
+    paths, kept, meta = load_path_set(path)
+    ok = np.all(np.isfinite(paths.delay)) and len(kept) == len(paths.delay)
+    return "correct" if ok else "wrong"
+
+
+ENTRY_POINTS: dict[str, tuple[Callable, Callable]] = {
+    "capture .npz": (gen_capture, run_capture),
+    "scene spec (TOML)": (gen_spec, run_spec),
+    "scene XML": (gen_xml, run_xml),
+    "trace-cache entry": (gen_cache, run_cache),
+    "path file": (gen_path_file, run_path_file),
+    "CLI arguments": (gen_cli, run_cli),
+}
+
+
+def make_workspace(folder: Path) -> Workspace:
+    """The reference inputs (a small capture, specs, a cache entry, a path file) under ``folder``."""
+    ws = Workspace.__new__(Workspace)
+    _init_workspace(ws, folder)
+    return ws
+
+
+def _init_workspace(ws: Workspace, folder: Path) -> None:
+    from dataclasses import replace
+
+    from dsp import ProcessingConfig
+    from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.hall.raytrace.result import TraceResult, TraceSettings
+    from risloc_rt.hall.traced import TracedPaths
+    from risloc_rt.io.capture_file import save_capture
+    from risloc_rt.model.scenario import paper_scenario
+    from risloc_rt.model.simulate import simulate
+
+    ws.folder = folder
+    sc = paper_scenario("broadside")
+    sc = replace(sc, radar=replace(sc.radar, num_samples=32, num_chirps=8),
+                 processing=ProcessingConfig(n_dft=63, k_dft=32))
+    ws.capture = simulate(sc, rng=np.random.default_rng(0), seed=0)
+    ws.capture_bytes = save_capture(ws.capture, folder / "ref.npz").read_bytes()
+    ws.spec_text = (ROOT / "scenes" / "l_hall" / "spec.toml").read_text()
+    ws.xml_text = (ROOT / "scenes" / "paper_hall" / "scene.xml").read_text()
+    (folder / "scene" / "meshes").mkdir(parents=True, exist_ok=True)
+    for p in (ROOT / "scenes" / "paper_hall" / "meshes").iterdir():
+        (folder / "scene" / "meshes" / p.name).write_bytes(p.read_bytes())
+
+    def traced(delay: float) -> TracedPaths:
+        return TracedPaths.from_arrays({
+            "tx_position": np.zeros(3), "rx_position": np.zeros(3), "frequency": np.array(60e9),
+            "delay": np.array([delay, 2 * delay]), "amplitude": np.array([1e-3 + 1e-4j, 2e-4 + 0j]),
+            "departure": np.array([[1.0, 0, 0], [0, 1.0, 0]]), "arrival": np.array([[1.0, 0, 0], [0, 1.0, 0]]),
+            "delay_rate": np.zeros(2), "interactions": np.ones((2, 1), int), "objects": np.zeros((2, 1), int),
+            "vertices": np.zeros((2, 1, 3)), "object_names": np.array(json.dumps(["wall_0"]))})
+
+    ws.cache = TraceCache(folder / "cache")
+    ws.cache_key = "f" * 64
+    ws.cache_result = TraceResult(monostatic=traced(1e-7), legs=(traced(5e-8),), scene_hash="ab", cache_hit=False,
+                                  timing={"solve": 1.0}, settings=TraceSettings(), radar_velocity=np.zeros(3))
+    ws.cache_bytes = ws.cache.store(ws.cache_key, ws.cache_result).read_bytes()
+    ws.path_file_bytes = _path_file_bytes(folder)
+
+
+def _path_file_bytes(folder: Path) -> bytes:
+    from risloc_rt.hall.path_table import save_path_set
+    from risloc_rt.hall.pruning import PruneReport
+    from risloc_rt.model.paths import PathSet
+
+    import inspect
+
+    try:
+        paths = PathSet.concatenate([])
+    except Exception:  # noqa: BLE001
+        paths = None
+    fields = inspect.signature(PruneReport).parameters
+    report = PruneReport(**{name: (np.zeros(0, bool) if "kept" in name else
+                                   [] if p.default is inspect.Parameter.empty else p.default)
+                            for name, p in fields.items()})
+    out = save_path_set(folder / "paths_ref.npz", paths, report, metadata={})
+    return Path(out).read_bytes()
+
+
+# ------------------------------------------------------------------------------------ the runner
+
+
+def _classify(run: Callable, inp: Any, ws: Workspace, errors: tuple[type, ...], limit: float) -> str:
+    def alarm(signum: int, frame: Any) -> None:
+        raise Hang()
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, limit)
+    try:
+        return run(inp, ws)
+    except Hang:
+        return "hang"
+    except errors as exc:
+        message = str(exc)
+        return "error" if message and "\n" not in message.strip() else "traceback"
+    except Exception:  # noqa: BLE001 - what a user would see as a traceback
+        return "traceback"
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def run_entry_point(name: str, examples: int, seed: int, limit: float, queue: Any = None) -> dict[str, Any]:
+    """Run ``examples`` generated inputs of entry point ``name``; returns its counts and peak memory."""
+    import warnings
+
+    warnings.simplefilter("ignore")
+    gen, run = ENTRY_POINTS[name]
+    counts = dict.fromkeys(("error", "correct", "traceback", "wrong", "hang"), 0)
+    examples_wrong: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="risloc-fuzz-") as tmp:
+        ws = make_workspace(Path(tmp))
+        errors = _expected_errors()
+        base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        rng = np.random.default_rng([seed, abs(hash(name)) % 2**32])
+        start = time.perf_counter()
+        for _ in range(examples):
+            inp = gen(rng, ws)
+            outcome = _classify(run, inp, ws, errors, limit)
+            counts[outcome] += 1
+            if outcome in ("traceback", "wrong", "hang") and len(examples_wrong) < 3:
+                examples_wrong.append(repr(inp)[:200])
+        peak = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
+    out = {"name": name, "examples": examples, **counts, "peak_memory": peak,
+           "seconds": time.perf_counter() - start, "samples": examples_wrong}
+    if queue is not None:
+        queue.put(out)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--examples", type=int, default=100_000, help="inputs in total over all entry points")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--time-limit", type=float, default=10.0, help="seconds per input before it counts as a hang")
+    parser.add_argument("--only", choices=list(ENTRY_POINTS), help="one entry point")
+    args = parser.parse_args(argv)
+    names = [args.only] if args.only else list(ENTRY_POINTS)
+    per = max(args.examples // len(names), 1)
+    ctx = multiprocessing.get_context("fork")
+    print(f"risloc-rt fuzzing: {per} inputs per entry point, seed {args.seed}, {args.time_limit:g} s per input")
+    print(f"{'entry point':<20} {'inputs':>7} {'clear errors':>12} {'correct':>8} {'tracebacks':>10} "
+          f"{'silent wrong':>12} {'hangs':>6} {'peak memory':>12} {'time [s]':>9}")
+    total = dict.fromkeys(("examples", "error", "correct", "traceback", "wrong", "hang"), 0)
+    bad = []
+    for name in names:
+        queue = ctx.Queue()
+        proc = ctx.Process(target=run_entry_point, args=(name, per, args.seed, args.time_limit, queue))
+        proc.start()
+        r = queue.get()
+        proc.join()
+        for k in total:
+            total[k] += r[k]
+        mem = f"{r['peak_memory'] / 2**20:.0f} MiB"
+        print(f"{name:<20} {r['examples']:>7} {r['error']:>12} {r['correct']:>8} {r['traceback']:>10} "
+              f"{r['wrong']:>12} {r['hang']:>6} {mem:>12} {r['seconds']:>9.1f}", flush=True)
+        bad += [f"  {name}: {s}" for s in r["samples"]]
+    print(f"{'total':<20} {total['examples']:>7} {total['error']:>12} {total['correct']:>8} {total['traceback']:>10} "
+          f"{total['wrong']:>12} {total['hang']:>6}")
+    if bad:
+        print("first failing inputs:")
+        print("\n".join(bad))
+    return 0 if total["traceback"] + total["wrong"] + total["hang"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
