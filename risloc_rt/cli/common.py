@@ -16,7 +16,8 @@ import numpy as np
 from dsp import ProcessingConfig
 
 __all__ = ["CliError", "vector", "angle_pair", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
-           "plot_traced_profile", "add_trace_flags", "add_processing_flags"]
+           "plot_traced_profile", "add_trace_flags", "add_processing_flags", "add_estimator_flags",
+           "estimator_options", "EXIT_NO_DETECTION"]
 
 
 class CliError(Exception):
@@ -103,6 +104,26 @@ def add_trace_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--depth", type=int, help="ray-tracing depth (default 3)")
     p.add_argument("--samples", type=int, help="rays per source (default 100000)")
     p.add_argument("--no-cache", action="store_true", help="always re-trace (default: reuse cached traces)")
+
+
+#: Exit status of ``locate`` and ``demo`` when a capture holds no detectable RIS return (no position).
+EXIT_NO_DETECTION = 3
+
+
+def add_estimator_flags(p: argparse.ArgumentParser) -> None:
+    """``--estimator``, ``--ue-height``, ``--pfa``."""
+    p.add_argument("--estimator", choices=["refined", "paper"], default="refined",
+                   help="'refined' (default): off-grid delay/Doppler from all beams, AoD from a fit of the RIS beam "
+                        "pattern; 'paper': the seed paper's grid method")
+    p.add_argument("--ue-height", type=float, metavar="Z",
+                   help="known radar height z [m]: resolves the elevation a 1-D (azimuth) sweep cannot see")
+    p.add_argument("--pfa", type=float, metavar="P",
+                   help="detector false-alarm probability per capture (default 1e-3)")
+
+
+def estimator_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword options of :func:`risloc_rt.io.report.process_capture` from the flags."""
+    return {"estimator": args.estimator, "ue_height": args.ue_height, "pfa": args.pfa}
 
 
 def add_processing_flags(p: argparse.ArgumentParser) -> None:

@@ -12,8 +12,9 @@ import numpy as np
 from ..io.report import format_case, report_capture, write_result
 from ..model.scenario import PAPER_CASES, paper_scenario
 from ..model.simulate import simulate
-from .common import (add_processing_flags, add_trace_flags, plot_traced_profile, processing_overrides,
-                     quiet_hall_paths, trace_cache, trace_settings)
+from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_processing_flags, add_trace_flags,
+                     estimator_options, plot_traced_profile, processing_overrides, quiet_hall_paths, trace_cache,
+                     trace_settings)
 
 __all__ = ["add_parser"]
 
@@ -43,7 +44,8 @@ def _demo_hall(args: argparse.Namespace) -> int:
         capture = simulate(hs.base, rng=np.random.default_rng(ss), paths=traced.paths, seed=args.seed)
         timing = {"trace" + (" (cached)" if traced.trace.cache_hit else ""): traced.timing["trace"],
                   "paths": traced.timing["paths"], "synthesis": time.perf_counter() - start}
-        result = report_capture(hs.name.replace("#", "-"), capture, out_dir=out, processing=processing, timing=timing)
+        result = report_capture(hs.name.replace("#", "-"), capture, out_dir=out, processing=processing, timing=timing,
+                                **estimator_options(args))
         plot_traced_profile(hs, traced, out / result.name / "traced_profile.png")
         result = replace(result, plots={**result.plots, "traced_profile": f"{result.name}/traced_profile.png"})
         print(format_case(result))
@@ -54,7 +56,7 @@ def _demo_hall(args: argparse.Namespace) -> int:
         cases.append(result)
     path = write_result(out, cases)
     print(f"wrote {path} and plots under {out}/")
-    return 0
+    return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
 def _demo_analytic(args: argparse.Namespace) -> int:
@@ -68,12 +70,12 @@ def _demo_analytic(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         capture = simulate(scenario, rng=np.random.default_rng(ss), seed=args.seed)
         result = report_capture(scenario.name, capture, out_dir=out, processing=processing,
-                                timing={"synthesis": time.perf_counter() - start})
+                                timing={"synthesis": time.perf_counter() - start}, **estimator_options(args))
         print(format_case(result))
         cases.append(result)
     path = write_result(out, cases)
     print(f"wrote {path} and plots under {out}/")
-    return 0
+    return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
 def add_parser(sub) -> None:
@@ -86,4 +88,5 @@ def add_parser(sub) -> None:
     demo.add_argument("--analytic", action="store_true", help="the paper's analytic scenario (RIS loop-back + point target) instead of a traced hall")
     add_trace_flags(demo)
     add_processing_flags(demo)
+    add_estimator_flags(demo)
     demo.set_defaults(func=_run)

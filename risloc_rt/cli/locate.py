@@ -7,7 +7,8 @@ from pathlib import Path
 
 from ..io.capture_file import load_capture
 from ..io.report import format_case, report_capture, write_result
-from .common import add_processing_flags, processing_overrides
+from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_processing_flags, estimator_options,
+                     processing_overrides)
 
 __all__ = ["add_parser"]
 
@@ -16,17 +17,22 @@ def _run(args: argparse.Namespace) -> int:
     capture = load_capture(args.capture)
     processing = processing_overrides(args, capture.processing)
     out = Path(args.out) if args.out else None
-    result = report_capture(Path(args.capture).stem, capture, out_dir=out, processing=processing, timing={})
+    result = report_capture(Path(args.capture).stem, capture, out_dir=out, processing=processing, timing={},
+                            **estimator_options(args))
     print(format_case(result))
     if out is not None:
         print(f"wrote {write_result(out, [result])} and plots under {out}/")
-    return 0
+    return 0 if result.localization.detected else EXIT_NO_DETECTION
 
 
 def add_parser(sub) -> None:
     """Add ``locate`` to an ``add_subparsers()`` object."""
-    loc = sub.add_parser("locate", help="run the DSP on a capture file")
+    loc = sub.add_parser("locate", help="run the DSP on a capture file",
+                         description="Detect the RIS return in a capture and localize the radar, with 1-sigma "
+                                     "uncertainties and flags (docs/flags.md). Exit status 0 with a position, "
+                                     f"{EXIT_NO_DETECTION} when nothing was detected (no position), 2 for bad input.")
     loc.add_argument("capture", help="capture file (.npz) from 'risloc simulate' or a converter")
     loc.add_argument("--out", help="directory for result.json and plots (default: print only)")
     add_processing_flags(loc)
+    add_estimator_flags(loc)
     loc.set_defaults(func=_run)

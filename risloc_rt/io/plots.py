@@ -95,19 +95,29 @@ def plot_range_profile(
     truth: Truth | None = None,
     title: str = "",
 ) -> Path:
-    """|z(τ, ν≈ν̂)|² of the chosen beam over apparent distance τc/2, with the expected peaks marked."""
+    """|z(τ, ν≈ν̂)|² of the chosen beam over apparent distance τc/2, with the expected peaks marked.
+
+    Without a detection (NaN estimates) the profile is taken at the strongest beam's grid peak and
+    no estimate is marked.
+    """
     plt = _pyplot()
-    profile = _dbm(ddm.profile(loc.delay_rate))
+    detected = bool(np.isfinite(loc.distance))
+    nu = loc.delay_rate if detected else float(loc.scan.delay_rate[loc.beam_index])
+    profile = _dbm(ddm.profile(nu))
     fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
-    ax.plot(ddm.distance, profile, color="C0", lw=1, label=f"profile at ν ≈ {loc.velocity:+.2f} m/s (c/2·ν)")
+    ax.plot(ddm.distance, profile, color="C0", lw=1, label=f"profile at ν ≈ {nu * SPEED_OF_LIGHT / 2:+.2f} m/s (c/2·ν)")
     offset = loopback_delay * SPEED_OF_LIGHT / 2
     if truth is not None:
         ax.axvline(truth.distance, color="gray", ls="--", lw=1, label=f"structural reflection, d = {truth.distance:.3f} m")
         ax.axvline(truth.distance + offset, color="red", ls="--", lw=1,
                    label=f"re-transmission, d + τ_RB c/2 = {truth.distance + offset:.3f} m")
-    est = loc.distance + offset
-    ax.plot(est, profile[int(np.argmin(np.abs(ddm.distance - est)))], "o", mfc="none", mec="red", ms=10, mew=1.5,
-            label=f"estimate d̂ = {loc.distance:.3f} m")
+    if detected:
+        est = loc.distance + offset
+        ax.plot(est, profile[int(np.argmin(np.abs(ddm.distance - est)))], "o", mfc="none", mec="red", ms=10, mew=1.5,
+                label=f"estimate d̂ = {loc.distance:.3f} m")
+    else:
+        est = float(ddm.distance[int(np.argmax(profile))])
+        ax.plot([], [], " ", label="nothing detected: no estimate")
     ax.set_xlabel("apparent distance τc/2 [m]")
     ax.set_ylabel("|z|² [dBm]")
     ax.set_ylim(profile.max() - 80, profile.max() + 5)

@@ -56,24 +56,52 @@ class CaseResult:
         return None if self.truth is None else estimation_errors(self.localization, self.truth, self.capture)
 
 
-def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None) -> tuple[Localization, float]:
-    """Run the shared DSP on a capture; returns the localization and the DSP time [s]."""
+#: The estimator ``risloc locate``/``demo`` and :func:`process_capture` use unless told otherwise.
+DEFAULT_ESTIMATOR = "refined"
+
+
+def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None,
+                    estimator: str = DEFAULT_ESTIMATOR, ue_height: float | None = None,
+                    pfa: float | None = None) -> tuple[Localization, float]:
+    """Run the shared DSP on a capture; returns the localization and the DSP time [s].
+
+    Parameters
+    ----------
+    capture : Capture
+    processing : ProcessingConfig, optional
+        Overrides the capture's recommended processing.
+    estimator : {"refined", "paper"}, default "refined"
+        ``"refined"``: off-grid delay/Doppler from all beams and the AoD from a fit of the RIS beam
+        pattern (``docs/estimation.md``); ``"paper"``: the seed paper's method, unchanged.
+    ue_height : float, optional
+        Known world z of the radar [m]; resolves the elevation a 1-D sweep cannot see.
+    pfa : float, optional
+        Detector false-alarm probability per capture (default ``dsp``'s, 1e-3).
+
+    Returns
+    -------
+    (Localization, float)
+        With ``detection``, ``std`` and ``flags``; NaN estimates when nothing was detected.
+    """
     start = time.perf_counter()
+    extra = {} if pfa is None else {"pfa": pfa}
     loc = self_localize(capture.cube, sweep=capture.sweep, radar=capture.radar,
                         processing=processing or capture.processing, pose=capture.ris.pose,
-                        loopback_delay=capture.ris.loopback_delay)
+                        loopback_delay=capture.ris.loopback_delay, estimator=estimator,
+                        pattern=capture.ris.beam_pattern(), ue_height=ue_height, **extra)
     return loc, time.perf_counter() - start
 
 
 def report_capture(name: str, capture: Capture, *, out_dir: Path | None, processing: ProcessingConfig,
-                   timing: dict[str, float]) -> CaseResult:
+                   timing: dict[str, float], **options: Any) -> CaseResult:
     """Localize ``capture`` and, with ``out_dir``, draw its figures under ``out_dir/name/``.
 
     The figures are the delay-Doppler map of the chosen beam with its three largest peaks, P_ave
     over the sweep, and the range profile at the estimated Doppler. ``timing`` (seconds per
-    stage) gains ``"dsp"`` and, with figures, ``"plots"``.
+    stage) gains ``"dsp"`` and, with figures, ``"plots"``. ``options`` go to :func:`process_capture`
+    (``estimator``, ``ue_height``, ``pfa``).
     """
-    loc, dsp_time = process_capture(capture, processing=processing)
+    loc, dsp_time = process_capture(capture, processing=processing, **options)
     timing = {**timing, "dsp": dsp_time}
     plots: dict[str, str] = {}
     if out_dir is not None:
@@ -122,6 +150,9 @@ def _estimate_dict(loc: Localization) -> dict[str, Any]:
         "delay_rate": loc.delay_rate,
         "velocity": loc.velocity,
         "position": loc.position.tolist(),
+        "estimator": loc.estimator,
+        "reference_time": loc.reference_time,
+        "std": None if loc.std is None else loc.std.to_dict(),
     }
 
 
@@ -132,7 +163,9 @@ def case_dict(case: CaseResult) -> dict[str, Any]:
         "name": case.name,
         "source": case.capture.provenance.get("source"),
         "provenance": case.capture.provenance,
+        "detection": None if case.localization.detection is None else case.localization.detection.to_dict(),
         "estimate": _estimate_dict(case.localization),
+        "flags": [f.to_dict() for f in case.localization.flags],
         "truth": None if case.truth is None else case.truth.to_dict(),
         "error": case.errors,
         "sweep": {
@@ -205,22 +238,35 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Pa
 
 
 def format_case(case: CaseResult) -> str:
-    """Human-readable table of truth, estimate and error for one case (degrees for angles)."""
+    """Human-readable table of truth, estimate ± 1σ and error for one case (degrees for angles),
+    then the detection and the flags."""
     loc, truth, err = case.localization, case.truth, case.errors
+    std = loc.std
     fmt3 = lambda v: "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"  # noqa: E731
     deg = lambda v: "[" + ", ".join(f"{x:+.2f}" for x in np.rad2deg(v)) + "]°"  # noqa: E731
+    pm = lambda value, sigma, f: value if sigma is None or not np.isfinite(sigma) else f"{value} ± {f(sigma)}"  # noqa: E731
     rows = [("quantity", "truth", "estimate", "error")]
-    rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-", f"{loc.distance:.4f}",
+    rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-",
+                 pm(f"{loc.distance:.4f}", std and std.distance, lambda x: f"{x:.4f}"),
                  f"{err['distance']:+.4f}" if err else "-"))
-    rows.append(("velocity [m/s]", f"{truth.velocity:+.3f}" if truth else "-", f"{loc.velocity:+.3f}",
+    rows.append(("velocity [m/s]", f"{truth.velocity:+.3f}" if truth else "-",
+                 pm(f"{loc.velocity:+.3f}", std and std.velocity, lambda x: f"{x:.3f}"),
                  f"{err['velocity']:+.3f}" if err else "-"))
-    rows.append(("AoD [az, el]", deg(truth.aod) if truth else "-", deg(loc.aod),
+    rows.append(("AoD [az, el]", deg(truth.aod) if truth else "-",
+                 pm(deg(loc.aod), std and std.aod[0], lambda x: f"{np.rad2deg(x):.2f}° az"),
                  f"{np.rad2deg(err['angle']):.2f}°" if err else "-"))
-    rows.append(("position [m]", fmt3(truth.ue_position) if truth else "-", fmt3(loc.position),
+    rows.append(("position [m]", fmt3(truth.ue_position) if truth else "-",
+                 pm(fmt3(loc.position), std and std.peb, lambda x: f"{x:.4f}"),
                  f"{err['position']:.4f} m" if err else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    lines = [f"== {case.name} (beam {loc.beam_index} of {loc.scan.num_beams})"]
-    lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {loc.scan.num_beams})"
+    lines = [head] + ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    det = loc.detection
+    if det is not None:
+        lines.append(f"  detection: {'RIS return detected' if det.detected else 'NOTHING DETECTED: no position'}, "
+                     f"SNR {det.snr_db:.1f} dB against a threshold of {det.threshold_db:.1f} dB "
+                     f"(false-alarm probability {det.false_alarm_probability:.0e} per capture)")
+    lines += [f"  flag {f.code}: {f.message}" for f in loc.flags]
     if case.timing:
         lines.append("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in case.timing.items()))
     return "\n".join(lines)

@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from dsp import RisPose, db_to_linear, direction_from_angles
+from dsp import BeamPattern, RisPose, db_to_linear, direction_from_angles
 from dsp._validate import as_finite_array, dataclass_from_dict, finite, non_negative, positive, positive_int
 from dsp.sweep import BeamSweep
 
@@ -95,6 +95,12 @@ class RisConfig:
         w = (np.arange(self.num_columns) - (self.num_columns - 1) / 2) * self.element_spacing
         uu, ww = np.meshgrid(u, w, indexing="ij")
         return np.column_stack([uu.ravel(), ww.ravel(), np.zeros(uu.size)])
+
+    def beam_pattern(self) -> "BeamPattern":
+        """The sweep's array factor as the DSP sees it (``dsp.BeamPattern``): same grid and
+        spacing, phase-gradient factor 1 (relay: only the Tx beam sweeps) or 2 (reflective, eq. (1))."""
+        return BeamPattern(num_rows=self.num_rows, num_columns=self.num_columns, element_spacing=self.element_spacing,
+                           gradient_factor=1 if self.mode == "relay" else 2)
 
     def with_rx_toward(self, point: Any) -> "RisConfig":
         """Copy whose relay Rx beam points at a world ``point`` [3] [m]."""
