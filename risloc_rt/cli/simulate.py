@@ -70,7 +70,7 @@ def _run(args: argparse.Namespace) -> int:
         for w in traced.report.warnings:
             print(f"warning: {w}")
     capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
-                       paths=paths, provenance_extra=extra)
+                       paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep")
     if args.complex64:
         capture = replace(capture, cube=capture.cube.astype(np.complex64))
     path = save_capture(capture, args.output)
@@ -94,6 +94,9 @@ def add_parser(sub) -> None:
                      help="UE-RIS distance [m]; with --aod places the UE in the RIS frame of --case's RIS")
     sim.add_argument("--aod", metavar="AZ,EL", help="AoD of the UE seen from the RIS [deg], with --distance")
     sim.add_argument("--ue-velocity", metavar="VX,VY,VZ", help="UE velocity [m/s] (default: 0)")
+    sim.add_argument("--frozen-geometry", action="store_true",
+                     help="freeze the UE's position over the sweep, as the paper's eq. (1) (default: a moving UE is "
+                          "placed where it is at each frame; positions refer to the middle of the sweep)")
     sim.add_argument("--tx-power-dbm", type=float, help="transmit power [dBm] (default: Table I, 20)")
     sim.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     sim.add_argument("--no-noise", action="store_true", help="write the noiseless cube")
