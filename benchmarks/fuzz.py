@@ -343,6 +343,9 @@ def _path_file_bytes(folder: Path) -> bytes:
 # ------------------------------------------------------------------------------------ the runner
 
 
+_LAST_EXCEPTION: list[str] = [""]
+
+
 def _classify(run: Callable, inp: Any, ws: Workspace, errors: tuple[type, ...], limit: float) -> str:
     def alarm(signum: int, frame: Any) -> None:
         raise Hang()
@@ -355,8 +358,10 @@ def _classify(run: Callable, inp: Any, ws: Workspace, errors: tuple[type, ...], 
         return "hang"
     except errors as exc:
         message = str(exc)
+        _LAST_EXCEPTION[0] = f"{type(exc).__name__}: {message[:150]}"
         return "error" if message and "\n" not in message.strip() else "traceback"
-    except Exception:  # noqa: BLE001 - what a user would see as a traceback
+    except Exception as exc:  # noqa: BLE001 - what a user would see as a traceback
+        _LAST_EXCEPTION[0] = f"{type(exc).__name__}: {str(exc)[:150]}"
         return "traceback"
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
@@ -382,7 +387,7 @@ def run_entry_point(name: str, examples: int, seed: int, limit: float, queue: An
             outcome = _classify(run, inp, ws, errors, limit)
             counts[outcome] += 1
             if outcome in ("traceback", "wrong", "hang") and len(examples_wrong) < 3:
-                examples_wrong.append(repr(inp)[:200])
+                examples_wrong.append(f"{_LAST_EXCEPTION[0]} <- {repr(inp)[:150]}")
         peak = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
     out = {"name": name, "examples": examples, **counts, "peak_memory": peak,
            "seconds": time.perf_counter() - start, "samples": examples_wrong}
