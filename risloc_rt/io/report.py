@@ -6,7 +6,7 @@ import json
 import os
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +15,7 @@ import numpy as np
 from dsp import SPEED_OF_LIGHT, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles, self_localize
 
 from ..model.capture import Capture
+from ..model.power_check import range_alias_flag
 from ..model.scenario import Truth
 
 __all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
@@ -81,7 +82,9 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     Returns
     -------
     (Localization, float)
-        With ``detection``, ``std`` and ``flags``; NaN estimates when nothing was detected.
+        With ``detection``, ``std`` and ``flags``; NaN estimates when nothing was detected. The
+        flags include the link-budget check for range aliasing
+        (:func:`risloc_rt.model.power_check.range_alias_flag`).
     """
     start = time.perf_counter()
     extra = {} if pfa is None else {"pfa": pfa}
@@ -89,6 +92,9 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
                         processing=processing or capture.processing, pose=capture.ris.pose,
                         loopback_delay=capture.ris.loopback_delay, estimator=estimator,
                         pattern=capture.ris.beam_pattern(), ue_height=ue_height, **extra)
+    alias = range_alias_flag(loc, capture)
+    if alias is not None and "aliased" not in loc.flag_codes:
+        loc = replace(loc, flags=(*loc.flags, alias))
     return loc, time.perf_counter() - start
 
 
