@@ -15,6 +15,22 @@ def _describe_shape(shape: tuple[int | None, ...]) -> str:
     return "[" + ", ".join("*" if s is None else str(s) for s in shape) + "]"
 
 
+def require_complex_samples(value: Any, name: str) -> None:
+    """Refuse real, integer and boolean sample arrays: beat samples are complex (I/Q).
+
+    A real-sampled ADC (TI ``adcCfg`` real) folds negative beat frequencies onto positive ones, so
+    casting it to complex gives wrong ranges; the caller must form the analytic signal first.
+    """
+    dtype = getattr(value, "dtype", None)
+    if dtype is None:
+        dtype = np.asarray(value).dtype
+    if np.dtype(dtype).kind in "biuf":
+        raise TypeError(
+            f"{name} is real-valued ({np.dtype(dtype)}); beat samples must be complex I/Q. For a real-sampled "
+            "ADC form the analytic signal first (scipy.signal.hilbert(x, axis=-1)); do not cast"
+        )
+
+
 def as_finite_array(
     value: Any,
     name: str,

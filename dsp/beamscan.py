@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import scipy.fft
 
+from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .spectrum import CHUNK_BYTES, check_cube, windowed_range_spectrum
@@ -103,6 +104,9 @@ def scan_beams(
     the grid version of ``(1/2Δ)∫ |z_m(τ, ν_m)|² dτ``.
     """
     arr = check_cube(cube, radar)
+    check_memory(dsp_memory(arr.shape, n_dft=processing.n_dft, k_dft=processing.k_dft),
+                 f"scanning a {list(arr.shape)} cube with n_dft={processing.n_dft}, k_dft={processing.k_dft}",
+                 fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
     if not isinstance(sweep, BeamSweep):
         raise TypeError(f"sweep must be a BeamSweep, got {type(sweep).__name__}")
     if sweep.num_beams != arr.shape[0]:

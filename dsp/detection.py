@@ -31,7 +31,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from ._validate import as_finite_array, fields_equal, non_negative
+from ._validate import as_finite_array, fields_equal, non_negative, require_complex_samples
 from .radar import SPEED_OF_LIGHT, RadarConfig
 
 __all__ = ["Detection", "detect", "check_beat_cube", "sweep_cfar_threshold"]
@@ -46,6 +46,7 @@ def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.
     Raises a one-line :class:`ValueError` for an empty, non-finite or all-zero cube, one with
     fewer than ``min_beams`` beams, or sizes that disagree with ``radar``.
     """
+    require_complex_samples(cube, "cube")
     try:
         arr = np.asarray(cube, dtype=complex)
     except (TypeError, ValueError) as exc:

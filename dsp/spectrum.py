@@ -19,7 +19,8 @@ import numpy as np
 import scipy.fft
 import scipy.ndimage
 
-from ._validate import as_finite_array, finite
+from ._validate import as_finite_array, finite, require_complex_samples
+from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig
 
@@ -31,7 +32,11 @@ CHUNK_BYTES = 32 * 2**20
 
 
 def check_cube(cube: Any, radar: RadarConfig, *, name: str = "cube") -> np.ndarray:
-    """Validate a beat cube ``[M, K, N]`` against the radar and return it as complex128."""
+    """Validate a beat cube ``[M, K, N]`` against the radar and return it as complex128.
+
+    Real, integer and boolean arrays are refused (:func:`dsp._validate.require_complex_samples`).
+    """
+    require_complex_samples(cube, name)
     arr = as_finite_array(cube, name, shape=(None, None, None), dtype=complex)
     m, k, n = arr.shape
     if (k, n) != (radar.num_chirps, radar.num_samples):
@@ -150,8 +155,12 @@ def delay_doppler_map(frame: Any, radar: RadarConfig, processing: ProcessingConf
     Costs one K_DFT-point transform per delay bin (0.4 s for Table I on one core); use
     :func:`dsp.scan_beams` to search many beams.
     """
+    require_complex_samples(frame, "frame")
     arr = as_finite_array(frame, "frame", shape=(None, None), dtype=complex)
     processing.check_against(radar.num_samples, radar.num_chirps)
+    check_memory(dsp_memory((1, *arr.shape), n_dft=processing.n_dft, k_dft=processing.k_dft),
+                 f"a delay-Doppler map with n_dft={processing.n_dft}, k_dft={processing.k_dft}",
+                 fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
     spectrum, gain = windowed_range_spectrum(check_cube(arr[None], radar, name="frame[None]"), radar, processing)
     z = scipy.fft.ifft(spectrum[0], n=processing.k_dft, axis=0, norm="forward", workers=-1)
     power = np.abs(z) ** 2 / gain**2

@@ -13,22 +13,21 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._files import atomic_write_bytes
 from ._parse import SpecError
 from .materials import MaterialSpec
 from .shapes import SceneMesh, scene_meshes
 from .scene_folder import scene_content_hash
 from .spec import HallSpec, load_spec
 
-__all__ = ["BuiltScene", "MANIFEST_NAME", "atomic_write", "build_outputs", "build_scene", "content_hash", "ply_bytes",
+__all__ = ["BuiltScene", "MANIFEST_NAME", "build_outputs", "build_scene", "content_hash", "ply_bytes",
            "read_manifest", "scene_xml", "stale_files", "main"]
 
 _FACE_DTYPE = np.dtype([("n", "u1"), ("idx", "<i4", (3,))])
@@ -143,24 +142,6 @@ _MANIFEST_VERSION = 1
 
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a unique temporary file in its folder and ``os.replace``.
-
-    Readers never see a half-written file and concurrent writers never share a temporary file;
-    the temporary file is removed when the write fails or is interrupted.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-        tmp = None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def read_manifest(folder: str | Path) -> dict[str, Any] | None:
@@ -283,7 +264,7 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
                         + "; ".join(conflicts[:5]) + (" ..." if len(conflicts) > 5 else ""),
                         "move them away, build into another folder with -o, or pass --force to replace them")
     for rel in writes:
-        atomic_write(out / rel, files[rel])
+        atomic_write_bytes(out / rel, files[rel])
     for rel, digest in sorted(before.items()):
         stale = out / rel
         if (rel in files or rel == "spec.toml" or rel == MANIFEST_NAME
@@ -294,7 +275,7 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
     manifest = {"format": _MANIFEST_FORMAT, "version": _MANIFEST_VERSION,
                 "spec_sha256": _sha256(spec.source),
                 "files": {rel: _sha256(data) for rel, data in sorted({**files, "spec.toml": spec.source}.items())}}
-    atomic_write(out / MANIFEST_NAME, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+    atomic_write_bytes(out / MANIFEST_NAME, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode("utf-8"))
     xml_path = out / "scene.xml"
     mesh_paths = tuple(out / rel for rel in files if rel.startswith("meshes/") and rel.endswith(".ply")
                        and rel[len("meshes/"):-len(".ply")] in spec.object_names)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -15,6 +14,7 @@ import scipy.signal
 
 from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, delay_doppler_map
 
+from .._files import atomic_open
 from ..model.beat import beat_cube
 from ..model.paths import PathSet
 from .pruning import PruneReport
@@ -79,21 +79,13 @@ def save_path_set(path: str | os.PathLike[str], candidates: PathSet, report: Pru
     out = Path(path)
     if out.suffix != ".npz":
         out = out.with_name(out.name + ".npz")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, gain=candidates.gain, delay=candidates.delay, delay_rate=candidates.delay_rate,
-                     ris_incidence=candidates.ris_incidence, ris_departure=candidates.ris_departure,
-                     peak_power=report.peak_power, kept=report.keep,
-                     labels=np.array(json.dumps(list(candidates.labels))),
-                     metadata=np.array(json.dumps({"format": "risloc-paths", "version": 1,
-                                                   "noise_floor": report.noise_floor, **(metadata or {})})))
-        os.replace(tmp, out)
-        tmp = None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_open(out) as fh:
+        np.savez(fh, gain=candidates.gain, delay=candidates.delay, delay_rate=candidates.delay_rate,
+                 ris_incidence=candidates.ris_incidence, ris_departure=candidates.ris_departure,
+                 peak_power=report.peak_power, kept=report.keep,
+                 labels=np.array(json.dumps(list(candidates.labels))),
+                 metadata=np.array(json.dumps({"format": "risloc-paths", "version": 1,
+                                               "noise_floor": report.noise_floor, **(metadata or {})})))
     return out
 
 

@@ -19,7 +19,6 @@ import errno
 import json
 import math
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from dsp import BeamSweep, ProcessingConfig, RadarConfig
 from dsp._validate import as_finite_array
 from dsp.budget import BudgetError, check_memory, dsp_memory
 
+from .._files import atomic_open
 from ..model.capture import Capture
 from ..model.ris import RisConfig
 from ..model.scenario import Truth
@@ -77,31 +77,15 @@ def save_capture(capture: Capture, path: str | os.PathLike[str]) -> Path:
     cube = np.asarray(capture.cube)
     if cube.dtype not in (np.complex64, np.complex128):
         cube = cube.astype(np.complex128)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(
-                fh,
-                cube=cube,
-                beam_angles=np.asarray(capture.sweep.angles, dtype=np.float64),
-                frame_index=np.asarray(capture.frame_index, dtype=np.int64),
-                metadata=np.array(json.dumps(capture_metadata(capture), indent=1)),
-            )
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, out)
-        tmp = None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_open(out, sync=True) as fh:
+        np.savez(
+            fh,
+            cube=cube,
+            beam_angles=np.asarray(capture.sweep.angles, dtype=np.float64),
+            frame_index=np.asarray(capture.frame_index, dtype=np.int64),
+            metadata=np.array(json.dumps(capture_metadata(capture), indent=1)),
+        )
     return out
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 # ------------------------------------------------------------------------------------------ reading

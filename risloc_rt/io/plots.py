@@ -9,6 +9,7 @@ import numpy as np
 
 from dsp import SPEED_OF_LIGHT, DelayDopplerMap, Localization
 
+from .._files import atomic_open
 from ..model.scenario import Truth
 
 __all__ = ["plot_delay_doppler", "plot_sweep", "plot_range_profile"]
@@ -139,8 +140,11 @@ def _save(fig, plt, path: str | os.PathLike[str], *, tight: bool = True) -> Path
     out.parent.mkdir(parents=True, exist_ok=True)
     if tight:
         fig.tight_layout()
-    fig.savefig(out)
-    plt.close(fig)
+    try:
+        with atomic_open(out) as fh:
+            fig.savefig(fh, format=out.suffix.lstrip(".") or "png")
+    finally:
+        plt.close(fig)
     return out
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 
 from dsp import SPEED_OF_LIGHT, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles, self_localize
 
+from .._files import atomic_write_bytes
 from ..model.capture import Capture
 from ..model.power_check import range_alias_flag
 from ..model.scenario import Truth
@@ -231,16 +231,7 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Pa
         "cases": [case_dict(c) for c in cases],
     }, nonfinite=nonfinite)
     doc["nonfinite"] = nonfinite
-    path = out / "result.json"
-    fd, tmp = tempfile.mkstemp(prefix=".result.json.", suffix=".partial", dir=out)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(json.dumps(doc, indent=2, allow_nan=False) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_bytes(out / "result.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode())
 
 
 def format_case(case: CaseResult) -> str:

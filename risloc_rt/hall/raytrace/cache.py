@@ -17,13 +17,13 @@ import hashlib
 import json
 import logging
 import os
-import tempfile
 import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..._files import atomic_open
 from ..traced import TracedPaths
 from .backend import package_versions
 from .result import TraceResult, TraceSettings
@@ -199,22 +199,11 @@ class TraceCache:
         }
         meta["checksum"] = _entry_checksum(arrays, meta)
         arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
-        tmp_name = None
         try:
-            self._directory.mkdir(parents=True, exist_ok=True)
-            with tempfile.NamedTemporaryFile(dir=self._directory, prefix=f".{key[:16]}-", suffix=".tmp",
-                                             delete=False) as f:
-                tmp_name = f.name
+            with atomic_open(path, sync=True) as f:
                 np.savez(f, **arrays)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp_name, path)
-            tmp_name = None
         except OSError as exc:
             warnings.warn(f"could not write trace cache file {path}: {exc}", RuntimeWarning, stacklevel=2)
             return None
-        finally:
-            if tmp_name is not None and os.path.exists(tmp_name):
-                os.unlink(tmp_name)
         return path
 
