@@ -159,13 +159,18 @@ def sweep_flags(
                           f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(aod[0])} and also at {others}; "
                           "a reflective RIS with λ/2 spacing has grating lobes beyond ±17°: use a relay RIS, a narrower "
                           "sweep, or a second sweep/RIS to decide"))
-    if is_one_dimensional(sweep):
-        best = int(np.argmax(magnitudes))
-        if best in (0, sweep.num_beams - 1):
-            flags.append(Flag("beam-edge",
-                              f"the strongest beam is the {'first' if best == 0 else 'last'} of the sweep "
-                              f"(az {_deg(sweep.angles[best, 0])}): the UE may lie outside the swept span and the "
-                              "AoD be pulled to its edge; widen the sweep"))
+    az_lo, az_hi = float(sweep.angles[:, 0].min()), float(sweep.angles[:, 0].max())
+    best = int(np.argmax(magnitudes))
+    at_edge = best in (0, sweep.num_beams - 1)
+    outside = not (az_lo + 1e-9 < float(aod[0]) < az_hi - 1e-9)
+    if is_one_dimensional(sweep) and (at_edge or outside):
+        where = (f"the strongest beam is the {'first' if best == 0 else 'last'} of the sweep "
+                 f"(az {_deg(sweep.angles[best, 0])})" if at_edge else
+                 f"the AoD az {_deg(aod[0])} lies at or beyond the edge of the swept span "
+                 f"[{_deg(az_lo)}, {_deg(az_hi)}]")
+        flags.append(Flag("beam-edge",
+                          f"{where}: the UE may lie outside the swept span, where the AoD is pulled to the edge or "
+                          "taken from a sidelobe; widen the sweep"))
     edge = 2.0 * radar.delay_resolution
     near_wrap = apparent_delay < edge or apparent_delay > radar.max_delay - edge
     above_if = apparent_delay * radar.slope > radar.if_bandwidth
