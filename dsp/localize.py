@@ -17,6 +17,7 @@ import numpy as np
 from ._validate import finite, non_negative, positive
 from .beamscan import BeamScan, scan_beams
 from .crb import position_std, sweep_crb
+from .drift import delay_drift
 from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect
 from .flags import Flag
 from .geometry import RisPose, direction_from_angles
@@ -327,10 +328,11 @@ def self_localize(
         f1, f2 = local.beat_frequency
     unresolved = residual_test(arr, radar, f1, f2, weights, cell_noise=noise * arr.shape[1] * arr.shape[2], pfa=pfa)
     apparent = f1 / (radar.slope * radar.sample_period)
+    drift = delay_drift(arr, radar, delay=tau, delay_rate=nu, weights=weights)
     flags = sweep_flags(detection=det, fit=fit, magnitudes=mags, sweep=sweep, radar=radar, pose=pose, delay=tau,
                         apparent_delay=apparent, delay_rate=nu, loopback_delay=tau_rb, distance=distance, aod=aod,
                         unresolved=unresolved, ue_height=ue_height, height_solved=height_solved,
-                        height_range=height_range)
+                        height_range=height_range, drift=drift)
     return Localization(
         beam_index=beam_index, aod=aod, delay=float(tau), distance=float(distance), delay_rate=float(nu),
         velocity=float(velocity), direction=direction, position=position, scan=scan, detection=det, std=std,

@@ -14,6 +14,7 @@ import scipy.optimize
 
 from ._validate import fields_equal
 from .detection import Detection
+from .drift import DelayDrift
 from .flags import Flag
 from .geometry import RisPose, direction_from_angles
 from .radar import SPEED_OF_LIGHT, RadarConfig
@@ -144,6 +145,7 @@ def sweep_flags(
     ue_height: float | None,
     height_solved: bool,
     height_range: float,
+    drift: DelayDrift | None = None,
 ) -> tuple[Flag, ...]:
     """The flags of a detected estimate (``docs/flags.md``), in a fixed order."""
     flags: list[Flag] = []
@@ -175,7 +177,9 @@ def sweep_flags(
     near_wrap = apparent_delay < edge or apparent_delay > radar.max_delay - edge
     above_if = apparent_delay * radar.slope > radar.if_bandwidth
     fast_doppler = abs(delay_rate) > 0.9 * radar.max_delay_rate
-    if near_wrap or above_if or fast_doppler:
+    wrapped_doppler = drift is not None and \
+        abs(drift.rate - delay_rate) > max(radar.max_delay_rate, 5.0 * drift.std)
+    if near_wrap or above_if or fast_doppler or wrapped_doppler:
         why = []
         if near_wrap:
             why.append(f"the return sits within {edge * SPEED_OF_LIGHT / 2 * 100:.1f} cm of the range wrap (0 or "
@@ -186,6 +190,13 @@ def sweep_flags(
         if fast_doppler:
             why.append(f"|v| = {abs(delay_rate) * SPEED_OF_LIGHT / 2:.2f} m/s is near the unambiguous "
                        f"{radar.max_velocity:.2f} m/s")
+        if wrapped_doppler:
+            span = 2 * radar.max_delay_rate
+            unwrapped = delay_rate + span * round((drift.rate - delay_rate) / span)
+            why.append(f"the delay drifts across the sweep at {drift.rate * SPEED_OF_LIGHT / 2:+.2f} m/s "
+                       f"(±{drift.std * SPEED_OF_LIGHT / 2:.2f}) but the Doppler reads "
+                       f"{delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s: the velocity is beyond ±{radar.max_velocity:.2f} m/s "
+                       f"and wrapped, probably {unwrapped * SPEED_OF_LIGHT / 2:+.2f} m/s (shorten the chirp period)")
         flags.append(Flag("aliased",
                           "; ".join(why) + f": the true return may lie {radar.max_range:.2f} m (or one velocity "
                           "span) further; check with a second chirp configuration or the expected geometry"))
