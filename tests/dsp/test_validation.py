@@ -48,7 +48,7 @@ def test_frame_must_be_2d_and_match_the_radar():
     with pytest.raises(ValueError, match=r"frame has shape \[3, 16, 64\], expected \[\*, \*\]"):
         delay_doppler_map(good_cube(), RADAR, PROCESSING)
     with pytest.raises(ValueError, match=r"K=16 chirps and N=64 samples"):
-        delay_doppler_map(np.ones((64, 16)), RADAR, PROCESSING)
+        delay_doppler_map(np.ones((64, 16), complex), RADAR, PROCESSING)
 
 
 def test_sweep_with_fewer_angles_than_frames():
