@@ -15,7 +15,8 @@ from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .localize import Localization, NoPositionError, localize, self_localize
 from .pattern import BeamPattern
 from .qualify import Uncertainty, elevation_for_height
-from .refine import AodFit, RefinedEstimate, beam_dtft, fit_aod, refine_estimate, residual_test
+from .aod_fit import AodFit, fit_aod
+from .refine import RefinedEstimate, beam_dtft, refine_estimate, residual_test
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map

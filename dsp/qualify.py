@@ -18,7 +18,7 @@ from .drift import DelayDrift
 from .flags import Flag
 from .geometry import RisPose, direction_from_angles
 from .radar import SPEED_OF_LIGHT, RadarConfig
-from .refine import AodFit
+from .aod_fit import AodFit
 from .sweep import BeamSweep
 
 __all__ = ["Uncertainty", "GRATING_LOBE_DB", "is_one_dimensional", "elevation_for_height", "sweep_flags"]

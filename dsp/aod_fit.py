@@ -1,0 +1,133 @@
+"""The AoD from the per-beam powers: the RIS beam pattern fitted across the sweep (``docs/estimation.md``).
+
+With the delay and Doppler fixed, the likelihood of the AoD under one RIS tone of amplitude
+β|A_m(θ)| and an unknown phase per beam is ``(Σ_m |A_m(θ)| r_m)² / Σ_m A_m(θ)²``, r_m = |Z_m|.
+:func:`fit_aod` maximises it on a fine grid of the direction cosine u = cos(el)·sin(az) over the
+sweep, then with Brent's method around the best grid point (a 2-D sweep: a (u, w) grid and
+Nelder–Mead). It uses how the power falls off on both sides of the best beam, so it interpolates
+between beams instead of picking one; the other local maxima within reach are kept as candidates
+(the ``grating-lobe`` flag reads them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+
+from ._validate import as_finite_array, fields_equal, finite
+from .pattern import BeamPattern
+from .sweep import BeamSweep
+
+__all__ = ["AodFit", "fit_aod"]
+
+
+@dataclass(frozen=True, eq=False)
+class AodFit:
+    """Beam-pattern fit of per-beam magnitudes.
+
+    Attributes
+    ----------
+    aod : float array [2]
+        ``[az, el]`` [rad] (el is the assumed one for a 1-D sweep).
+    direction_cosine : float
+        û = cos(el)·sin(az), what a 1-D azimuth sweep measures [unitless].
+    amplitude : float
+        β̂ in the units of the magnitudes (|A| = 1 at the peak).
+    candidates : float array [C, 2]
+        Other local maxima of the fit objective, ``[az, relative level dB]`` (<= 0), strongest
+        first; a grating lobe or a strong sidelobe shows here.
+    """
+
+    aod: np.ndarray
+    direction_cosine: float
+    amplitude: float
+    candidates: np.ndarray
+
+    def __eq__(self, other: object) -> bool:
+        return fields_equal(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+def _objective(amp: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(Σ|A| r)² / ΣA² over the last axis."""
+    a = np.abs(amp)
+    den = (a * a).sum(axis=-1)
+    num = (a * r).sum(axis=-1)
+    return np.where(den > 0, num * num / np.where(den > 0, den, 1.0), 0.0)
+
+
+def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevation: float | None = None) -> AodFit:
+    """Fit the RIS beam pattern to per-beam magnitudes (maximum likelihood, phases unknown).
+
+    Parameters
+    ----------
+    magnitudes : float array [M]
+        r_m >= 0, e.g. |Z_m| at the estimated delay/Doppler [any unit].
+    sweep : BeamSweep
+    pattern : BeamPattern
+        With its wavelength set.
+    elevation : float, optional
+        Elevation held fixed for a 1-D sweep [rad]; default the sweep's (common) elevation.
+
+    Returns
+    -------
+    AodFit
+    """
+    r = as_finite_array(magnitudes, "magnitudes", shape=(sweep.num_beams,))
+    beams = sweep.angles
+    el = float(np.mean(beams[:, 1])) if elevation is None else finite(elevation, "elevation", "rad")
+    w = np.sin(el)
+    u_beams = np.cos(beams[:, 1]) * np.sin(beams[:, 0])
+    one_d = np.ptp(beams[:, 1]) < 1e-12
+    cos_el = np.cos(el)
+    lo = max(-cos_el, u_beams.min() - pattern.null_width)
+    hi = min(cos_el, u_beams.max() + pattern.null_width)
+    du = pattern.null_width / 8.0
+    grid = np.linspace(lo, hi, max(3, int(np.ceil((hi - lo) / du)) + 1))
+    g = _objective(pattern.amplitude_u(grid, beams, w=w), r)
+    i = int(np.argmax(g))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = scipy.optimize.minimize_scalar(
+        lambda uu: -float(_objective(pattern.amplitude_u(np.array([uu]), beams, w=w), r)[0]),
+        bounds=(a, b), method="bounded", options={"xatol": 1e-9 * max(pattern.null_width, 1e-3)},
+    )
+    u_hat = float(res.x) if -res.fun >= g[i] else float(grid[i])
+    az = float(np.arcsin(np.clip(u_hat / cos_el, -1.0, 1.0)))
+    aod = np.array([az, el])
+    if not one_d:
+        # 2-D sweep: a (u, w) grid over the swept span, then Nelder-Mead on (u, w).
+        w_beams = np.sin(beams[:, 1])
+        w_null = pattern.grating_period / pattern.num_columns
+        wg = np.linspace(max(-1.0, w_beams.min() - w_null), min(1.0, w_beams.max() + w_null),
+                         max(3, int(np.ceil((np.ptp(w_beams) + 2 * w_null) / (w_null / 8))) + 1))
+
+        def amp_uw(uu: float, ww: float) -> np.ndarray:
+            return pattern.amplitude_u(np.array([uu]), beams, w=ww)
+
+        g2 = np.array([_objective(pattern.amplitude_u(grid, beams, w=ww), r) for ww in wg])  # [W, U]
+        iw, iu = np.unravel_index(int(np.argmax(g2)), g2.shape)
+        x0 = np.array([grid[iu], wg[iw]])
+        simplex = x0 + np.array([[0.0, 0.0], [du, 0.0], [0.0, w_null / 8]])
+        res2 = scipy.optimize.minimize(lambda x: -float(_objective(amp_uw(x[0], x[1]), r)[0]), x0,
+                                       method="Nelder-Mead",
+                                       options={"initial_simplex": simplex, "xatol": 1e-10, "fatol": 0.0,
+                                                "maxiter": 2000})
+        uu, ww = (res2.x if -res2.fun >= g2[iw, iu] else x0)
+        el2 = float(np.arcsin(np.clip(ww, -1, 1)))
+        aod = np.array([float(np.arcsin(np.clip(uu / np.cos(el2), -1, 1))), el2])
+        u_hat = float(uu)
+    amp_hat = np.abs(pattern.amplitude(aod, beams))
+    beta = float((amp_hat * r).sum() / (amp_hat @ amp_hat)) if amp_hat @ amp_hat > 0 else 0.0
+    # Other local maxima of the objective, separated from the best by more than a null width.
+    # Only inside the swept span: beyond it the objective rests on a few sidelobes.
+    peaks = np.flatnonzero((g[1:-1] >= g[:-2]) & (g[1:-1] > g[2:])) + 1
+    inside = (grid[peaks] >= u_beams.min()) & (grid[peaks] <= u_beams.max())
+    far = peaks[inside & (np.abs(grid[peaks] - u_hat) > pattern.null_width)]
+    best = max(float(g.max()), 1e-300)
+    cand = sorted(((float(np.arcsin(np.clip(grid[j] / cos_el, -1, 1))), float(10 * np.log10(max(g[j], 1e-300) / best)))
+                   for j in far), key=lambda t: -t[1])
+    return AodFit(aod=aod, direction_cosine=u_hat, amplitude=beta,
+                  candidates=np.array(cand, dtype=float).reshape(-1, 2))
