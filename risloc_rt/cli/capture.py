@@ -1,9 +1,12 @@
-"""``risloc capture inspect``: what a raw TI DCA1000 capture holds, before anything is localized."""
+"""``risloc capture inspect``: what a raw TI DCA1000 capture holds, before anything is localized;
+``risloc capture import``: a recorded RIS sweep (raw + config + sweep schedule) → a capture file."""
 
 from __future__ import annotations
 
 import argparse
 import json
+
+import numpy as np
 
 from .common import CliError
 
@@ -56,11 +59,39 @@ def _inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _import(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..io.capture_file import save_capture
+    from ..measured import import_capture
+
+    out = Path(args.output)
+    if out.suffix != ".npz" and out.with_name(out.name + ".npz").exists():
+        raise CliError(f"-o {args.output} would be written as {out.name}.npz, which exists; name the file "
+                       f"itself (-o {out.name}.npz) to replace it")
+    target = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")
+    for name, given in (("RAW", args.raw), ("--config", args.config), ("--sweep", args.sweep)):
+        if Path(given).exists() and target.exists() and target.resolve() == Path(given).resolve():
+            raise CliError(f"-o {args.output} is the {name} input; give another file name for the capture")
+    capture = import_capture(args.raw, args.config, args.sweep, lanes=args.lanes, iq_swap=args.iq_swap,
+                             form=args.form)
+    path = save_capture(capture, target)
+    reader = capture.provenance["reader"]
+    M, K, N = capture.cube.shape
+    az = capture.sweep.angles[:, 0]
+    truth = "none" if capture.truth is None else f"distance {capture.truth.distance:.4f} m"
+    print(f"wrote {path}: {M} beams (frames {capture.frame_index[0]}..{capture.frame_index[-1]} of "
+          f"{reader['frames_recorded']}, az {np.rad2deg(az[0]):+.2f}..{np.rad2deg(az[-1]):+.2f} deg) x {K} chirps x "
+          f"{N} samples, channel {reader['channel']}, {len(reader['dropped_packets'])} dropped-packet run(s), "
+          f"{len(reader['damaged_beams'])} damaged beam(s); truth: {truth}")
+    return 0
+
+
 def add_parser(sub) -> None:
     """Add ``capture`` (with ``inspect``) to an ``add_subparsers()`` object."""
-    capture = sub.add_parser("capture", help="measured TI DCA1000 captures: inspect raw data",
+    capture = sub.add_parser("capture", help="measured TI DCA1000 captures: inspect raw data, import a RIS sweep",
                              description="Measured captures (docs/measured-captures.md).")
-    verbs = capture.add_subparsers(dest="capture_command", required=True, metavar="{inspect}")
+    verbs = capture.add_subparsers(dest="capture_command", required=True, metavar="{inspect,import}")
     ins = verbs.add_parser("inspect", help="frames, chirps, channels, the range-Doppler peak, dropped packets, "
                                            "clipping, DC offset and I/Q imbalance of a raw capture")
     ins.add_argument("raw", help="adc_data_Raw_0.bin (its _Raw_1, _Raw_2 ... siblings are found)")
@@ -78,3 +109,16 @@ def add_parser(sub) -> None:
     ins.add_argument("--json", action="store_true", help="print a machine-readable summary")
     ins.add_argument("--plot", metavar="PNG", help="write the range profile and range-Doppler map")
     ins.set_defaults(func=_inspect)
+
+    imp = verbs.add_parser("import", help="a recorded RIS sweep (raw capture + radar config + sweep schedule) -> "
+                                          "a capture file for risloc locate")
+    imp.add_argument("raw", help="adc_data_Raw_0.bin (its _Raw_1, _Raw_2 ... siblings are found)")
+    imp.add_argument("--config", required=True, help="the radar configuration: mmWave SDK .cfg or mmWave Studio .json")
+    imp.add_argument("--sweep", required=True, metavar="SWEEP.toml",
+                     help="the sweep schedule: beams, frames per beam, first frame, channel, RIS (docs/formats.md)")
+    imp.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
+    imp.add_argument("--lanes", type=int, choices=[2, 4], help="LVDS lanes: 2 (xWR16/18/68xx, default) or 4 (xWR14xx)")
+    imp.add_argument("--iq-swap", action="store_true", help="the file stores Q before I")
+    imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
+                     help="plain samples or packet-recorded UDP payloads (default: detect)")
+    imp.set_defaults(func=_import)

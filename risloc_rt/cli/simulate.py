@@ -69,14 +69,45 @@ def _run(args: argparse.Namespace) -> int:
         print(f"traced {hs.scene_xml}: {traced.report.summary()}")
         for w in traced.report.warnings:
             print(f"warning: {w}")
+    if args.format == "dca1000":
+        from ..measured.emulate_capture import dca1000_radar
+
+        scenario = replace(scenario, radar=dca1000_radar(scenario.radar))
     capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
                        paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep")
+    t = capture.truth
+    if args.format == "dca1000":
+        return _write_dca1000(args, capture)
     if args.complex64:
         capture = replace(capture, cube=capture.cube.astype(np.complex64))
     path = save_capture(capture, args.output)
-    t = capture.truth
     print(f"wrote {path}: {capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x "
           f"{capture.cube.shape[2]} samples ({capture.cube.dtype}); truth: distance {t.distance:.4f} m, "
+          f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
+    return 0
+
+
+def _write_dca1000(args: argparse.Namespace, capture) -> int:
+    """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate_capture)."""
+    from ..measured.emulate_capture import emulate_capture
+
+    dc = 0j
+    if args.dc_offset is not None:
+        try:
+            i, q = (float(x) for x in args.dc_offset.split(","))
+        except ValueError:
+            raise CliError(f"--dc-offset {args.dc_offset!r} must be two comma-separated numbers I,Q in LSB counts, "
+                           "e.g. 12,-5") from None
+        dc = complex(i, q)
+    if args.complex64:
+        raise CliError("--complex64 applies to --format npz; a DCA1000 capture holds int16 ADC codes")
+    exp = emulate_capture(capture, args.output, adc_bits=args.adc_bits, dropped_packets_rate=args.dropped_packets_rate,
+                          dc_offset=dc, iq_gain_db=args.iq_gain_db, rng=np.random.default_rng([args.seed, 1]))
+    t = capture.truth
+    print(f"wrote {exp.folder}: {exp.raw_path.name} ({len(exp.raw.files)} file(s), {exp.raw.stream_bytes} bytes, "
+          f"{len(exp.raw.dropped_sequences)} dropped packet(s)), {exp.config_path.name}, {exp.schedule_path.name}: "
+          f"{capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x {capture.cube.shape[2]} samples, "
+          f"{args.adc_bits}-bit, full scale {exp.full_scale:.4g} sqrt(W); truth: distance {t.distance:.4f} m, "
           f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
     return 0
 
@@ -84,7 +115,8 @@ def _run(args: argparse.Namespace) -> int:
 def add_parser(sub) -> None:
     """Add ``simulate`` to an ``add_subparsers()`` object."""
     sim = sub.add_parser("simulate", help="simulate a capture file: the paper scenario, or a ray-traced hall with --scene")
-    sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
+    sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz), or with --format dca1000 "
+                                                           "the folder")
     sim.add_argument("--scene", help="ray trace this hall (name in scenes/ or folder) instead of the analytic paper scenario")
     sim.add_argument("--radar-index", type=int, default=0, help="with --scene: which radar position of the spec (default: %(default)s)")
     sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="analytic paper case (default: %(default)s)")
@@ -101,6 +133,14 @@ def add_parser(sub) -> None:
     sim.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     sim.add_argument("--no-noise", action="store_true", help="write the noiseless cube")
     sim.add_argument("--complex64", action="store_true", help="store the cube as complex64 (half the size)")
+    sim.add_argument("--format", choices=["npz", "dca1000"], default="npz",
+                     help="npz: a capture file; dca1000: -o is a folder that gets the raw DCA1000 files, the .cfg "
+                          "and sweep.toml of the experiment (docs/measured-captures.md) (default: %(default)s)")
+    sim.add_argument("--adc-bits", type=int, choices=[12, 14, 16], default=16, help="dca1000: ADC bits (default: 16)")
+    sim.add_argument("--dropped-packets-rate", type=float, default=0.0, metavar="P",
+                     help="dca1000: probability of losing each UDP packet (packet-recorded form; default: 0)")
+    sim.add_argument("--dc-offset", metavar="I,Q", help="dca1000: ADC DC offset [LSB counts] (default: 0,0)")
+    sim.add_argument("--iq-gain-db", type=float, default=0.0, help="dca1000: Q/I gain imbalance [dB] (default: 0)")
     add_trace_flags(sim)
     add_processing_flags(sim)
     sim.set_defaults(func=_run)

@@ -1,7 +1,9 @@
 """Measured TI DCA1000 captures: raw ADC reader, configuration parsers, inspection and a binary emulator.
 
-Pure numpy/scipy (plus ``dsp``); never imports the rest of ``risloc_rt``. Formats, byte layouts
-and error messages: ``docs/measured-captures.md``.
+The reader, parsers, inspection and binary emulator are numpy/scipy (plus ``dsp``) only; the sweep
+import (``import_capture``) and the experiment emulator (``emulate_capture``) build and take a
+``risloc_rt.model.Capture`` (floor 5 may import the floors below). Formats, byte layouts and error
+messages: ``docs/measured-captures.md``; sweep schedules: ``docs/formats.md``.
 
 Axis order: the reader returns ``complex64 [F, K, V, N]``: frames, loops (chirps per virtual
 channel), virtual channels (chirp of the TDM loop major, receiver minor: ``v = c·R + r``),
@@ -22,16 +24,22 @@ from .dca1000 import CaptureInfo, FrameBlock, RawCapture, iter_frames, open_raw,
 from .emulate_raw import (AdcImpairments, EmulatedCapture, QuantizedCube, Recording, quantize_cube,
                           write_raw_capture)
 from .errors import MeasuredFormatError
+from .emulate_capture import EmulatedExperiment, dca1000_radar, emulate_capture
 from .files import capture_files
+from .import_capture import default_processing, import_capture
 from .inspect import CaptureInspection, Flag, Peak, inspect_capture, load_config, plot_inspection
 from .layout import RawLayout, decode_frames, encode_frames
 from .packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
 from .sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
+from .sweep_schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
+                             write_sweep_schedule)
 from .studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
 from .ti_config import TiChirp, TiChirpConfig, slope_step, start_frequency_step
 
 __all__ = [
-    "AdcImpairments", "CaptureInfo", "CaptureInspection", "DroppedPackets", "EmulatedCapture", "Flag",
+    "AdcImpairments", "CaptureInfo", "CaptureInspection", "DroppedPackets", "EmulatedCapture", "EmulatedExperiment",
+    "Flag", "SweepSchedule", "dca1000_radar", "default_processing", "emulate_capture", "format_sweep_schedule",
+    "import_capture", "parse_sweep_schedule", "read_sweep_schedule", "write_sweep_schedule",
     "FrameBlock", "MeasuredFormatError", "PacketIssue", "ParsedSdkCfg", "ParsedStudioJson", "Peak",
     "QuantizedCube", "RawCapture", "RawLayout", "Recording", "TiChirp", "TiChirpConfig", "capture_files",
     "combine_channels", "decode_frames", "detect_payload_size", "encode_frames", "format_sdk_cfg",

@@ -1,0 +1,176 @@
+"""A simulated ``Capture`` → the folder a real experiment would leave: DCA1000 raw files, ``.cfg``, sweep schedule.
+
+``risloc simulate --format dca1000 -o FOLDER`` writes, into FOLDER:
+
+- ``adc_data_Raw_0.bin`` (raw form; packet form when packets are dropped): one frame per RIS beam,
+  one Rx channel (RX0, TX0), complex1x, 2 LVDS lanes, the cube scaled to ADC counts;
+- ``adc_data.cfg``: the mmWave SDK 3.x configuration (``format_sdk_cfg``), ``numFrames = M``;
+- ``sweep.toml``: the sweep schedule (``first_frame = 0``, ``frames_per_beam = 1``, channel 0, the
+  RIS, and the truth).
+
+**Full scale.** The top ADC code 2^(b−1) (2¹⁵ for the default 16 bits) is reached by an input
+amplitude of ``FULL_SCALE_OVER_NOISE = 1e4`` × the nominal noise rms √(k T B F), i.e. the
+radar's ``noise_power_dbm`` (Table I: −63.64 dBm → σ = 2.07e-5 √W, full scale 0.207 √W). The
+complex noise then sits at 2¹⁵/1e4 ≈ 3.3 LSB rms (2.3 LSB per I and Q rail): quantization adds
+1/12 LSB² per rail, −18 dB below the noise; the RIS return and the panel's reflection stay far
+below clipping (80 dB of headroom above the noise). The full scale follows the nominal noise,
+not the noise actually drawn, so ``--no-noise`` gives the same scaling.
+
+**Chirp timing.** A TI chirp must hold the ADC window in its ramp: ``adc_start_time (6 µs) +
+N/f_s + 1 µs``; Table I's 600 samples at 10 Msps (60 µs) do not fit its 50 µs chirp.
+:func:`dca1000_radar` keeps the slope, N and f_s (which set the beat signal and the range axis)
+and lengthens ``chirp_period`` to the ramp plus ≥ 3 µs idle, rounded up to a whole µs (Table I:
+70 µs; only the velocity axis changes). It also rounds the slope to the device's programmable
+step (``slope_step``), so that the slope the importer reads back is the one simulated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from dsp import RadarConfig, db_to_linear
+
+from ..model.capture import Capture
+from .emulate_raw import AdcImpairments, EmulatedCapture, Recording, write_raw_capture
+from .errors import MeasuredFormatError
+from .sweep_schedule import SweepSchedule, write_sweep_schedule
+from .ti_config import TiChirpConfig, slope_step
+
+__all__ = ["FULL_SCALE_OVER_NOISE", "ADC_START_TIME", "RAMP_MARGIN", "MIN_IDLE", "EmulatedExperiment",
+           "dca1000_radar", "full_scale", "emulate_capture"]
+
+FULL_SCALE_OVER_NOISE = 1e4
+"""Input amplitude of the top ADC code, in units of the nominal noise rms."""
+ADC_START_TIME = 6e-6
+RAMP_MARGIN = 1e-6
+MIN_IDLE = 3e-6
+PREFIX = "adc_data"
+SCHEDULE_NAME = "sweep.toml"
+
+
+@dataclass(frozen=True)
+class EmulatedExperiment:
+    """What :func:`emulate_capture` wrote: the raw capture, the ``.cfg``, the schedule and the scaling."""
+
+    folder: Path
+    raw: EmulatedCapture
+    schedule_path: Path
+    schedule: SweepSchedule
+    full_scale: float
+    counts_per_unit: float
+
+    @property
+    def raw_path(self) -> Path:
+        """The first raw file (``adc_data_Raw_0.bin``)."""
+        return self.raw.files[0]
+
+    @property
+    def config_path(self) -> Path:
+        return self.raw.cfg_path
+
+
+def dca1000_radar(radar: RadarConfig) -> RadarConfig:
+    """``radar`` with a chirp period a TI device can run and its slope on the device's step (see the module doc)."""
+    step = slope_step(radar.carrier_frequency)
+    slope = round(radar.slope / step) * step
+    out = replace(radar, bandwidth=slope * radar.chirp_duration)
+    ramp = ADC_START_TIME + radar.adc_window + RAMP_MARGIN
+    if radar.chirp_interval < ramp + MIN_IDLE * (1 - 1e-9):
+        period = math.ceil((ramp + MIN_IDLE) * 1e6 - 1e-6) * 1e-6
+        frame = None if radar.frame_period is None else max(radar.frame_period, radar.num_chirps * period)
+        out = replace(out, chirp_period=period, frame_period=frame)
+    return out
+
+
+def full_scale(radar: RadarConfig) -> float:
+    """Input amplitude of the top ADC code: ``FULL_SCALE_OVER_NOISE`` × √(noise power) [√W]."""
+    return FULL_SCALE_OVER_NOISE * math.sqrt(db_to_linear(radar.noise_power_dbm - 30.0))
+
+
+def _sweep_schedule(angles_deg: np.ndarray, **fields) -> SweepSchedule:
+    """The schedule, as an azimuth grid (start/stop/step) when the sweep is one, else the explicit list."""
+    az, el = angles_deg[:, 0], angles_deg[:, 1]
+    if len(az) >= 2 and np.ptp(el) < 1e-9:
+        step = (az[-1] - az[0]) / (len(az) - 1)
+        if step > 0 and np.allclose(np.diff(az), step, rtol=0, atol=1e-9):
+            try:
+                return SweepSchedule.azimuth(round(float(az[0]), 9), round(float(az[-1]), 9), round(float(step), 9),
+                                             elevation_deg=round(float(el[0]), 9), **fields)
+            except MeasuredFormatError:
+                pass
+    return SweepSchedule(angles_deg=tuple((float(a), float(e)) for a, e in angles_deg), **fields)
+
+
+def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16, dropped_packets_rate: float = 0.0,
+                    dc_offset: complex = 0j, iq_gain_db: float = 0.0,
+                    rng: np.random.Generator | None = None) -> EmulatedExperiment:
+    """Write ``capture`` as a DCA1000 recording of one RIS sweep into ``folder`` (see the module doc).
+
+    Parameters
+    ----------
+    capture : Capture
+        One frame per beam; its radar must fit a TI chirp (:func:`dca1000_radar` before simulating).
+    folder : path
+        Created if missing; refused if it already holds ``adc_data*`` files or ``sweep.toml``.
+    adc_bits : {12, 14, 16}
+    dropped_packets_rate : float
+        Probability that a UDP packet is lost (0 … 1); > 0 writes the packet-recorded form.
+    dc_offset : complex
+        ADC DC offset [LSB counts].
+    iq_gain_db : float
+        Q/I gain imbalance [dB].
+    rng : numpy.random.Generator, optional
+        Needed when packets are dropped.
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise MeasuredFormatError(f"{folder} is a file; give a folder for the DCA1000 capture (-o FOLDER)")
+    if folder.is_dir():
+        clash = sorted(p.name for p in folder.iterdir() if p.name.startswith(PREFIX) or p.name == SCHEDULE_NAME)
+        if clash:
+            raise MeasuredFormatError(f"{folder} already holds {', '.join(clash[:3])}; risloc does not overwrite a "
+                                      "capture: give a new or empty folder, or remove those files")
+    if adc_bits not in (12, 14, 16):
+        raise MeasuredFormatError(f"adc_bits={adc_bits} must be 12, 14 or 16 (the xWR ADC's resolutions)")
+    if not 0.0 <= dropped_packets_rate < 1.0:
+        raise MeasuredFormatError(f"dropped_packets_rate={dropped_packets_rate} must lie in [0, 1)")
+    if capture.radar.frames_per_beam != 1:
+        raise MeasuredFormatError(f"the capture has frames_per_beam={capture.radar.frames_per_beam}; the emulator "
+                                  "writes one frame per beam (frames_per_beam=1)")
+    radar = capture.radar
+    try:
+        cfg = TiChirpConfig.from_radar(radar, rx_mask=0b0001, tx_order=(0b001,), adc_start_time=ADC_START_TIME,
+                                       ramp_margin=RAMP_MARGIN, num_frames=capture.cube.shape[0],
+                                       adc_bits=adc_bits, adc_format="complex1x")
+    except MeasuredFormatError as exc:
+        raise MeasuredFormatError(f"{exc} (simulate with risloc_rt.measured.emulate_capture.dca1000_radar(radar))") \
+            from None
+    fs = full_scale(radar)
+    counts = 2.0 ** (adc_bits - 1) / fs
+    impairments = AdcImpairments(full_scale=fs, dc_offset=complex(dc_offset) / counts, iq_gain_imbalance_db=iq_gain_db)
+    recording = Recording(form="packets" if dropped_packets_rate > 0 else "raw", lanes=2,
+                          drop_probability=dropped_packets_rate, prefix=PREFIX)
+    folder.mkdir(parents=True, exist_ok=True)
+    cube = np.asarray(capture.cube)[:, :, None, :]
+    raw = write_raw_capture(cube, cfg, folder, recording=recording, impairments=impairments, convention="paper",
+                            rng=rng)
+    ris = capture.ris
+    truth = None if capture.truth is None else tuple(float(x) for x in capture.truth.ue_position)
+    schedule = _sweep_schedule(
+        np.rad2deg(capture.sweep.angles),
+        frames_per_beam=1, first_frame=0, channel=0,
+        ris_position=tuple(float(x) for x in ris.pose.position),
+        ris_facing=tuple(float(x) for x in ris.pose.position + ris.pose.normal),
+        loopback_delay_ns=float(ris.loopback_delay * 1e9), ris_mode=ris.mode, ris_rows=ris.num_rows,
+        ris_columns=ris.num_columns, ris_element_spacing=float(ris.element_spacing),
+        relay_rx_angle_deg=tuple(float(x) for x in np.rad2deg(ris.relay_rx_angle)),
+        truth_ue_position=truth)
+    path = write_sweep_schedule(schedule, folder / SCHEDULE_NAME, comment=(
+        f"risloc simulate --format dca1000: {schedule.num_beams} beams, one frame each from frame 0; "
+        f"full scale {fs:.6g} sqrt(W) = 2^{adc_bits - 1} counts"))
+    return EmulatedExperiment(folder=folder, raw=raw, schedule_path=path, schedule=schedule, full_scale=fs,
+                              counts_per_unit=counts)

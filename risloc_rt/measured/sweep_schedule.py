@@ -1,0 +1,360 @@
+"""Sweep schedule files: which recorded frames belong to which RIS beam, and the RIS the DSP needs.
+
+A measured RIS sweep is a plain DCA1000 recording; the radar does not know the RIS's beam. The
+schedule (TOML, ``docs/formats.md`` "Sweep schedule files") says where the sweep starts in the
+recording, how many frames each beam lasts, the beam angles, the virtual channel to localize
+with, the RIS pose and hardware, and optionally the truth::
+
+    frames_per_beam = 1
+    first_frame = 0
+    channel = 0
+
+    [sweep]
+    start_deg = -45.0
+    stop_deg = 45.0
+    step_deg = 1.5
+    elevation_deg = 0.0          # or: angles_deg = [[-45.0, 0.0], [-43.5, 0.0], ...]
+
+    [ris]
+    position = [0.0, 13.38, 0.0]
+    facing = [0.0, 0.0, 0.0]
+    loopback_delay_ns = 1.78
+    mode = "relay"
+    rows = 16
+    columns = 4
+
+    [truth]                      # optional
+    ue_position = [0.0, 0.0, 0.0]
+
+Every bad value raises a one-line :class:`MeasuredFormatError` naming the file, the key and
+the fix; unknown keys are refused with a did-you-mean.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._files import atomic_write_bytes
+from .errors import MeasuredFormatError
+
+__all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
+           "write_sweep_schedule"]
+
+_TOP = ("frames_per_beam", "first_frame", "channel", "sweep", "ris", "truth")
+_SWEEP = ("start_deg", "stop_deg", "step_deg", "elevation_deg", "angles_deg")
+_RIS = ("position", "facing", "loopback_delay_ns", "mode", "rows", "columns", "element_spacing",
+        "relay_rx_angle_deg", "yaw_deg")
+_TRUTH = ("ue_position",)
+
+
+@dataclass(frozen=True)
+class SweepSchedule:
+    """A parsed sweep schedule (degrees and metres, as in the file).
+
+    Attributes
+    ----------
+    angles_deg : tuple of (az, el)
+        RIS beam of each of the M sweep steps, RIS frame [deg].
+    frames_per_beam : int
+        Recorded frames per beam (>= 1); the import takes the first frame of each beam.
+    first_frame : int or None
+        Index of the sweep's first frame in the recording; ``None`` is ``"auto"`` (not supported yet).
+    channel : int
+        Virtual channel used for localization.
+    ris_position, ris_facing : tuple of 3 floats
+        RIS centre and the point its broadside faces, world frame [m].
+    loopback_delay_ns : float
+        τ_RB [ns].
+    ris_mode : {"relay", "reflective"}
+    ris_rows, ris_columns : int
+    ris_element_spacing : float or None
+        Element pitch [m]; None: λ/2 at 60 GHz (``RisConfig``'s default).
+    relay_rx_angle_deg : tuple of 2 floats
+        Fixed relay Rx beam [az, el] [deg].
+    yaw_deg : float
+        Extra panel rotation about world up [deg] (``dsp.RisPose.facing``'s yaw).
+    grid : tuple (start, stop, step, elevation) or None
+        The azimuth grid the angles came from (kept so that the file can be written back the same way).
+    truth_ue_position : tuple of 3 floats or None
+    """
+
+    angles_deg: tuple[tuple[float, float], ...]
+    frames_per_beam: int
+    first_frame: int | None
+    ris_position: tuple[float, float, float]
+    ris_facing: tuple[float, float, float]
+    loopback_delay_ns: float
+    ris_mode: str = "relay"
+    ris_rows: int = 16
+    ris_columns: int = 4
+    channel: int = 0
+    ris_element_spacing: float | None = None
+    relay_rx_angle_deg: tuple[float, float] = (0.0, 0.0)
+    yaw_deg: float = 0.0
+    grid: tuple[float, float, float, float] | None = None
+    truth_ue_position: tuple[float, float, float] | None = None
+
+    @classmethod
+    def azimuth(cls, start_deg: float, stop_deg: float, step_deg: float, *, elevation_deg: float = 0.0,
+                **fields: Any) -> "SweepSchedule":
+        """A schedule of an azimuth grid (checked as the parser checks it); ``fields`` are the other attributes."""
+        angles, grid = _angles({"start_deg": start_deg, "stop_deg": stop_deg, "step_deg": step_deg,
+                                "elevation_deg": elevation_deg}, "SweepSchedule.azimuth")
+        return cls(angles_deg=angles, grid=grid, **fields)
+
+    @property
+    def num_beams(self) -> int:
+        """M, the number of beams of the sweep."""
+        return len(self.angles_deg)
+
+    def frame_indices(self) -> np.ndarray:
+        """Recorded frame of each beam: ``first_frame + m·frames_per_beam`` [M] (int64)."""
+        if self.first_frame is None:
+            raise MeasuredFormatError(
+                "first_frame = \"auto\" is not supported yet: give the first sweep frame, e.g. first_frame = 0 "
+                "(the index of the first frame of the first beam in the recording)")
+        return self.first_frame + self.frames_per_beam * np.arange(self.num_beams, dtype=np.int64)
+
+    @property
+    def frames_needed(self) -> int:
+        """Frames the recording must hold: ``first_frame + (M − 1)·frames_per_beam + 1``."""
+        return int(self.frame_indices()[-1]) + 1
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON dictionary in the file's own layout (for provenance)."""
+        return _as_document(self)
+
+
+# ---------------------------------------------------------------------------------------------- parse
+
+def _where(source: str, key: str) -> str:
+    return f"{source}: {key}"
+
+
+def _check_keys(table: dict[str, Any], allowed: tuple[str, ...], source: str, prefix: str) -> None:
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.5)
+            hint = f"did you mean {prefix}{close[0]!r}?" if close else f"allowed: {', '.join(allowed)}"
+            raise MeasuredFormatError(f"{source}: unknown key {prefix}{key!r}; {hint}")
+
+
+def _int(value: Any, source: str, key: str, *, minimum: int, fix: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise MeasuredFormatError(f"{_where(source, key)} = {value!r} must be an integer >= {minimum}; {fix}")
+    return int(value)
+
+
+def _float(value: Any, source: str, key: str, *, fix: str, minimum: float | None = None,
+           positive: bool = False) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if ok and positive and not value > 0:
+        ok = False
+    if ok and minimum is not None and value < minimum:
+        ok = False
+    if not ok:
+        need = "a finite number" + (" > 0" if positive else f" >= {minimum:g}" if minimum is not None else "")
+        raise MeasuredFormatError(f"{_where(source, key)} = {value!r} must be {need}; {fix}")
+    return float(value)
+
+
+def _vector(value: Any, source: str, key: str, size: int, *, fix: str) -> tuple[float, ...]:
+    if (not isinstance(value, list) or len(value) != size
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
+        raise MeasuredFormatError(f"{_where(source, key)} = {value!r} must be a list of {size} finite numbers; {fix}")
+    return tuple(float(v) for v in value)
+
+
+def _table(doc: dict[str, Any], name: str, source: str, *, required: bool) -> dict[str, Any] | None:
+    value = doc.get(name)
+    if value is None:
+        if required:
+            raise MeasuredFormatError(f"{source}: the [{name}] table is missing; add it (docs/formats.md, "
+                                      "\"Sweep schedule files\")")
+        return None
+    if not isinstance(value, dict):
+        raise MeasuredFormatError(f"{source}: {name} must be a table [{name}], got {value!r}")
+    return value
+
+
+def _angles(sweep: dict[str, Any], source: str) -> tuple[tuple[tuple[float, float], ...],
+                                                         tuple[float, float, float, float] | None]:
+    grid_keys = [k for k in ("start_deg", "stop_deg", "step_deg", "elevation_deg") if k in sweep]
+    if "angles_deg" in sweep:
+        if grid_keys:
+            raise MeasuredFormatError(f"{source}: sweep.angles_deg and sweep.{grid_keys[0]} both give the beams; "
+                                      "keep one: an explicit list or start_deg/stop_deg/step_deg")
+        raw = sweep["angles_deg"]
+        fix = "give sweep.angles_deg = [[az, el], ...] in degrees, one pair per beam"
+        if not isinstance(raw, list) or not raw:
+            raise MeasuredFormatError(f"{_where(source, 'sweep.angles_deg')} = {raw!r} must be a non-empty list; {fix}")
+        pairs = tuple(_vector(p, source, f"sweep.angles_deg[{i}]", 2, fix=fix) for i, p in enumerate(raw))
+        return tuple((a, e) for a, e in pairs), None
+    missing = [k for k in ("start_deg", "stop_deg", "step_deg") if k not in sweep]
+    if missing:
+        raise MeasuredFormatError(f"{source}: sweep.{missing[0]} is missing; give start_deg, stop_deg and step_deg "
+                                  "(an azimuth sweep) or angles_deg = [[az, el], ...]")
+    fix = "angles in degrees, e.g. start_deg = -45.0, stop_deg = 45.0, step_deg = 1.5"
+    start = _float(sweep["start_deg"], source, "sweep.start_deg", fix=fix)
+    stop = _float(sweep["stop_deg"], source, "sweep.stop_deg", fix=fix)
+    step = _float(sweep["step_deg"], source, "sweep.step_deg", fix=fix, positive=True)
+    elevation = _float(sweep.get("elevation_deg", 0.0), source, "sweep.elevation_deg", fix=fix)
+    if stop < start:
+        raise MeasuredFormatError(f"{source}: sweep.stop_deg = {stop:g} is below sweep.start_deg = {start:g}; "
+                                  "give the azimuths in increasing order")
+    count = (stop - start) / step
+    n = int(round(count))
+    if abs(count - n) > 1e-6:
+        raise MeasuredFormatError(f"{source}: sweep.step_deg = {step:g} does not divide stop_deg - start_deg = "
+                                  f"{stop - start:g} ({count:.6g} steps); choose a step that lands on stop_deg")
+    az = np.linspace(start, stop, n + 1)
+    return tuple((float(a), elevation) for a in az), (start, stop, step, elevation)
+
+
+def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> SweepSchedule:
+    """Parse the TOML text of a sweep schedule (see the module docstring)."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MeasuredFormatError(f"{source}: not valid TOML ({exc}); check quotes, brackets and '=' signs") from None
+    _check_keys(doc, _TOP, source, "")
+    if "frames_per_beam" not in doc:
+        raise MeasuredFormatError(f"{source}: frames_per_beam is missing; add e.g. frames_per_beam = 1 (recorded "
+                                  "frames per RIS beam)")
+    fpb = _int(doc["frames_per_beam"], source, "frames_per_beam", minimum=1,
+               fix="give the number of recorded frames the RIS holds each beam, e.g. frames_per_beam = 1")
+    if "first_frame" not in doc:
+        raise MeasuredFormatError(f"{source}: first_frame is missing; add the index of the sweep's first frame in "
+                                  "the recording, e.g. first_frame = 0")
+    first: int | None
+    if doc["first_frame"] == "auto":
+        first = None
+    else:
+        first = _int(doc["first_frame"], source, "first_frame", minimum=0,
+                     fix="give the index of the sweep's first frame in the recording (0-based), or \"auto\"")
+    channel = _int(doc.get("channel", 0), source, "channel", minimum=0,
+                   fix="give the virtual channel index v = chirp·num_rx + rx used for localization, e.g. channel = 0")
+
+    sweep = _table(doc, "sweep", source, required=True)
+    _check_keys(sweep, _SWEEP, source, "sweep.")
+    angles, grid = _angles(sweep, source)
+
+    ris = _table(doc, "ris", source, required=True)
+    _check_keys(ris, _RIS, source, "ris.")
+    for key in ("position", "facing", "loopback_delay_ns"):
+        if key not in ris:
+            raise MeasuredFormatError(f"{source}: ris.{key} is missing; add it (docs/formats.md, \"Sweep schedule "
+                                      "files\": position and facing [m], loopback_delay_ns)")
+    position = _vector(ris["position"], source, "ris.position", 3, fix="give the RIS centre [x, y, z] in metres")
+    facing = _vector(ris["facing"], source, "ris.facing", 3,
+                     fix="give the point the RIS broadside faces [x, y, z] in metres")
+    if np.allclose(position, facing):
+        raise MeasuredFormatError(f"{source}: ris.facing equals ris.position; give a point the panel faces, "
+                                  "e.g. the radar's position")
+    delay = _float(ris["loopback_delay_ns"], source, "ris.loopback_delay_ns", minimum=0.0,
+                   fix="give the RIS's receive-to-transmit delay τ_RB in nanoseconds, e.g. 1.78")
+    mode = ris.get("mode", "relay")
+    if mode not in ("relay", "reflective"):
+        raise MeasuredFormatError(f"{_where(source, 'ris.mode')} = {mode!r} must be \"relay\" or \"reflective\"")
+    rows = _int(ris.get("rows", 16), source, "ris.rows", minimum=1, fix="give the elements along azimuth, e.g. 16")
+    columns = _int(ris.get("columns", 4), source, "ris.columns", minimum=1,
+                   fix="give the elements along elevation, e.g. 4")
+    spacing = None
+    if "element_spacing" in ris:
+        spacing = _float(ris["element_spacing"], source, "ris.element_spacing", positive=True,
+                         fix="give the element pitch in metres, e.g. 0.0025")
+    rx = _vector(ris.get("relay_rx_angle_deg", [0.0, 0.0]), source, "ris.relay_rx_angle_deg", 2,
+                 fix="give the relay Rx beam [az, el] in degrees")
+    yaw = _float(ris.get("yaw_deg", 0.0), source, "ris.yaw_deg", fix="give the panel yaw in degrees")
+
+    truth = _table(doc, "truth", source, required=False)
+    ue = None
+    if truth is not None:
+        _check_keys(truth, _TRUTH, source, "truth.")
+        if "ue_position" not in truth:
+            raise MeasuredFormatError(f"{source}: [truth] needs ue_position = [x, y, z] [m]; add it or remove [truth]")
+        ue = _vector(truth["ue_position"], source, "truth.ue_position", 3,
+                     fix="give the radar's true position [x, y, z] in metres")
+    return SweepSchedule(angles_deg=angles, frames_per_beam=fpb, first_frame=first, ris_position=position,
+                         ris_facing=facing, loopback_delay_ns=delay, ris_mode=mode, ris_rows=rows,
+                         ris_columns=columns, channel=channel, ris_element_spacing=spacing,
+                         relay_rx_angle_deg=(rx[0], rx[1]), yaw_deg=yaw, grid=grid, truth_ue_position=ue)
+
+
+def read_sweep_schedule(path: str | Path) -> SweepSchedule:
+    """Read a sweep schedule file (TOML); errors name the file and the key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MeasuredFormatError(f"sweep schedule {path} does not exist; give the .toml written with the "
+                                  "recording (docs/formats.md, \"Sweep schedule files\")") from None
+    except UnicodeDecodeError:
+        raise MeasuredFormatError(f"{path}: not a UTF-8 text file; a sweep schedule is TOML text") from None
+    return parse_sweep_schedule(text, source=str(path))
+
+
+# ---------------------------------------------------------------------------------------------- format
+
+def _as_document(s: SweepSchedule) -> dict[str, Any]:
+    doc: dict[str, Any] = {"frames_per_beam": s.frames_per_beam,
+                           "first_frame": "auto" if s.first_frame is None else s.first_frame,
+                           "channel": s.channel}
+    if s.grid is not None:
+        doc["sweep"] = {"start_deg": s.grid[0], "stop_deg": s.grid[1], "step_deg": s.grid[2],
+                        "elevation_deg": s.grid[3]}
+    else:
+        doc["sweep"] = {"angles_deg": [list(p) for p in s.angles_deg]}
+    ris: dict[str, Any] = {"position": list(s.ris_position), "facing": list(s.ris_facing),
+                           "loopback_delay_ns": s.loopback_delay_ns, "mode": s.ris_mode, "rows": s.ris_rows,
+                           "columns": s.ris_columns}
+    if s.ris_element_spacing is not None:
+        ris["element_spacing"] = s.ris_element_spacing
+    if tuple(s.relay_rx_angle_deg) != (0.0, 0.0):
+        ris["relay_rx_angle_deg"] = list(s.relay_rx_angle_deg)
+    if s.yaw_deg:
+        ris["yaw_deg"] = s.yaw_deg
+    doc["ris"] = ris
+    if s.truth_ue_position is not None:
+        doc["truth"] = {"ue_position": list(s.truth_ue_position)}
+    return doc
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v)  # shortest round-trip text
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None) -> str:
+    """The TOML text of ``schedule``; ``parse_sweep_schedule(format_sweep_schedule(s)) == s``."""
+    doc = _as_document(schedule)
+    lines = [f"# {line}" for line in (comment or "risloc sweep schedule (docs/formats.md)").splitlines()]
+    for key in ("frames_per_beam", "first_frame", "channel"):
+        lines.append(f"{key} = {_toml_value(doc[key])}")
+    for table in ("sweep", "ris", "truth"):
+        if table in doc:
+            lines.append("")
+            lines.append(f"[{table}]")
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in doc[table].items())
+    return "\n".join(lines) + "\n"
+
+
+def write_sweep_schedule(schedule: SweepSchedule, path: str | Path, *, comment: str | None = None) -> Path:
+    """Write :func:`format_sweep_schedule` to ``path`` atomically; returns the path."""
+    return atomic_write_bytes(path, format_sweep_schedule(schedule, comment=comment).encode("utf-8"))
