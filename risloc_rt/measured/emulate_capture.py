@@ -10,7 +10,7 @@
 
 **Full scale.** The top ADC code 2^(b−1) (2¹⁵ for the default 16 bits) is reached by an input
 amplitude of ``FULL_SCALE_OVER_NOISE = 1e4`` × the nominal noise rms √(k T B F), i.e. the
-radar's ``noise_power_dbm`` (Table I: −63.64 dBm → σ = 2.07e-5 √W, full scale 0.207 √W). The
+radar's ``noise_power_dbm`` (Table I: −63.64 dBm → σ = 2.08e-5 √W, full scale 0.208 √W). The
 complex noise then sits at 2¹⁵/1e4 ≈ 3.3 LSB rms (2.3 LSB per I and Q rail): quantization adds
 1/12 LSB² per rail, −18 dB below the noise; the RIS return and the panel's reflection stay far
 below clipping (80 dB of headroom above the noise). The full scale follows the nominal noise,
