@@ -297,11 +297,14 @@ def residual_test(
 ) -> tuple[float, float] | None:
     """Is there a second return within half a resolution cell of the fitted tone?
 
-    The per-beam least-squares tone at (f₁, f₂) is removed and the residual DTFT is evaluated at
-    the 8 points ±½ un-padded bin around it, summed over the beams with |A_m| >= ``min_weight``
-    (static returns removed as in :func:`refine_estimate`). With one tone the residual is noise
-    only: ``Σ_m |R_m|²/σ²_cell`` is at most Gamma(M', 1) (less, as the fit removed part of it),
-    and the test flags when its maximum exceeds the Gamma(M', 1) level of probability pfa/8.
+    The per-beam least-squares tone at (f₁, f₂) is removed and the residual of the Hann-windowed
+    DTFT is evaluated at the 8 points ±½ un-padded bin around it, summed over the beams with
+    |A_m| >= ``min_weight`` (static returns removed as in :func:`refine_estimate`). The window
+    keeps returns that are resolved (two or more cells away, e.g. multipath legs of the loop-back)
+    from leaking into the test through the rectangular window's -13 dB sidelobes. With one tone
+    the residual is noise only: ``Σ_m |R_m|²/σ²_cell`` (σ²_cell of the windowed sum) is at most
+    Gamma(M', 1) (less, as the fit removed part of it), and the test flags when its maximum
+    exceeds the Gamma(M', 1) level of probability pfa/8.
 
     Parameters
     ----------
@@ -320,9 +323,8 @@ def residual_test(
     -------
     (statistic, threshold) when the test fires, else None.
     """
+    import scipy.signal
     import scipy.special
-
-    from .pattern import dirichlet
 
     arr = np.asarray(cube, dtype=complex)
     m, k, n = arr.shape
@@ -333,15 +335,20 @@ def residual_test(
     k_idx = np.arange(k) - (k - 1) / 2.0
     offs1 = np.array([-0.5, 0.0, 0.5]) / n
     offs2 = np.array([-0.5, 0.0, 0.5]) / k
-    bn = _bases(f1, n_idx, offs1).T  # [N, 3]
-    bk = _bases(f2, k_idx, offs2)  # [3, K]
+    wn = scipy.signal.get_window("hann", n, fftbins=False)
+    wk = scipy.signal.get_window("hann", k, fftbins=False)
+    bn = _bases(f1, n_idx, offs1).T * wn[:, None]  # [N, 3]
+    bk = _bases(f2, k_idx, offs2) * wk[None, :]  # [3, K]
     g = _contract(arr, bn, sel)  # [M', K, 3]
     if far.sum() >= 4:
         g = g - (arr.mean(axis=0, where=far[:, None, None]) @ bn)[None]
     z = np.einsum("bk,mka->mab", bk, g)  # [M', 3, 3]
-    kernel = np.outer(n * dirichlet(2 * np.pi * offs1, n), k * dirichlet(2 * np.pi * offs2, k))  # [3, 3]
-    resid = z - (z[:, 1, 1] / (k * n))[:, None, None] * kernel[None]
-    stat = (np.abs(resid) ** 2).sum(axis=0) / cell_noise  # [3, 3]
+    # windowed DTFT of a unit tone at (f1, f2), seen at the offsets: the fitted tone's footprint
+    kernel = np.outer(np.exp(-2j * np.pi * np.outer(offs1, n_idx)) @ wn,
+                      np.exp(-2j * np.pi * np.outer(offs2, k_idx)) @ wk)  # [3, 3]
+    resid = z - (z[:, 1, 1] / kernel[1, 1])[:, None, None] * kernel[None]
+    window_noise = cell_noise * float(np.sum(wn**2) * np.sum(wk**2)) / (k * n)
+    stat = (np.abs(resid) ** 2).sum(axis=0) / window_noise  # [3, 3]
     stat[1, 1] = 0.0
     thr = float(scipy.special.gammainccinv(sel.size, pfa / 8.0))
     best = float(stat.max())
