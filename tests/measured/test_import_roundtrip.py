@@ -14,7 +14,7 @@ from dsp import ProcessingConfig, RadarConfig
 from risloc_rt.cli import main
 from risloc_rt.io.capture_file import load_capture
 from risloc_rt.io.report import process_capture
-from risloc_rt.measured import (AdcImpairments, dca1000_radar, emulate_capture, format_sweep_schedule,
+from risloc_rt.measured import (AdcImpairments, Recording, dca1000_radar, emulate_capture, format_sweep_schedule,
                                 import_capture, read_sdk_cfg, read_sweep_schedule, write_raw_capture)
 from risloc_rt.measured.emulate_capture import full_scale
 from risloc_rt.model.builder import analytic_scenario
@@ -158,3 +158,32 @@ def test_auto_first_frame_is_refused(experiment, tmp_path, capsys):
     assert main(["capture", "import", str(exp.raw_path), "--config", str(exp.config_path), "--sweep", str(path),
                  "-o", str(tmp_path / "d.npz")]) == 2
     assert "not supported yet: give the first sweep frame" in _error_line(capsys)
+
+
+def test_lanes_and_iq_swap_flags_reach_the_reader(experiment, tmp_path, capsys):
+    sim, exp = experiment
+    cfg = read_sdk_cfg(exp.config_path).config
+    folder = tmp_path / "swapped"
+    folder.mkdir()
+    raw = write_raw_capture(sim.cube[:, :, None, :], cfg, folder, recording=Recording(lanes=4, iq_swap=True),
+                            impairments=AdcImpairments(full_scale=full_scale(sim.radar)))
+    base = ["capture", "import", str(raw.files[0]), "--config", str(raw.cfg_path), "--sweep", str(exp.schedule_path)]
+    assert main([*base, "-o", str(tmp_path / "a.npz"), "--lanes", "4", "--iq-swap"]) == 0
+    assert main([*base, "-o", str(tmp_path / "b.npz")]) == 0            # read as 2 lanes, I first: scrambled
+    direct = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
+    np.testing.assert_array_equal(load_capture(tmp_path / "a.npz").cube, direct.cube)
+    assert not np.array_equal(load_capture(tmp_path / "b.npz").cube, direct.cube)
+    prov = load_capture(tmp_path / "a.npz").provenance["reader"]
+    assert prov["lanes"] == 4 and prov["iq_swap"] is True
+
+
+def test_dropped_packets_are_reported_and_the_sweep_still_localizes(experiment, tmp_path):
+    sim, _ = experiment
+    exp = emulate_capture(sim, tmp_path / "lossy", dropped_packets_rate=0.003, rng=np.random.default_rng(3))
+    assert exp.raw.dropped_sequences
+    cap = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
+    reader = cap.provenance["reader"]
+    assert reader["form"] == "packets" and reader["dropped_packets"] and reader["damaged_beams"]
+    assert sum(d["count"] for d in reader["dropped_packets"]) == len(exp.raw.dropped_sequences)
+    loc, _ = process_capture(cap)
+    assert abs(np.rad2deg(loc.aod[0]) - AOD_DEG[0]) <= 1.5
