@@ -19,6 +19,7 @@ from typing import Literal
 
 import numpy as np
 
+from .._files import atomic_write_bytes
 from .errors import MeasuredFormatError, check_float, check_int
 from .files import SplitWriter
 from .layout import Convention, RawLayout, encode_frames
@@ -267,7 +268,8 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
     stream = stream[:stream.size - recording.truncate_bytes]
     cfg = config.with_frames(F)
     cfg_path = folder / f"{recording.prefix}.cfg"
-    cfg_path.write_text(format_sdk_cfg(cfg, comment=f"written by risloc_rt.measured.emulate_raw: {layout.describe()}"))
+    atomic_write_bytes(cfg_path, format_sdk_cfg(
+        cfg, comment=f"written by risloc_rt.measured.emulate_raw: {layout.describe()}").encode("utf-8"))
     if recording.form == "raw":
         with SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size) as writer:
             writer.write(stream.data)
