@@ -244,16 +244,16 @@ def format_case(case: CaseResult) -> str:
     pm = lambda value, sigma, f: value if sigma is None or not np.isfinite(sigma) else f"{value} ± {f(sigma)}"  # noqa: E731
     rows = [("quantity", "truth", "estimate", "error")]
     rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-",
-                 pm(f"{loc.distance:.4f}", std and std.distance, lambda x: f"{x:.4f}"),
+                 pm(f"{loc.distance:.4f}", std and std.distance, lambda x: f"{x:.2g}"),
                  f"{err['distance']:+.4f}" if err else "-"))
     rows.append(("velocity [m/s]", f"{truth.velocity:+.3f}" if truth else "-",
-                 pm(f"{loc.velocity:+.3f}", std and std.velocity, lambda x: f"{x:.3f}"),
+                 pm(f"{loc.velocity:+.3f}", std and std.velocity, lambda x: f"{x:.2g}"),
                  f"{err['velocity']:+.3f}" if err else "-"))
     rows.append(("AoD [az, el]", deg(truth.aod) if truth else "-",
                  pm(deg(loc.aod), std and std.aod[0], lambda x: f"{np.rad2deg(x):.2f}° az"),
                  f"{np.rad2deg(err['angle']):.2f}°" if err else "-"))
     rows.append(("position [m]", fmt3(truth.ue_position) if truth else "-",
-                 pm(fmt3(loc.position), std and std.peb, lambda x: f"{x:.4f}"),
+                 pm(fmt3(loc.position), std and std.peb, lambda x: f"{x:.2g}"),
                  f"{err['position']:.4f} m" if err else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {loc.scan.num_beams})"
