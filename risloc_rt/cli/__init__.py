@@ -100,7 +100,7 @@ def _command(args: argparse.Namespace | None) -> str:
     if args is None:
         return "risloc"
     verb = getattr(args, "command", None) or ""
-    sub = getattr(args, "scene_command", None)
+    sub = getattr(args, "scene_command", None) or getattr(args, "capture_command", None)
     return " ".join(["risloc", verb] + ([sub] if sub else []))
 
 

@@ -41,4 +41,4 @@ def test_plot_and_text_summary(tmp_path, capsys):
 def test_bad_layouts_are_one_line_errors(capsys, argv, message):
     assert main(["capture", "inspect", str(RAW), *argv]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("risloc capture: error: ") and message in err and err.count("\n") == 1
+    assert err.startswith("risloc capture inspect: error: ") and message in err and err.count("\n") == 1
