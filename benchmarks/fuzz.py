@@ -55,7 +55,10 @@ def _expected_errors() -> tuple[type, ...]:
     from risloc_rt.authoring.scene_folder import SceneError
     from risloc_rt.io.capture_file import CaptureFormatError
 
-    return (CaptureFormatError, SpecError, SceneError, BudgetError, ValueError, TypeError, FileNotFoundError)
+    from risloc_rt.measured import MeasuredFormatError
+
+    return (CaptureFormatError, SpecError, SceneError, BudgetError, MeasuredFormatError, ValueError, TypeError,
+            FileNotFoundError)
 
 
 class Workspace:
@@ -266,6 +269,54 @@ def run_path_file(inp: tuple[str, Any], ws: Workspace) -> str:
     return "correct" if ok else "wrong"
 
 
+def gen_raw(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    """A DCA1000 capture (plain or packet-recorded) with damaged bytes, and sometimes a damaged .cfg."""
+    form = "raw" if rng.integers(2) == 0 else "packets"
+    data = ws.raw_bytes[form]  # type: ignore[attr-defined]
+    cfg = ws.raw_cfg_text  # type: ignore[attr-defined]
+    if rng.integers(4) == 0:
+        cfg = _mutate_text(rng, cfg)
+    else:
+        data = _mutate_bytes(rng, data)
+    return form, (data, cfg)
+
+
+def _mutate_text(rng: np.random.Generator, text: str) -> str:
+    lines = text.splitlines()
+    i = int(rng.integers(len(lines)))
+    words = lines[i].split()
+    kind = rng.integers(4)
+    if kind == 0 and len(words) > 1:  # a weird value
+        words[int(rng.integers(1, len(words)))] = str(_weird(rng))
+    elif kind == 1:  # drop a line
+        words = []
+    elif kind == 2 and len(words) > 1:  # drop an argument
+        words.pop(int(rng.integers(1, len(words))))
+    else:  # duplicate a line, or garbage
+        words = words + words if rng.integers(2) else [rng.bytes(8).decode("latin-1")]
+    lines[i] = " ".join(words)
+    return "\n".join(lines) + "\n"
+
+
+def run_raw(inp: tuple[str, Any], ws: Workspace) -> str:
+    from risloc_rt.measured import RawLayout, read_raw, read_sdk_cfg
+
+    data, cfg_text = inp[1]
+    bin_path, cfg_path = ws.path("fuzz_Raw_0.bin"), ws.path("fuzz.cfg")
+    bin_path.write_bytes(data)
+    cfg_path.write_text(cfg_text, encoding="latin-1")
+    layout = RawLayout.from_config(read_sdk_cfg(cfg_path).config)
+    raw = read_raw(bin_path, layout, form=inp[0])
+    ref = ws.raw_cube  # type: ignore[attr-defined]
+    # Oracle: a decoded capture has the configured shape, finite samples, and every frame that is
+    # neither damaged (zero-filled) nor touched by the mutation equals the reference frame.
+    if raw.cube.shape[1:] != layout.cube_shape(1)[1:] or not np.all(np.isfinite(raw.cube)):
+        return "wrong"
+    if layout != ws.raw_layout or data != ws.raw_bytes[inp[0]]:  # type: ignore[attr-defined]
+        return "correct"  # a changed layout or changed samples decode to other, legitimate numbers
+    return "correct" if raw.cube.shape == ref.shape and np.array_equal(raw.cube, ref) else "wrong"
+
+
 ENTRY_POINTS: dict[str, tuple[Callable, Callable]] = {
     "capture .npz": (gen_capture, run_capture),
     "scene spec (TOML)": (gen_spec, run_spec),
@@ -273,6 +324,7 @@ ENTRY_POINTS: dict[str, tuple[Callable, Callable]] = {
     "trace-cache entry": (gen_cache, run_cache),
     "path file": (gen_path_file, run_path_file),
     "CLI arguments": (gen_cli, run_cli),
+    "raw DCA1000 + .cfg": (gen_raw, run_raw),
 }
 
 
@@ -320,6 +372,26 @@ def _init_workspace(ws: Workspace, folder: Path) -> None:
                                   timing={"solve": 1.0}, settings=TraceSettings(), radar_velocity=np.zeros(3))
     ws.cache_bytes = ws.cache.store(ws.cache_key, ws.cache_result).read_bytes()
     ws.path_file_bytes = _path_file_bytes(folder)
+    _init_raw(ws, folder)
+
+
+def _init_raw(ws: Workspace, folder: Path) -> None:
+    """A small DCA1000 capture (3 frames, 8 loops, 4 Rx, 32 samples), plain and packet-recorded."""
+    import dsp
+    from risloc_rt.measured import RawLayout, Recording, TiChirpConfig, read_raw, write_raw_capture
+
+    cfg = TiChirpConfig.from_radar(dsp.RadarConfig(num_samples=32, num_chirps=8))
+    rng = np.random.default_rng(7)
+    cube = 0.01 * (rng.standard_normal((3, 8, cfg.num_virtual, 32)) + 1j * rng.standard_normal((3, 8, cfg.num_virtual, 32)))
+    ws.raw_bytes = {}
+    for form in ("raw", "packets"):
+        out = folder / f"dca_{form}"
+        out.mkdir(exist_ok=True)
+        em = write_raw_capture(cube, cfg, out, recording=Recording(form=form), rng=np.random.default_rng(1))
+        ws.raw_bytes[form] = em.files[0].read_bytes()
+        ws.raw_cfg_text = em.cfg_path.read_text()
+    ws.raw_layout = RawLayout.from_config(cfg.with_frames(3))
+    ws.raw_cube = read_raw(folder / "dca_raw" / em.files[0].name, ws.raw_layout, form="raw").cube
 
 
 def _path_file_bytes(folder: Path) -> bytes:

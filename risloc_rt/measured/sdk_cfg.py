@@ -37,6 +37,11 @@ SKIPPED = frozenset({
 })
 
 
+#: Highest chirp-configuration index of the xWR14xx/16xx/18xx/68xx devices (512 chirp configurations).
+MAX_CHIRP_INDEX = 511
+#: Most loops a frameCfg may ask for on these devices.
+MAX_LOOPS = 255
+
 @dataclass(frozen=True)
 class ParsedSdkCfg:
     """Result of :func:`parse_sdk_cfg`.
@@ -196,10 +201,14 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
     start_idx, end_idx = _integer(args[0], wf, "chirpStartIdx"), _integer(args[1], wf, "chirpEndIdx")
     num_loops, num_frames = _integer(args[2], wf, "numLoops"), _integer(args[3], wf, "numFrames")
     period = _number(args[4], wf, "framePeriodicity") / 1e3
+    for what, idx in (("chirpStartIdx", start_idx), ("chirpEndIdx", end_idx)):
+        if not 0 <= idx <= MAX_CHIRP_INDEX:
+            raise MeasuredFormatError(f"{wf}: frameCfg {what}={idx} is outside 0…{MAX_CHIRP_INDEX} (the devices hold "
+                                      f"{MAX_CHIRP_INDEX + 1} chirp configurations)")
     if end_idx < start_idx:
         raise MeasuredFormatError(f"{wf}: frameCfg chirpEndIdx={end_idx} < chirpStartIdx={start_idx}")
-    if num_loops < 1:
-        raise MeasuredFormatError(f"{wf}: frameCfg numLoops={num_loops} must be >= 1")
+    if not 1 <= num_loops <= MAX_LOOPS:
+        raise MeasuredFormatError(f"{wf}: frameCfg numLoops={num_loops} must be 1…{MAX_LOOPS}")
     if num_frames < 0:
         raise MeasuredFormatError(f"{wf}: frameCfg numFrames={num_frames} must be >= 0 (0 = until stopped)")
 
@@ -207,6 +216,9 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
     for lnc, a in chirp_lines:
         wc = f"{source}:{lnc}"
         lo, hi = _integer(a[0], wc, "startIdx"), _integer(a[1], wc, "endIdx")
+        if not (0 <= lo <= MAX_CHIRP_INDEX and 0 <= hi <= MAX_CHIRP_INDEX):
+            raise MeasuredFormatError(f"{wc}: chirpCfg startIdx={lo}, endIdx={hi} must lie in 0…{MAX_CHIRP_INDEX} "
+                                      f"(the devices hold {MAX_CHIRP_INDEX + 1} chirp configurations)")
         if hi < lo:
             raise MeasuredFormatError(f"{wc}: chirpCfg endIdx={hi} < startIdx={lo}")
         for idx in range(lo, hi + 1):

@@ -54,6 +54,18 @@ def test_arbitrary_bytes_as_capture_path_file_and_cache_entry(ws, data):
 
 
 @SETTINGS
+@given(data=st.binary(max_size=4000), form=st.sampled_from(["raw", "packets"]))
+def test_arbitrary_bytes_as_a_dca1000_capture(ws, data, form):
+    assert _outcome("raw DCA1000 + .cfg", (form, (data, ws.raw_cfg_text)), ws) in GOOD
+
+
+@SETTINGS
+@given(text=st.text(max_size=400))
+def test_arbitrary_text_as_an_sdk_cfg(ws, text):
+    assert _outcome("raw DCA1000 + .cfg", ("raw", (ws.raw_bytes["raw"], text)), ws) in GOOD
+
+
+@SETTINGS
 @given(text=st.text(max_size=400))
 def test_arbitrary_text_as_spec(ws, text):
     assert _outcome("scene spec (TOML)", ("toml", text), ws) in GOOD

@@ -61,3 +61,27 @@ def test_error_is_one_line_and_a_value_error(cfg_text):
     with pytest.raises(ValueError) as info:
         parse_sdk_cfg(cfg_text.replace("adcCfg 2 1", "adcCfg 2"))
     assert "\n" not in str(info.value) and ":6: adcCfg takes 2 arguments" in str(info.value)
+
+
+@pytest.mark.parametrize("line, message", [
+    ("chirpCfg 0 60e9 0 0 0 0 0 1", "must lie in 0…511"),      # found by fuzzing: 6e10 chirps hung the parser
+    ("chirpCfg -3 0 0 0 0 0 0 1", "must lie in 0…511"),
+])
+def test_chirp_indices_are_bounded_before_anything_is_built(line, message):
+    from risloc_rt.measured import TiChirpConfig
+    import dsp
+
+    text = format_sdk_cfg(TiChirpConfig.from_radar(dsp.RadarConfig(num_samples=32, num_chirps=8)))
+    bad = "\n".join(line if ln.startswith("chirpCfg") else ln for ln in text.splitlines())
+    with pytest.raises(MeasuredFormatError, match=message):
+        parse_sdk_cfg(bad)
+
+
+def test_loop_count_is_bounded():
+    from risloc_rt.measured import TiChirpConfig
+    import dsp
+
+    text = format_sdk_cfg(TiChirpConfig.from_radar(dsp.RadarConfig(num_samples=32, num_chirps=8)))
+    bad = "\n".join("frameCfg 0 0 100000 3 0.4 1 0" if ln.startswith("frameCfg") else ln for ln in text.splitlines())
+    with pytest.raises(MeasuredFormatError, match=r"numLoops=100000 must be 1…255"):
+        parse_sdk_cfg(bad)
