@@ -22,11 +22,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: Subpackage -> floor. ``risloc_rt._version``, ``risloc_rt._files`` and the root package (lazy re-exports) sit below all.
+#: Subpackage -> floor. ``risloc_rt._version``, ``_files``, ``_lazy`` and the root package (lazy re-exports) sit below all.
 FLOORS = {
     "dsp": 0,
     "risloc_rt._version": 0,
     "risloc_rt._files": 0,
+    "risloc_rt._lazy": 0,
     "risloc_rt.model": 1,
     "risloc_rt.authoring": 2,
     "risloc_rt.hall": 3,

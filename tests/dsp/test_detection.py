@@ -21,25 +21,23 @@ SWEEP = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-21.0, 21.0, 3.0]))  # M = 15
 PATTERN = dsp.BeamPattern().for_wavelength(RADAR.wavelength)
 
 
-def tone(radar, tau, nu):
-    """exp(-j2π((Sτ + f_c ν) n T_s + f_c ν k T)) of eq. (1), [K, N]."""
-    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
-    f2 = radar.carrier_frequency * nu * radar.chirp_interval
-    k, n = radar.num_chirps, radar.num_samples
-    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
-
-
 def noise(shape, rng, power=1.0):
     return (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) * np.sqrt(power / 2)
 
 
-def ris_cube(rng, *, distance=5.0, velocity=0.4, az=np.deg2rad(4.3), peak_snr=10 ** 2.5):
-    """RIS tone across the sweep (amplitude β|A_m|, random phase per beam) + unit noise."""
-    m, k, n = SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples
-    tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
-    amp = np.abs(PATTERN.amplitude([az, 0.0], SWEEP.angles)) * np.sqrt(peak_snr / (k * n))
-    cube = (amp * np.exp(2j * np.pi * rng.random(m)))[:, None, None] * tone(RADAR, tau, nu)[None]
-    return cube + noise(cube.shape, rng), tau, nu
+@pytest.fixture
+def ris_cube(tone):
+    """The local cube factory, closing over the ``tone`` fixture."""
+
+    def ris_cube(rng, *, distance=5.0, velocity=0.4, az=np.deg2rad(4.3), peak_snr=10 ** 2.5):
+        """RIS tone across the sweep (amplitude β|A_m|, random phase per beam) + unit noise."""
+        m, k, n = SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples
+        tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
+        amp = np.abs(PATTERN.amplitude([az, 0.0], SWEEP.angles)) * np.sqrt(peak_snr / (k * n))
+        cube = (amp * np.exp(2j * np.pi * rng.random(m)))[:, None, None] * tone(RADAR, tau, nu)[None]
+        return cube + noise(cube.shape, rng), tau, nu
+
+    return ris_cube
 
 
 def test_threshold_gives_the_stated_probability_for_iid_gamma_cells():
@@ -63,7 +61,7 @@ def test_false_alarm_rate_on_noise_only_cubes_matches_the_stated_pfa():
     assert detected / trials < pfa + tol  # the sweep-modulation test can only remove crossings
 
 
-def test_static_clutter_of_any_strength_leaves_the_false_alarm_rate_unchanged():
+def test_static_clutter_of_any_strength_leaves_the_false_alarm_rate_unchanged(tone):
     rng = np.random.default_rng(12)
     trials, pfa = 800, 0.1
     shape = (SWEEP.num_beams, RADAR.num_chirps, RADAR.num_samples)
@@ -75,7 +73,7 @@ def test_static_clutter_of_any_strength_leaves_the_false_alarm_rate_unchanged():
     assert abs(crossed / trials - pfa) < 3 * np.sqrt(pfa * (1 - pfa) / trials)
 
 
-def test_strong_ris_return_is_detected_in_its_cell():
+def test_strong_ris_return_is_detected_in_its_cell(ris_cube):
     rng = np.random.default_rng(13)
     for _ in range(20):
         cube, tau, nu = ris_cube(rng, distance=rng.uniform(2, 15), velocity=rng.uniform(-2, 2))
@@ -88,7 +86,7 @@ def test_strong_ris_return_is_detected_in_its_cell():
         assert det.snr_db > det.threshold_db
 
 
-def test_detection_probability_rises_with_snr():
+def test_detection_probability_rises_with_snr(ris_cube):
     rng = np.random.default_rng(14)
     rates = []
     for snr_db in (0.0, 20.0):
@@ -97,7 +95,7 @@ def test_detection_probability_rises_with_snr():
     assert rates[0] < 0.2 and rates[1] == 1.0
 
 
-def test_beam_independent_return_with_moving_phase_is_rejected_by_the_sweep_modulation_test():
+def test_beam_independent_return_with_moving_phase_is_rejected_by_the_sweep_modulation_test(tone):
     # A clutter return of constant amplitude whose phase changes from frame to frame (a moving
     # radar) survives the mean removal, but its power does not follow the sweep.
     rng = np.random.default_rng(15)
@@ -108,7 +106,7 @@ def test_beam_independent_return_with_moving_phase_is_rejected_by_the_sweep_modu
     assert not det.detected and det.rejected >= 1  # ...but it is not the RIS
 
 
-def test_to_dict_has_exactly_the_four_keys():
+def test_to_dict_has_exactly_the_four_keys(ris_cube):
     det = dsp.detect(ris_cube(np.random.default_rng(1))[0], RADAR)
     assert set(det.to_dict()) == {"detected", "snr_db", "threshold_db", "false_alarm_probability"}
     assert det.to_dict()["false_alarm_probability"] == dsp.detection.DEFAULT_PFA
@@ -127,6 +125,6 @@ def test_bad_cubes_get_one_line_errors(cube, match):
         dsp.detect(cube, RADAR)
 
 
-def test_pfa_must_be_a_probability():
+def test_pfa_must_be_a_probability(ris_cube):
     with pytest.raises(ValueError, match="pfa"):
         dsp.detect(ris_cube(np.random.default_rng(2))[0], RADAR, pfa=1.5)

@@ -21,17 +21,16 @@ SWEEP = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-21.0, 21.0, 3.0]))  # M = 15
 RELAY = dsp.BeamPattern().for_wavelength(RADAR.wavelength)
 
 
-def tone(radar, tau, nu):
-    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
-    f2 = radar.carrier_frequency * nu * radar.chirp_interval
-    k, n = radar.num_chirps, radar.num_samples
-    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
+@pytest.fixture
+def ris_cube(tone):
+    """The local cube factory, closing over the ``tone`` fixture."""
 
+    def ris_cube(*, tau, nu, aod, pattern=RELAY, sweep=SWEEP, amplitude=1.0, phases=None):
+        a = pattern.amplitude(aod, sweep.angles)
+        ph = np.ones(sweep.num_beams) if phases is None else np.exp(1j * phases)
+        return (amplitude * np.abs(a) * ph)[:, None, None] * tone(RADAR, tau, nu)[None]
 
-def ris_cube(*, tau, nu, aod, pattern=RELAY, sweep=SWEEP, amplitude=1.0, phases=None):
-    a = pattern.amplitude(aod, sweep.angles)
-    ph = np.ones(sweep.num_beams) if phases is None else np.exp(1j * phases)
-    return (amplitude * np.abs(a) * ph)[:, None, None] * tone(RADAR, tau, nu)[None]
+    return ris_cube
 
 
 def refine(cube, tau0, nu0, pattern=RELAY, sweep=SWEEP, **kw):
@@ -52,7 +51,7 @@ def test_pattern_peaks_at_the_steered_beam_and_has_the_reflective_grating_lobe()
     assert RELAY.amplitude([np.arcsin(1 / 8), 0.0], np.zeros((1, 2)))[0] == pytest.approx(0.0, abs=1e-12)
 
 
-def test_noiseless_off_grid_tone_is_recovered_exactly():
+def test_noiseless_off_grid_tone_is_recovered_exactly(ris_cube):
     tau, nu = 2 * 7.3217 / C + 1.78e-9, 2 * (-0.731) / C
     aod = np.array([np.deg2rad(4.567), 0.0])
     cube = ris_cube(tau=tau, nu=nu, aod=aod, phases=np.random.default_rng(0).uniform(0, 6.3, 15))
@@ -65,7 +64,7 @@ def test_noiseless_off_grid_tone_is_recovered_exactly():
     assert est.amplitude == pytest.approx(1.0, rel=1e-6)
 
 
-def test_aod_between_two_beams_is_interpolated_not_picked():
+def test_aod_between_two_beams_is_interpolated_not_picked(ris_cube):
     aod = np.array([np.deg2rad(1.5), 0.0])  # halfway between the beams at 0° and 3°
     tau, nu = 2 * 5.0 / C, 0.0
     est = refine(ris_cube(tau=tau, nu=nu, aod=aod), tau, nu)
@@ -74,7 +73,7 @@ def test_aod_between_two_beams_is_interpolated_not_picked():
     assert abs(fit.aod[0] - aod[0]) < 1e-7 and fit.candidates.shape[1] == 2
 
 
-def test_static_return_nearby_does_not_pull_the_delay():
+def test_static_return_nearby_does_not_pull_the_delay(tone, ris_cube):
     # A beam-independent return 3 resolution cells nearer and 20 dB stronger than the RIS peak.
     tau, nu = 2 * 9.0 / C + 1.78e-9, 0.0
     aod = np.array([np.deg2rad(-6.2), 0.0])
@@ -89,7 +88,7 @@ def test_static_return_nearby_does_not_pull_the_delay():
     assert err_without > 100 * err_with  # the leakage is real, and the template removes it
 
 
-def test_two_dimensional_sweep_estimates_elevation():
+def test_two_dimensional_sweep_estimates_elevation(ris_cube):
     grid = np.deg2rad([[az, el] for el in (-20.0, -10.0, 0.0, 10.0, 20.0) for az in np.arange(-12.0, 12.1, 3.0)])
     sweep = dsp.BeamSweep(grid)
     aod = np.deg2rad([2.2, 7.3])
@@ -98,7 +97,7 @@ def test_two_dimensional_sweep_estimates_elevation():
     assert np.all(np.abs(est.aod.aod - aod) < 1e-5)
 
 
-def test_beam_dtft_magnitude_is_the_tone_amplitude_times_kn():
+def test_beam_dtft_magnitude_is_the_tone_amplitude_times_kn(ris_cube):
     tau, nu = 2 * 4.0 / C, 2 * 0.2 / C
     aod = np.array([0.05, 0.0])
     mags, f1, f2 = dsp.beam_dtft(ris_cube(tau=tau, nu=nu, aod=aod, amplitude=2.0), RADAR, tau, nu)

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
-from pathlib import Path
-from typing import Any, Callable
 
 import numpy as np
 import pytest
@@ -20,21 +17,6 @@ from risloc_rt.model.simulate import simulate
 def capture(make_scenario) -> Capture:
     scenario = make_scenario(mode="reflective", yaw=np.deg2rad(-12.0), ue_velocity=(0.5, -1.5, 0.0))
     return simulate(scenario, rng=np.random.default_rng(99), seed=99)
-
-
-def rewrite(path: Path, *, drop: tuple[str, ...] = (), meta: Callable[[dict], Any] | None = None,
-            arrays: dict[str, np.ndarray] | None = None) -> Path:
-    """Rewrite a capture's .npz without ``drop``, with ``meta`` applied to its JSON metadata."""
-    with np.load(path, allow_pickle=False) as f:
-        content = {k: f[k] for k in f.files if k not in drop}
-    if meta is not None and "metadata" in content:
-        block = json.loads(str(content["metadata"]))
-        meta(block)
-        content["metadata"] = np.array(json.dumps(block))
-    content.update(arrays or {})
-    out = path.with_name("edited.npz")
-    np.savez(out, **content)
-    return out
 
 
 def test_round_trip_preserves_everything(capture, tmp_path):
@@ -76,14 +58,14 @@ def test_capture_without_truth_round_trips(capture, tmp_path):
 
 
 @pytest.mark.parametrize("array", ["beam_angles", "cube", "frame_index", "metadata"])
-def test_missing_array_is_named(capture, tmp_path, array):
+def test_missing_array_is_named(capture, tmp_path, array, rewrite):
     path = rewrite(save_capture(capture, tmp_path / "run"), drop=(array,))
     with pytest.raises(CaptureFormatError, match=rf"missing array\(s\) \['{array}'\]"):
         load_capture(path)
 
 
 @pytest.mark.parametrize("key", ["radar", "ris", "processing", "provenance", "truth"])
-def test_missing_metadata_block_is_named(capture, tmp_path, key):
+def test_missing_metadata_block_is_named(capture, tmp_path, key, rewrite):
     path = rewrite(save_capture(capture, tmp_path / "run"), meta=lambda m: m.pop(key))
     with pytest.raises(CaptureFormatError, match=rf"metadata is missing \['{key}'\]"):
         load_capture(path)
@@ -92,14 +74,14 @@ def test_missing_metadata_block_is_named(capture, tmp_path, key):
 @pytest.mark.parametrize("block, field", [("radar", "bandwidth"), ("radar", "chirp_duration"),
                                           ("processing", "n_dft"), ("ris", "loopback_delay"),
                                           ("truth", "aod")])
-def test_missing_field_is_named(capture, tmp_path, block, field):
+def test_missing_field_is_named(capture, tmp_path, block, field, rewrite):
     # Nothing is taken from a default on reading: a missing field is an error naming it.
     path = rewrite(save_capture(capture, tmp_path / "run"), meta=lambda m: m[block].pop(field))
     with pytest.raises(CaptureFormatError, match=rf"{block}: missing field\(s\) \['{field}'\]"):
         load_capture(path)
 
 
-def test_wrong_format_or_version(capture, tmp_path):
+def test_wrong_format_or_version(capture, tmp_path, rewrite):
     saved = save_capture(capture, tmp_path / "run")
     with pytest.raises(CaptureFormatError, match="not 'risloc-capture'"):
         load_capture(rewrite(saved, meta=lambda m: m.update(format="something-else")))
@@ -107,7 +89,7 @@ def test_wrong_format_or_version(capture, tmp_path):
         load_capture(rewrite(saved, meta=lambda m: m.update(version=2)))
 
 
-def test_inconsistent_shapes(capture, tmp_path):
+def test_inconsistent_shapes(capture, tmp_path, rewrite):
     saved = save_capture(capture, tmp_path / "run")
     # Metadata says N = 64, the cube has 128 samples per chirp.
     with pytest.raises(CaptureFormatError, match="N=64 samples"):

@@ -4,13 +4,11 @@ memory bounds, concurrent and interrupted writers."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import multiprocessing
 import os
 import signal
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,31 +19,13 @@ from risloc_rt.model.capture import Capture
 from risloc_rt.model.simulate import simulate
 
 
-@pytest.fixture
-def capture(make_scenario) -> Capture:
-    return simulate(make_scenario(), rng=np.random.default_rng(1), seed=1)
-
-
-def _rewrite(path: Path, meta=None, arrays=None) -> Path:
-    with np.load(path, allow_pickle=False) as f:
-        content = {k: f[k] for k in f.files}
-    if meta is not None:
-        block = json.loads(str(content["metadata"]))
-        meta(block)
-        content["metadata"] = np.array(json.dumps(block))
-    content.update(arrays or {})
-    out = path.with_name("edited.npz")
-    np.savez(out, **content)
-    return out
-
-
 @pytest.mark.parametrize("dtype", [np.float64, np.float32, np.int16, np.bool_])
-def test_issue_11_real_integer_boolean_cubes_are_refused(capture, tmp_path, dtype):
+def test_issue_11_real_integer_boolean_cubes_are_refused(capture, tmp_path, dtype, rewrite):
     # Defect 2: a real ADC cube was cast to complex and localized 5.5 m off; now refused, never guessed.
     with pytest.raises(TypeError, match="real-valued.*analytic signal"):
         dataclasses.replace(capture, cube=capture.cube.real.astype(dtype))
     path = save_capture(capture, tmp_path / "c.npz")
-    bad = _rewrite(path, arrays={"cube": capture.cube.real.astype(dtype)})
+    bad = rewrite(path, arrays={"cube": capture.cube.real.astype(dtype)})
     with pytest.raises(CaptureFormatError, match="cube has dtype .*complex64 or complex128"):
         load_capture(bad)
 
@@ -78,24 +58,25 @@ def test_issue_11_flipped_bytes_and_truncation_are_format_errors(capture, tmp_pa
     ("radar", "num_chirps", 16.5, "integer"),
     ("processing", "k_dft", "4793", "must be a number"),
 ])
-def test_issue_11_absurd_metadata_values_are_refused_with_units(capture, tmp_path, block, field, value, match):
+def test_issue_11_absurd_metadata_values_are_refused_with_units(capture, tmp_path, block, field, value, match,
+                                                               rewrite):
     path = save_capture(capture, tmp_path / "c.npz")
-    bad = _rewrite(path, meta=lambda m: m[block].__setitem__(field, value))
+    bad = rewrite(path, meta=lambda m: m[block].__setitem__(field, value))
     with pytest.raises(CaptureFormatError, match=match):
         load_capture(bad)
 
 
-def test_issue_11_unknown_top_level_key_suggests_the_nearest(capture, tmp_path):
+def test_issue_11_unknown_top_level_key_suggests_the_nearest(capture, tmp_path, rewrite):
     path = save_capture(capture, tmp_path / "c.npz")
-    bad = _rewrite(path, meta=lambda m: m.__setitem__("proccessing", {}))
+    bad = rewrite(path, meta=lambda m: m.__setitem__("proccessing", {}))
     with pytest.raises(CaptureFormatError, match="did you mean 'processing'"):
         load_capture(bad)
 
 
-def test_issue_11_huge_k_dft_is_refused_before_allocating(capture, tmp_path, monkeypatch):
+def test_issue_11_huge_k_dft_is_refused_before_allocating(capture, tmp_path, monkeypatch, rewrite):
     # Defect 4: k_dft = 1e9 grew to 17 GB and hung; now refused naming the parameter, estimate and limit.
     path = save_capture(capture, tmp_path / "c.npz")
-    bad = _rewrite(path, meta=lambda m: m["processing"].__setitem__("k_dft", 10**9))
+    bad = rewrite(path, meta=lambda m: m["processing"].__setitem__("k_dft", 10**9))
     with pytest.raises(BudgetError, match=r"k_dft=1000000000.*needs about .*iB of memory, more than the limit"):
         load_capture(bad)
     monkeypatch.setenv("RISLOC_MEMORY_LIMIT", "1K")

@@ -11,8 +11,8 @@ first use, and sionna-rt itself only inside the functions that need it, after
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+from ..._lazy import lazy_exports
 
 _EXPORTS = {
     "BackendError": "backend",
@@ -41,14 +41,4 @@ if TYPE_CHECKING:  # pragma: no cover
     from .tracer import trace_scene
 
 
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
