@@ -15,7 +15,8 @@ from risloc_rt.cli import main
 from risloc_rt.io.capture_file import load_capture
 from risloc_rt.io.report import process_capture
 from risloc_rt.measured import (AdcImpairments, Recording, dca1000_radar, emulate_capture, format_sweep_schedule,
-                                import_capture, read_sdk_cfg, read_sweep_schedule, write_raw_capture)
+                                import_capture, parse_sweep_schedule, read_sdk_cfg, read_sweep_schedule,
+                                write_raw_capture)
 from risloc_rt.measured.emulate_capture import full_scale
 from risloc_rt.model.builder import analytic_scenario
 from risloc_rt.model.simulate import simulate
@@ -131,33 +132,23 @@ def test_missing_raw_file(experiment, tmp_path, capsys):
     assert not (tmp_path / "c.npz").exists()
 
 
-def test_bad_schedule_key(experiment, tmp_path, capsys):
-    _, exp = experiment
-    bad = tmp_path / "sweep.toml"
-    bad.write_text(exp.schedule_path.read_text().replace("frames_per_beam", "frame_per_beam"))
-    assert main(["capture", "import", str(exp.raw_path), "--config", str(exp.config_path), "--sweep", str(bad),
-                 "-o", str(tmp_path / "c.npz")]) == 2
-    assert "did you mean 'frames_per_beam'" in _error_line(capsys)
+def _late(text: str) -> str:
+    return format_sweep_schedule(replace(parse_sweep_schedule(text), first_frame=4))
 
 
-def test_too_few_frames(experiment, tmp_path, capsys):
+@pytest.mark.parametrize("edit, message", [
+    (lambda text: text.replace("frames_per_beam", "frame_per_beam"), "did you mean 'frames_per_beam'"),
+    (_late, "holds 61 whole frame(s) but the sweep schedule needs 65"),
+    (lambda text: text.replace("first_frame = 0", 'first_frame = "auto"'), "not supported yet: give the first sweep frame"),
+], ids=["misspelt-key", "too-few-frames", "auto-first-frame"])
+def test_bad_schedules_are_one_line_errors(experiment, tmp_path, capsys, edit, message):
     _, exp = experiment
-    sched = replace(read_sweep_schedule(exp.schedule_path), first_frame=4)
-    path = tmp_path / "late.toml"
-    path.write_text(format_sweep_schedule(sched))
+    path = tmp_path / "sweep.toml"
+    path.write_text(edit(exp.schedule_path.read_text()))
     assert main(["capture", "import", str(exp.raw_path), "--config", str(exp.config_path), "--sweep", str(path),
                  "-o", str(tmp_path / "c.npz")]) == 2
-    err = _error_line(capsys)
-    assert "holds 61 whole frame(s) but the sweep schedule needs 65" in err
-
-
-def test_auto_first_frame_is_refused(experiment, tmp_path, capsys):
-    _, exp = experiment
-    path = tmp_path / "auto.toml"
-    path.write_text(exp.schedule_path.read_text().replace("first_frame = 0", 'first_frame = "auto"'))
-    assert main(["capture", "import", str(exp.raw_path), "--config", str(exp.config_path), "--sweep", str(path),
-                 "-o", str(tmp_path / "d.npz")]) == 2
-    assert "not supported yet: give the first sweep frame" in _error_line(capsys)
+    assert message in _error_line(capsys)
+    assert not (tmp_path / "c.npz").exists()
 
 
 def test_lanes_and_iq_swap_flags_reach_the_reader(experiment, tmp_path, capsys):
