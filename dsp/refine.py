@@ -28,6 +28,7 @@ import numpy as np
 
 from ._validate import fields_equal, finite
 from .aod_fit import AodFit, fit_aod
+from .dtft_subspace import SubspaceDtft
 from .pattern import BeamPattern
 from .radar import RadarConfig
 from .sweep import BeamSweep
@@ -103,31 +104,69 @@ def _contract(cube: np.ndarray, basis: np.ndarray, beams: np.ndarray | None = No
     return out
 
 
-def _dtft_derivatives(cube: np.ndarray, f1: float, f2: float, n_idx: np.ndarray, k_idx: np.ndarray,
-                      beams: np.ndarray, template: np.ndarray | None) -> np.ndarray:
-    """Z and its derivatives in (f₁, f₂) up to order 2 per axis, [M, 3, 3]."""
-    en = _bases(f1, n_idx, np.zeros(1))[0]
-    ek = _bases(f2, k_idx, np.zeros(1))[0]
-    wn = 2j * np.pi * n_idx
-    wk = 2j * np.pi * k_idx
-    bn = np.stack([en, wn * en, wn * wn * en], axis=1)  # [N, 3]
-    bk = np.stack([ek, wk * ek, wk * wk * ek], axis=0)  # [3, K]
-    g = _contract(cube, bn, beams)  # [M', K, 3]
-    if template is not None:
-        g = g - (template @ bn)[None]
-    return np.einsum("bk,mka->mab", bk, g)  # [M, 3(a: n-order), 3(b: k-order)]
+class _Evaluator:
+    """Z_m and its derivatives near the current estimate, from subspace projections (:mod:`dsp.dtft_subspace`).
+
+    The moments are taken once around the start and again only if the estimate leaves the ±½-bin
+    region where they hold. ``far`` marks the beams whose mean is the static template.
+    """
+
+    def __init__(self, cube: np.ndarray, f1: float, f2: float) -> None:
+        self.cube = cube
+        self.passes = 0
+        self.far: np.ndarray | None = None
+        self._build(f1, f2)
+
+    def _build(self, f1: float, f2: float) -> None:
+        self.proj = SubspaceDtft(self.cube, f1, f2)
+        self.passes += 1
+
+    def _at(self, f1: float, f2: float) -> SubspaceDtft:
+        if not self.proj.covers(f1, f2):
+            self._build(f1, f2)
+        return self.proj
+
+    def template(self) -> np.ndarray | None:
+        if self.far is None:
+            return None
+        return self.proj.moments[self.far].mean(axis=0)
+
+    def magnitudes(self, f1: float, f2: float) -> np.ndarray:
+        """|Z_m(f₁, f₂)| of every beam of the raw cube [M]."""
+        return np.abs(self._at(f1, f2).evaluate(f1, f2))
+
+    def derivatives(self, f1: float, f2: float, beams: np.ndarray) -> np.ndarray:
+        """∂^{a+b}Z/∂f₁^a∂f₂^b, static template removed, [M', 3, 3]."""
+        t = self._at(f1, f2)
+        return t.evaluate(f1, f2, beams=beams, order=2, template=self.template())
+
+    def zoom(self, f1: float, f2: float, beams: np.ndarray, weights: np.ndarray, offsets: int = 5) -> tuple[float, float]:
+        """Best of an ``offsets`` × ``offsets`` grid over ±½ bin of Σ_m a_m |Z_m|."""
+        _, k, n = self.cube.shape
+        if self.proj.centre != (f1, f2):
+            self._build(f1, f2)  # the grid spans ±½ bin around (f₁, f₂)
+        t = self.proj
+        o1 = np.linspace(-0.5, 0.5, offsets) / n
+        o2 = np.linspace(-0.5, 0.5, offsets) / k
+        a, b = t.coefficients(f1 + o1, f2 + o2)  # [O, r₁], [O, r₂]
+        h = t.moments[beams]
+        tpl = self.template()
+        if tpl is not None:
+            h = h - tpl[None]
+        obj = np.einsum("m,mab->ab", weights, np.abs(np.einsum("mil,ai,bl->mab", h, a, b)))
+        i, j = np.unravel_index(int(np.argmax(obj)), obj.shape)
+        return f1 + o1[i], f2 + o2[j]
 
 
-def _newton(cube: np.ndarray, beams: np.ndarray, weights: np.ndarray, f1: float, f2: float, n_idx: np.ndarray,
-            k_idx: np.ndarray, max_iter: int, template: np.ndarray | None) -> tuple[float, float, int, bool]:
-    n, k = n_idx.size, k_idx.size
+def _newton(ev: _Evaluator, beams: np.ndarray, weights: np.ndarray, f1: float, f2: float, n: int, k: int,
+            max_iter: int) -> tuple[float, float, int, bool]:
     step_tol = (STEP_TOLERANCE / n, STEP_TOLERANCE / k)
     value_prev = None
     last = None
     it = 0
     converged = False
     for it in range(1, max_iter + 1):
-        z = _dtft_derivatives(cube, f1, f2, n_idx, k_idx, beams, template)
+        z = ev.derivatives(f1, f2, beams)
         z0 = z[:, 0, 0]
         mag = np.maximum(np.abs(z0), 1e-300)
         value = float(weights @ mag)
@@ -209,6 +248,12 @@ def refine_estimate(
     Returns
     -------
     RefinedEstimate
+
+    Notes
+    -----
+    The cube is read once (:class:`dsp.dtft_subspace.SubspaceDtft` projections around the
+    start, again only if the estimate leaves that ±½-bin region); every evaluation after that
+    costs O(M r²) with r = 10, not O(M K N).
     """
     arr = np.asarray(cube, dtype=complex)
     m, k, n = arr.shape
@@ -219,45 +264,29 @@ def refine_estimate(
     fct = radar.carrier_frequency * radar.chirp_interval
     f1 = (tau0 * radar.slope + radar.carrier_frequency * nu0) * radar.sample_period
     f2 = nu0 * fct
-    n_idx = np.arange(n) - (n - 1) / 2.0
-    k_idx = np.arange(k) - (k - 1) / 2.0
 
-    template = None
-
-    def magnitudes(ff1: float, ff2: float) -> np.ndarray:
-        # Raw cube: the template would carry the RIS's own far sidelobes (random phases) into
-        # every beam and bias the pattern fit by a fixed fraction of β, whatever the SNR.
-        en = _bases(ff1, n_idx, np.zeros(1))[0]
-        ek = _bases(ff2, k_idx, np.zeros(1))[0]
-        return np.abs((arr.reshape(m * k, n) @ en).reshape(m, k) @ ek)
-
-    fit = fit_aod(magnitudes(f1, f2), sweep, pat, elevation=elevation)
+    ev = _Evaluator(arr, f1, f2)
+    # Raw cube for the fit: the template would carry the RIS's own far sidelobes (random phases)
+    # into every beam and bias the pattern fit by a fixed fraction of β, whatever the SNR.
+    fit = fit_aod(ev.magnitudes(f1, f2), sweep, pat, elevation=elevation)
     if remove_static:
         far = np.abs(pat.amplitude(fit.aod, sweep.angles)) < 0.1
         if far.sum() >= 4:
-            template = arr.mean(axis=0, where=far[:, None, None])  # [K, N]
+            ev.far = far
     # Zoom: 5 × 5 points over ±½ bin (the start may be a cell of the un-padded grid).
     weights = np.abs(pat.amplitude(fit.aod, sweep.angles))
     sel = np.flatnonzero(weights >= min_weight * weights.max())
-    offs1 = np.linspace(-0.5, 0.5, 5) / n
-    offs2 = np.linspace(-0.5, 0.5, 5) / k
-    bz = _bases(f1, n_idx, offs1).T
-    g = _contract(arr, bz, sel)  # [M', K, 5]
-    if template is not None:
-        g = g - (template @ bz)[None]
-    zz = np.abs(np.einsum("bk,mka->mab", _bases(f2, k_idx, offs2), g))  # [M', 5, 5]
-    obj = np.einsum("m,mab->ab", weights[sel], zz)
-    a, b = np.unravel_index(int(np.argmax(obj)), obj.shape)
-    f1, f2 = f1 + offs1[a], f2 + offs2[b]
+    f1, f2 = ev.zoom(f1, f2, sel, weights[sel])
 
     iterations = 0
     converged = False
+    r = ev.magnitudes(f1, f2)
     for _ in range(max(1, int(passes))):
         weights = np.abs(pat.amplitude(fit.aod, sweep.angles))
         sel = np.flatnonzero(weights >= min_weight * weights.max())
-        f1, f2, it, converged = _newton(arr, sel, weights[sel], f1, f2, n_idx, k_idx, max_iter, template)
+        f1, f2, it, converged = _newton(ev, sel, weights[sel], f1, f2, n, k, max_iter)
         iterations += it
-        r = magnitudes(f1, f2)
+        r = ev.magnitudes(f1, f2)
         fit = fit_aod(r, sweep, pat, elevation=elevation)
     nu = f2 / fct
     # f₁ is defined modulo 1: keep the delay in [0, 1/(S T_s)).
