@@ -1,6 +1,7 @@
 """The ``risloc`` command line: one module per verb, each a thin layer over the library.
 
-``demo``, ``simulate``, ``locate``, ``trace`` and ``scene`` (``build``, ``check``, ``show``).
+``demo``, ``simulate``, ``locate``, ``trace``, ``scene`` (``build``, ``check``, ``show``), ``capture`` and
+``study`` (``sweep``, ``map``).
 
 One error style (``docs/robustness.md``): every error is one line on stderr,
 ``risloc VERB: error: ...``, naming what is wrong and how to fix it. Exit status 2 for bad input
@@ -42,7 +43,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``risloc``."""
-    from . import capture, demo, locate, scene, simulate, trace
+    from . import capture, demo, locate, scene, simulate, study, trace
 
     parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -52,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_parser(sub)
     locate.add_parser(sub)
     capture.add_parser(sub)
+    study.add_parser(sub)
     return parser
 
 
@@ -100,7 +102,8 @@ def _command(args: argparse.Namespace | None) -> str:
     if args is None:
         return "risloc"
     verb = getattr(args, "command", None) or ""
-    sub = getattr(args, "scene_command", None) or getattr(args, "capture_command", None)
+    sub = (getattr(args, "scene_command", None) or getattr(args, "capture_command", None)
+           or getattr(args, "study_command", None))
     return " ".join(["risloc", verb] + ([sub] if sub else []))
 
 

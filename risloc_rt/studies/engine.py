@@ -1,0 +1,243 @@
+"""Run a study: batches of runs on local processes or a Dask cluster, appended as they finish.
+
+Each batch is (point, first run, last run); its numbers depend only on the study seed, the point
+and the run indices (:func:`risloc_rt.studies.kernel.run_rng`), so the table is the same for any
+number of workers, any order, and after any number of restarts. A worker process that dies (killed,
+out of memory) breaks the pool: the batches it was running are retried on a fresh pool, reported,
+and after :data:`MAX_ATTEMPTS` failures the study stops with an error naming the batch. Nothing is
+dropped silently: the summary is only written when every run of every point is in the log.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from .spec import StudySpec
+from .store import RunLog
+
+__all__ = ["StudyError", "Batch", "plan_batches", "run_batch", "execute", "default_workers"]
+
+#: A batch whose worker died this many times stops the study.
+MAX_ATTEMPTS = 3
+#: Single-threaded numerical libraries in worker processes: the workers are the parallelism.
+_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class StudyError(RuntimeError):
+    """A study could not go on (a worker died too often, the cluster is unreachable, ...)."""
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Runs ``start`` … ``stop - 1`` of point ``point`` (whose parameters are ``params``)."""
+
+    point: int
+    start: int
+    stop: int
+    params: dict[str, Any] = field(hash=False, compare=False)
+
+    @property
+    def label(self) -> str:
+        return f"point {self.point} runs {self.start}-{self.stop - 1}"
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def plan_batches(spec: StudySpec, done: set[tuple[int, int]], *, workers: int) -> list[Batch]:
+    """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube)."""
+    size = max(1, min(25, math.ceil(spec.runs / max(1, 2 * workers))))
+    out: list[Batch] = []
+    for p, params in enumerate(spec.points()):
+        missing = [r for r in range(spec.runs) if (p, r) not in done]
+        i = 0
+        while i < len(missing):
+            j = i
+            while j + 1 < len(missing) and j + 1 - i < size and missing[j + 1] == missing[j] + 1:
+                j += 1
+            out.append(Batch(p, missing[i], missing[j] + 1, params))
+            i = j + 1
+    return out
+
+
+_CACHE: dict[str, Any] = {}
+
+
+def _prepared(params: dict[str, Any]) -> Any:
+    import json
+
+    from .kernel import prepare_point
+
+    key = json.dumps(params, sort_keys=True)
+    prep = _CACHE.get(key)
+    if prep is None:
+        _CACHE.clear()  # one point per worker at a time: a Table I cube is 75 MB
+        prep = _CACHE[key] = prepare_point(params)
+    return prep
+
+
+def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:
+    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable)."""
+    import numpy as np
+
+    from .kernel import run_once
+
+    prep = _prepared(params)
+    buffer = np.empty_like(prep.cube)
+    rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
+    return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds}
+
+
+def _init_worker() -> None:
+    for name in _ONE_THREAD:
+        os.environ.setdefault(name, "1")
+
+
+def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, quiet: bool = False,
+            notice: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run every missing run of ``spec`` and append it to ``log``.
+
+    Returns ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "retried": [messages],
+    "wall_seconds": s, "new_runs": n}``.
+    """
+    from tqdm import tqdm
+
+    notice = notice or (lambda msg: print(msg, file=sys.stderr))
+    batches = plan_batches(spec, log.done(), workers=workers)
+    total = spec.runs * len(spec.points())
+    done_before = sum(1 for (p, r) in log.done() if r < spec.runs)
+    info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "retried": [], "new_runs": 0}
+    start = time.perf_counter()
+    bar = tqdm(total=total, initial=done_before, unit="run", desc=spec.name, disable=quiet, smoothing=0.05,
+               dynamic_ncols=True, file=sys.stderr)
+
+    def take(result: dict[str, Any], batch: Batch) -> None:
+        log.append(result["rows"])
+        info["crb"][batch.point] = result["crb"]
+        info["prepare_seconds"][batch.point] = result["prepare_seconds"]
+        info["new_runs"] += len(result["rows"])
+        bar.update(len(result["rows"]))
+
+    def say(msg: str) -> None:
+        info["retried"].append(msg)
+        if quiet:
+            notice(msg)
+        else:
+            bar.write(msg, file=sys.stderr)
+
+    try:
+        if dask is not None:
+            _run_dask(spec, batches, dask, take, say)
+        elif workers == 1:
+            for b in batches:
+                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed), b)
+        else:
+            _run_pool(spec, batches, workers, take, say)
+        # bounds of points whose runs were all done before this start (needed by the summary)
+        for p, params in enumerate(spec.points()):
+            if p not in info["crb"]:
+                prep = _prepared(params)
+                info["crb"][p], info["prepare_seconds"][p] = prep.crb, prep.seconds
+    finally:
+        bar.close()
+    info["wall_seconds"] = time.perf_counter() - start
+    return info
+
+
+def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callable, say: Callable) -> None:
+    import multiprocessing
+
+    attempts = {b: 0 for b in batches}
+    queue = list(batches)
+    saved = {k: os.environ.get(k) for k in _ONE_THREAD}
+    for k in _ONE_THREAD:  # spawned workers read them when they import numpy
+        os.environ.setdefault(k, "1")
+    try:
+        while queue:
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_init_worker)
+            running: dict[Any, Batch] = {}
+            broken: list[Batch] = []
+            try:
+                while queue or running:
+                    while queue and len(running) < workers:  # at most one batch per worker: a death names its batch
+                        b = queue.pop(0)
+                        running[pool.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed)] = b
+                    finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                    for fut in finished:
+                        b = running.pop(fut)
+                        try:
+                            result = fut.result()
+                        except BrokenProcessPool:
+                            broken.append(b)
+                            continue
+                        take(result, b)
+                    if broken:
+                        broken += list(running.values())
+                        running.clear()
+                        break
+            finally:
+                pool.shutdown(wait=not broken, cancel_futures=True)
+            for b in broken:
+                attempts[b] += 1
+                if attempts[b] >= MAX_ATTEMPTS:
+                    raise StudyError(f"{b.label}: its worker process died {attempts[b]} times (killed or out of "
+                                     "memory); the finished runs are kept, rerun with fewer --workers to continue")
+                say(f"warning: a worker process died while running {b.label} (attempt {attempts[b]}); retrying it")
+            queue = broken + queue
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def connect_dask(address: Any, *, timeout: float = 10.0) -> Any:
+    """A ``distributed.Client`` for ``address`` (or the client given), with a one-line error when unreachable."""
+    try:
+        from distributed import Client
+    except ImportError as exc:  # pragma: no cover - a pinned dependency
+        raise StudyError(f"--dask needs the 'distributed' package ({exc}); run ./setup.sh") from None
+    if not isinstance(address, str):
+        return address
+    try:
+        return Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise StudyError(f"cannot reach the Dask scheduler at {address!r} within {timeout:g} s ({type(exc).__name__}); "
+                         "start one with 'dask scheduler' and workers with 'dask worker ADDRESS' (docs/studies.md), "
+                         "or leave out --dask to run on this machine") from None
+
+
+def _run_dask(spec: StudySpec, batches: list[Batch], address: Any, take: Callable, say: Callable) -> None:
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    client = connect_dask(address)
+    try:
+        futures = {client.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed,
+                                 key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
+                                 retries=MAX_ATTEMPTS - 1): b for b in batches}
+        for fut in as_completed(futures):
+            b = futures[fut]
+            try:
+                take(fut.result(), b)
+            except KilledWorker as exc:
+                raise StudyError(f"{b.label}: Dask workers died running it ({exc}); the finished runs are kept, "
+                                 "rerun the same command to continue") from None
+    finally:
+        if isinstance(address, str):
+            client.close()

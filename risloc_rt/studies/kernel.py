@@ -1,0 +1,188 @@
+"""One study point: its noiseless cube (made once), its Cramér–Rao bound, and one seeded run.
+
+Every run of a point shares the same paths and therefore the same noiseless beat cube, so
+:func:`prepare_point` synthesises it once; :func:`run_once` adds the run's receiver noise
+(``SeedSequence(study_seed, spawn_key=(point, run))``) and runs the public DSP,
+``dsp.self_localize``, exactly as ``risloc locate`` does on a simulated capture. Bit for bit the
+numbers equal ``simulate(..., rng) -> process_capture``'s for the noise of that stream, because
+``risloc_rt.model.add_noise`` is what ``simulate`` calls.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+import dsp
+from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig
+
+from ..model import analytic_scenario, simulate
+from ..model.beat import add_noise
+from .params import ris_size
+
+__all__ = ["PreparedPoint", "prepare_point", "run_once", "run_rng", "point_bound"]
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedPoint:
+    """What every run of one point shares.
+
+    Attributes
+    ----------
+    params : dict
+        The point (every parameter, :func:`risloc_rt.studies.params.complete_point`).
+    cube : complex128 array [M, K, N]
+        The noiseless beat cube [√W].
+    radar, sweep, processing, pose, loopback_delay, pattern
+        What ``dsp.self_localize`` needs.
+    truth : risloc_rt.model.Truth
+    crb : dict
+        1σ bounds at the true parameters: ``distance`` [m], ``angle`` (azimuth) [rad],
+        ``position`` (PEB) [m], and the post-integration ``peak_snr_db`` [dB].
+    seconds : float
+        Time to prepare it (synthesis, tracing, bound) [s].
+    """
+
+    params: dict[str, Any]
+    cube: np.ndarray
+    radar: RadarConfig
+    sweep: BeamSweep
+    processing: ProcessingConfig
+    pose: dsp.RisPose
+    loopback_delay: float
+    pattern: dsp.BeamPattern
+    truth: Any
+    crb: dict[str, float]
+    seconds: float
+
+
+def _radar_sweep_processing(p: dict[str, Any]) -> tuple[RadarConfig, BeamSweep, ProcessingConfig]:
+    radar = RadarConfig(tx_power_dbm=p["tx_power_dbm"], num_chirps=p["num_chirps"], num_samples=p["num_samples"])
+    span, step = np.deg2rad(p["sweep_span_deg"]), np.deg2rad(p["sweep_step_deg"])
+    sweep = BeamSweep.azimuth_grid(-span, span + 1e-9, step)
+    processing = ProcessingConfig(n_dft=p["n_dft"], k_dft=p["k_dft"])
+    return radar, sweep, processing
+
+
+def _analytic(p: dict[str, Any], *, structure: bool):
+    radar, sweep, processing = _radar_sweep_processing(p)
+    sc = analytic_scenario(distance=p["distance"], aod=np.deg2rad([p["aod_deg"], 0.0]), mode=p["mode"],
+                           radar=radar, sweep=sweep, processing=processing, structure=structure,
+                           name="study")
+    if p["speed"]:
+        direction = sc.ue_position - sc.ris.pose.position
+        direction /= np.linalg.norm(direction)
+        sc = replace(sc, ue_velocity=p["speed"] * direction)
+    rows, cols = ris_size(p["ris_size"])
+    if (rows, cols) != (sc.ris.num_rows, sc.ris.num_columns):
+        sc = replace(sc, ris=replace(sc.ris, num_rows=rows, num_columns=cols))
+    return sc
+
+
+def point_bound(cube_without_clutter: np.ndarray, *, radar: RadarConfig, sweep: BeamSweep, pattern: dsp.BeamPattern,
+                pose: dsp.RisPose, truth: Any, loopback_delay: float) -> dict[str, float]:
+    """The whole-sweep CRB (``dsp.sweep_crb``) at the true parameters and the true SNR.
+
+    The true post-integration SNR ρ = K N β²/σ² comes from the noiseless cube of the RIS return
+    alone: β = Σ|A_m| |Z_m| / (K N Σ A_m²) with Z_m the beams' DTFTs at the true (τ, ν), the
+    estimate ``dsp.self_localize`` uses on noisy data. Position: ``dsp.position_std`` of
+    x = x_RIS + d·R·d(az, el) with the elevation known (a 1-D sweep).
+    """
+    pat = pattern.for_wavelength(radar.wavelength)
+    tau = 2.0 * truth.distance / SPEED_OF_LIGHT + loopback_delay
+    nu = 2.0 * truth.velocity / SPEED_OF_LIGHT
+    mags, _, _ = dsp.beam_dtft(cube_without_clutter, radar, tau, nu)
+    amp = np.abs(pat.amplitude(truth.aod, sweep.angles))
+    k, n = radar.num_chirps, radar.num_samples
+    beta = float(amp @ mags / (amp @ amp)) / (k * n)
+    rho = k * n * beta**2 / radar.noise_power
+    bound = dsp.sweep_crb(radar=radar, sweep=sweep, pattern=pat, aod=truth.aod, peak_snr=max(rho, 1e-300))
+
+    def locate(x: np.ndarray) -> np.ndarray:
+        return pose.position + x[0] * pose.to_world(dsp.direction_from_angles(x[1:3]))
+
+    pos = dsp.position_std(locate, [truth.distance, *truth.aod], [bound.distance, *bound.aod])
+    return {"distance": bound.distance, "angle": float(bound.aod[0]), "position": float(np.linalg.norm(pos)),
+            "velocity": bound.velocity, "peak_snr_db": float(10 * np.log10(max(rho, 1e-300)))}
+
+
+def prepare_point(params: dict[str, Any]) -> PreparedPoint:
+    """Synthesise the noiseless cube of one point and its bound (analytic scenario or a traced hall)."""
+    start = time.perf_counter()
+    rng = np.random.default_rng(0)  # unused: noise=False
+    if params["scene"]:
+        from ..hall import hall_paths, hall_scenario
+        from ..hall.raytrace import TraceCache, TraceSettings
+
+        radar, sweep, processing = _radar_sweep_processing(params)
+        hs = hall_scenario(params["scene"], radar_index=params["radar_index"], mode=params["mode"], radar=radar,
+                           sweep=sweep, processing=processing,
+                           trace=TraceSettings(max_depth=params["depth"], samples_per_src=params["samples"]))
+        traced = hall_paths(hs, cache=TraceCache())
+        cap = simulate(hs.base, rng=rng, paths=traced.paths, noise=False)
+        clean_ris = cap.cube  # the hall's echoes are far from the RIS return (docs/studies.md)
+    else:
+        sc = _analytic(params, structure=params["structure"])
+        cap = simulate(sc, rng=rng, noise=False)
+        clean_ris = simulate(_analytic(params, structure=False), rng=rng, noise=False).cube \
+            if params["structure"] else cap.cube
+    pattern = cap.ris.beam_pattern()
+    crb = point_bound(clean_ris, radar=cap.radar, sweep=cap.sweep, pattern=pattern, pose=cap.ris.pose,
+                      truth=cap.truth, loopback_delay=cap.ris.loopback_delay)
+    return PreparedPoint(params=dict(params), cube=cap.cube, radar=cap.radar, sweep=cap.sweep,
+                         processing=cap.processing, pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay,
+                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start)
+
+
+def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
+    """The noise stream of run ``run`` of point ``point``: independent of workers and order."""
+    return np.random.default_rng(np.random.SeedSequence(study_seed, spawn_key=(point, run)))
+
+
+def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
+             buffer: np.ndarray | None = None) -> dict[str, Any]:
+    """One Monte Carlo run: the seeded noise on the point's cube, then ``dsp.self_localize``.
+
+    Returns one row of the run table: errors [m, rad], the estimate, its 1σ, detection, flags
+    and the run's time [s] (noise + DSP, one core).
+    """
+    start = time.perf_counter()
+    cube = add_noise(prep.cube, prep.radar.noise_power, run_rng(study_seed, point, run), out=buffer)
+    p = prep.params
+    loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,
+                            loopback_delay=prep.loopback_delay, estimator=p["estimator"], pattern=prep.pattern,
+                            pfa=p["pfa"])
+    seconds = time.perf_counter() - start
+    truth = prep.truth
+    detected = bool(loc.detected)
+    nan = float("nan")
+    row: dict[str, Any] = {"point": point, "run": run, "detected": detected,
+                           "snr_db": float(loc.detection.snr_db) if loc.detection is not None else nan,
+                           "flags": ",".join(c for c in loc.flag_codes), "seconds": seconds}
+    if detected:
+        true_dir = prep.pose.to_world(dsp.direction_from_angles(truth.aod))
+        # the truth at the estimate's own reference time (a moving UE: docs/estimation.md)
+        true_pos = truth.position_at(loc.reference_time) if np.isfinite(loc.reference_time) else truth.ue_position
+        true_dist = float(np.linalg.norm(true_pos - prep.pose.position))
+        row.update({
+            "distance": loc.distance, "distance_error": loc.distance - true_dist,
+            "aod_az": float(loc.aod[0]), "aod_az_error": float(loc.aod[0] - truth.aod[0]),
+            "angle_error": float(np.arccos(np.clip(loc.direction @ true_dir, -1.0, 1.0))),
+            "velocity_error": loc.velocity - truth.velocity,
+            "x": float(loc.position[0]), "y": float(loc.position[1]), "z": float(loc.position[2]),
+            "position_error": float(np.linalg.norm(loc.position - true_pos)),
+            "std_distance": loc.std.distance if loc.std is not None else nan,
+            "std_aod_az": float(loc.std.aod[0]) if loc.std is not None else nan,
+            "peb": float(loc.std.peb) if loc.std is not None else nan,
+        })
+    for key in ROW_FLOATS:
+        row.setdefault(key, nan)
+    return row
+
+
+#: The float columns of a run row (NaN without a detection).
+ROW_FLOATS = ("distance", "distance_error", "aod_az", "aod_az_error", "angle_error", "velocity_error",
+              "x", "y", "z", "position_error", "std_distance", "std_aod_az", "peb")

@@ -1,0 +1,159 @@
+"""A study folder: its manifest, the append-only run log, and the Parquet table made from it.
+
+    DIR/study.json      the spec and its key (written atomically when the study starts)
+    DIR/runs.jsonl      one JSON line per finished run, appended batch by batch and fsync'd
+    DIR/runs.parquet    the log as a table, one row per run, sorted by (point, run), with the
+                        point's parameters as columns (rewritten atomically at the end)
+    DIR/summary.json    per-point statistics (``summary.py``)
+
+Crash safety: a line is written whole with one ``write`` and then fsync'd; after a SIGKILL the
+log ends, at worst, in a torn last line, which :meth:`RunLog.open` cuts off before appending (it
+is the study's own file). A restart reads the finished (point, run) pairs and runs only the rest.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+from .._files import atomic_write_bytes
+from .spec import StudySpec
+
+__all__ = ["RunLog", "StudyFolderError", "open_study_folder", "write_parquet", "read_runs_table"]
+
+MANIFEST = "study.json"
+LOG = "runs.jsonl"
+TABLE = "runs.parquet"
+SUMMARY = "summary.json"
+
+
+class StudyFolderError(ValueError):
+    """The output folder belongs to something else (another study, or not a study at all)."""
+
+
+def _clean(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+class RunLog:
+    """The append-only JSON-lines log of finished runs."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.rows: dict[tuple[int, int], dict[str, Any]] = {}
+        self._fh: Any = None
+
+    def open(self) -> "RunLog":
+        """Read what is there (cutting off a torn last line) and open for appending."""
+        good = 0
+        if self.path.exists():
+            data = self.path.read_bytes()
+            pos = 0
+            for line in data.splitlines(keepends=True):
+                if not line.endswith(b"\n"):
+                    break
+                try:
+                    row = json.loads(line)
+                except ValueError:
+                    break
+                self.rows.setdefault((int(row["point"]), int(row["run"])), row)
+                pos += len(line)
+            good = pos
+            if good != len(data):
+                with open(self.path, "r+b") as fh:
+                    fh.truncate(good)
+                    os.fsync(fh.fileno())
+        self._fh = open(self.path, "ab")
+        return self
+
+    def done(self) -> set[tuple[int, int]]:
+        return set(self.rows)
+
+    def append(self, rows: Iterable[dict[str, Any]]) -> None:
+        """Append rows (one write, then fsync): after a crash either all or a cut-off tail remain."""
+        rows = list(rows)
+        if not rows:
+            return
+        blob = b"".join(json.dumps({k: _clean(v) for k, v in r.items()}, sort_keys=True).encode() + b"\n"
+                        for r in rows)
+        self._fh.write(blob)
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        for r in rows:
+            self.rows.setdefault((int(r["point"]), int(r["run"])), r)
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+
+def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> RunLog:
+    """Create or reopen ``out`` for ``spec``; refuse a folder of another study (or not a study) without ``force``.
+
+    With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl``; nothing is deleted.
+    """
+    out = Path(out)
+    manifest = out / MANIFEST
+    if out.exists() and not out.is_dir():
+        raise StudyFolderError(f"--out {str(out)!r} is a file, not a folder; choose a new folder")
+    if manifest.exists():
+        try:
+            old = json.loads(manifest.read_text())
+            old_key = str(old["key"])
+        except (ValueError, KeyError, TypeError):
+            old_key = "unreadable"
+        if old_key != spec.key:
+            if not force:
+                raise StudyFolderError(
+                    f"{str(out)!r} holds another study ({old.get('spec', {}).get('name', '?') if old_key != 'unreadable' else 'unreadable manifest'}, "
+                    f"key {old_key}); use a new --out folder, or --force to start this study there (the old log is kept "
+                    f"as runs-{old_key}.jsonl)")
+            if (out / LOG).exists():
+                os.replace(out / LOG, out / f"runs-{old_key}.jsonl")
+    elif out.is_dir() and any(out.iterdir()) and not force:
+        raise StudyFolderError(f"{str(out)!r} is not empty and holds no study; use a new --out folder "
+                               "(or --force to write the study's files next to what is there)")
+    out.mkdir(parents=True, exist_ok=True)
+    from .. import __version__
+
+    atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__},
+                                            indent=1, sort_keys=True).encode() + b"\n", sync=True)
+    return RunLog(out / LOG).open()
+
+
+def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str, Any]], *,
+                  study_seed: int, runs: int) -> Path:
+    """The run table (one row per run, runs < ``runs``) with each point's parameters, atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rows = sorted((r for r in rows if int(r["run"]) < runs), key=lambda r: (int(r["point"]), int(r["run"])))
+    names = sorted({k for r in rows for k in r})
+    cols: dict[str, list[Any]] = {k: [r.get(k) for r in rows] for k in names}
+    for k in ("point", "run"):
+        cols[k] = [int(v) for v in cols.get(k, [])]
+    cols["study_seed"] = [study_seed] * len(rows)
+    for name in (points[0] if points else {}):
+        cols[f"param_{name}"] = [points[int(r["point"])][name] for r in rows]
+    for k, v in cols.items():
+        if k not in ("flags",) and v and all(x is None or isinstance(x, (int, float)) and not isinstance(x, bool) for x in v) \
+                and any(isinstance(x, float) or x is None for x in v) and k not in ("point", "run", "study_seed"):
+            cols[k] = [float("nan") if x is None else float(x) for x in v]
+    table = pa.table(cols)
+    buf = io.BytesIO()
+    pq.write_table(table, buf)
+    return atomic_write_bytes(path, buf.getvalue(), sync=True)
+
+
+def read_runs_table(path: str | Path):
+    """The Parquet run table as a ``pyarrow.Table``."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(path)

@@ -1,0 +1,88 @@
+"""``run_study``: a study folder from a spec, resumable, on local processes or a Dask cluster."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .._files import atomic_write_bytes
+from .engine import default_workers, execute
+from .spec import StudySpec
+from .store import SUMMARY, TABLE, open_study_folder, write_parquet
+from .summary import summarize
+
+__all__ = ["StudyResult", "run_study"]
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """What a finished study wrote and how it went.
+
+    Attributes
+    ----------
+    summary : dict
+        The content of ``summary.json``.
+    folder : Path
+    table, summary_path, figure : Path
+        ``runs.parquet``, ``summary.json`` and the figure (None with ``figures=False``).
+    new_runs : int
+        Runs computed by this call (the rest came from the log of an earlier start).
+    wall_seconds : float
+        Wall-clock time of this call's runs [s].
+    """
+
+    summary: dict[str, Any]
+    folder: Path
+    table: Path
+    summary_path: Path
+    figure: Path | None
+    new_runs: int
+    wall_seconds: float
+
+
+def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, dask: Any = None,
+              quiet: bool = False, force: bool = False, figures: bool = True) -> StudyResult:
+    """Run (or continue) ``spec`` in folder ``out``; see ``docs/studies.md``.
+
+    Parameters
+    ----------
+    spec : StudySpec
+    out : path
+        The study folder: created, or reopened to continue the same study.
+    workers : int, optional
+        Local worker processes (default: all cores); 1 runs in this process.
+    dask : str or distributed.Client, optional
+        A Dask scheduler address (``tcp://host:8786``) or client: run the batches there instead.
+    quiet : bool
+        No progress bar.
+    force : bool
+        Reuse a folder that holds another study (its log is kept under another name).
+    figures : bool
+        Draw ``study.png``.
+    """
+    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
+        raise ValueError(f"--workers {workers} must be >= 1")
+    workers = int(workers) if workers is not None else default_workers()
+    folder = Path(out)
+    log = open_study_folder(folder, spec, force=force)
+    try:
+        info = execute(spec, log, workers=workers, dask=dask, quiet=quiet)
+        rows = list(log.rows.values())
+    finally:
+        log.close()
+    summary = summarize(spec, rows, info)
+    summary["wall_seconds"] = info["wall_seconds"]
+    summary["workers"] = "dask" if dask is not None else workers
+    table = write_parquet(folder / TABLE, rows, spec.points(), study_seed=spec.seed, runs=spec.runs)
+    from ..io.report import json_safe
+
+    path = atomic_write_bytes(folder / SUMMARY, json.dumps(json_safe(summary), indent=1).encode() + b"\n")
+    fig = None
+    if figures:
+        from .figures import plot_summary
+
+        fig = plot_summary(summary, folder / "study.png")
+    return StudyResult(summary=summary, folder=folder, table=table, summary_path=path, figure=fig,
+                       new_runs=info["new_runs"], wall_seconds=info["wall_seconds"])
