@@ -11,7 +11,8 @@ import scipy.fft
 from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig
 from .radar import SPEED_OF_LIGHT, RadarConfig
-from .spectrum import CHUNK_BYTES, check_cube, windowed_range_spectrum
+from .gridscreen import screened_scan
+from .spectrum import CHUNK_BYTES, _windows, check_cube, windowed_range_spectrum
 from .sweep import BeamSweep
 
 __all__ = ["BeamScan", "scan_beams"]
@@ -66,16 +67,6 @@ class BeamScan:
         return self.delay_rate * SPEED_OF_LIGHT / 2.0
 
 
-def _fine_bins_near(coarse_bins: np.ndarray, k_coarse: int, k_dft: int) -> np.ndarray:
-    """Fine-grid Doppler bins within one coarse bin spacing of each coarse bin (FFT order)."""
-    ratio = k_dft / k_coarse
-    centre = coarse_bins * ratio
-    reach = int(np.ceil(ratio))
-    offsets = np.arange(-reach, reach + 1)
-    fine = np.round(centre[:, None]).astype(np.int64) + offsets[None, :]
-    return np.unique(np.mod(fine, k_dft))
-
-
 def scan_beams(
     cube: Any,
     sweep: BeamSweep,
@@ -116,7 +107,6 @@ def scan_beams(
         )
     processing.check_against(radar.num_samples, radar.num_chirps)
 
-    spectrum, gain = windowed_range_spectrum(arr, radar, processing)  # [M, K, N_DFT]
     delays = radar.delay_grid(processing.n_dft)
     rates = radar.delay_rate_grid(processing.k_dft)
     # Delays ascend, so the searchable bins (τ·c/2 >= min_range) are [first, N_DFT).
@@ -127,46 +117,35 @@ def scan_beams(
             f"is {radar.max_range:.3f} m); lower min_range"
         )
 
+    def average_columns(p: int) -> np.ndarray:
+        # ±Δ inclusive; the relative slack keeps a bin exactly Δ away despite rounding.
+        return np.flatnonzero(np.abs(delays - delays[p]) <= processing.delta * (1.0 + 1e-9))
+
+    if processing.doppler_search == "zoom":
+        w_k, w_n, gain = _windows(radar, processing)
+        q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns)
+        return BeamScan(angles=sweep.angles, delay=delays[p_best], delay_rate=rates[q_best],
+                        peak_power=peak / gain**2, average_power=average / gain**2,
+                        delay_bin=p_best, doppler_bin=q_best)
+
+    spectrum, gain = windowed_range_spectrum(arr, radar, processing)  # [M, K, N_DFT]
     m = arr.shape[0]
     q_best = np.empty(m, dtype=np.int64)
     p_best = np.empty(m, dtype=np.int64)
     peak = np.empty(m)
     rows = np.empty((m, processing.n_dft))  # |z_m(τ, ν_m)|² for P_ave
-
-    if processing.doppler_search == "full":
-        step = max(1, CHUNK_BYTES // (16 * processing.k_dft * processing.n_dft))
-        for i in range(0, m, step):
-            z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=-1)
-            power = np.abs(z) ** 2 / gain**2  # [c, K_DFT, N_DFT]
-            power[:, :, :first] = -1.0
-            flat = power.reshape(power.shape[0], -1).argmax(axis=1)
-            q, p = np.unravel_index(flat, power.shape[1:])
-            idx = np.arange(power.shape[0])
-            q_best[i:i + step], p_best[i:i + step] = q, p
-            peak[i:i + step] = power[idx, q, p]
-            rows[i:i + step] = np.abs(z[idx, q, :]) ** 2 / gain**2
-    else:
-        k = radar.num_chirps
-        k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
-        margin = 10.0 ** (-processing.zoom_margin_db / 10.0)
-        chirp = np.arange(k)
-        # One beam at a time: the coarse block stays in cache (3-4x faster than big chunks).
-        for j in range(m):
-            coarse = scipy.fft.ifft(spectrum[j], n=k_coarse, axis=0, norm="forward", workers=-1)  # [K_c, N_DFT]
-            part = coarse[:, first:]  # a view: no copy of the searchable block
-            prof = (part.real**2 + part.imag**2).max(axis=1)  # [K_c]
-            candidates = np.flatnonzero(prof >= prof.max() * margin)
-            fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
-            # Exact K_DFT-grid DFT at the chosen bins: e^{+j2π q k / K_DFT}, phase reduced
-            # modulo K_DFT in integers so that it stays exact for every q·k.
-            kernel = np.exp(2j * np.pi * (np.outer(fine, chirp) % processing.k_dft) / processing.k_dft)
-            z = kernel @ spectrum[j]  # [Q, N_DFT]
-            power = (z.real**2 + z.imag**2) / gain**2
-            power[:, :first] = -1.0
-            qi, p = np.unravel_index(int(power.argmax()), power.shape)
-            q_best[j], p_best[j] = fine[qi], p
-            peak[j] = power[qi, p]
-            rows[j] = np.abs(z[qi]) ** 2 / gain**2
+    # The paper's full search: the whole N_DFT × K_DFT map of every beam.
+    step = max(1, CHUNK_BYTES // (16 * processing.k_dft * processing.n_dft))
+    for i in range(0, m, step):
+        z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=-1)
+        power = np.abs(z) ** 2 / gain**2  # [c, K_DFT, N_DFT]
+        power[:, :, :first] = -1.0
+        flat = power.reshape(power.shape[0], -1).argmax(axis=1)
+        q, p = np.unravel_index(flat, power.shape[1:])
+        idx = np.arange(power.shape[0])
+        q_best[i:i + step], p_best[i:i + step] = q, p
+        peak[i:i + step] = power[idx, q, p]
+        rows[i:i + step] = np.abs(z[idx, q, :]) ** 2 / gain**2
 
     tau = delays[p_best]
     # ±Δ inclusive; the relative slack keeps a bin exactly Δ away despite rounding.
