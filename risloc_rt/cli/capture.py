@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 
+from ..measured.import_capture import DEFAULT_LEAKAGE
+from ..measured.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
 from .common import CliError
 
 __all__ = ["add_parser"]
@@ -73,8 +75,27 @@ def _import(args: argparse.Namespace) -> int:
     for name, given in (("RAW", args.raw), ("--config", args.config), ("--sweep", args.sweep)):
         if Path(given).exists() and target.exists() and target.resolve() == Path(given).resolve():
             raise CliError(f"-o {args.output} is the {name} input; give another file name for the capture")
+    first = None
+    if args.first_frame is not None:
+        if args.first_frame == "auto":
+            first = "auto"
+        else:
+            try:
+                first = int(args.first_frame)
+            except ValueError:
+                raise CliError(f"--first-frame {args.first_frame!r} must be 'auto' or a frame index >= 0") from None
+            if first < 0:
+                raise CliError(f"--first-frame {first} must be >= 0 (the recorded frame of the first beam), or 'auto'")
+    channels = None
+    if args.channels is not None:
+        try:
+            channels = [int(c) for c in args.channels.split(",")]
+        except ValueError:
+            raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
+                           "e.g. 0,1,2,3") from None
     capture = import_capture(args.raw, args.config, args.sweep, lanes=args.lanes, iq_swap=args.iq_swap,
-                             form=args.form)
+                             form=args.form, first_frame=first, leakage=args.leakage, gate_range=args.gate_range,
+                             channels=channels, min_confidence=args.min_confidence)
     path = save_capture(capture, target)
     reader = capture.provenance["reader"]
     M, K, N = capture.cube.shape
@@ -84,6 +105,12 @@ def _import(args: argparse.Namespace) -> int:
           f"{reader['frames_recorded']}, az {np.rad2deg(az[0]):+.2f}..{np.rad2deg(az[-1]):+.2f} deg) x {K} chirps x "
           f"{N} samples, channel {reader['channel']}, {len(reader['dropped_packets'])} dropped-packet run(s), "
           f"{len(reader['damaged_beams'])} damaged beam(s); truth: {truth}")
+    a = capture.provenance["alignment"]
+    conf = "given" if a["confidence"] is None else f"confidence {a['confidence']:.3f}"
+    print(f"  alignment {a['method']}: first frame {a['first_frame']}, sweep start {a['start']:.3f} frames, "
+          f"{a['dwell']:.4f} frames per beam (RIS clock {a['drift'] * 100:+.3f} %), {conf}, "
+          f"{len(a['mixed_beams'])} mixed beam(s); leakage removal: {capture.provenance['leakage']['method']}; "
+          f"channels {capture.provenance['channels']['channels']} ({capture.provenance['channels']['combine']})")
     return 0
 
 
@@ -121,4 +148,17 @@ def add_parser(sub) -> None:
     imp.add_argument("--iq-swap", action="store_true", help="the file stores Q before I")
     imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
                      help="plain samples or packet-recorded UDP payloads (default: detect)")
+    imp.add_argument("--first-frame", metavar="N|auto",
+                     help="override the schedule's first_frame: the recorded frame of the first beam, or 'auto' to "
+                          "find the sweep from the RIS's sync frames and beam-dependent power")
+    imp.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
+                     help="self-interference (Tx-Rx leakage, DC) removal: gate (range gate), background (subtract "
+                          "the RIS-off frames) or none (default: %(default)s; docs/measured-captures.md)")
+    imp.add_argument("--gate-range", type=float, default=DEFAULT_GATE_RANGE, metavar="M",
+                     help="range gate [m] (default: %(default)s)")
+    imp.add_argument("--channels", metavar="V,V,...",
+                     help="virtual channels to combine (maximal-ratio on the RIS return; default: the schedule's "
+                          "channel)")
+    imp.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
+                     help="refuse an automatic alignment less sure than this (default: %(default)s)")
     imp.set_defaults(func=_import)

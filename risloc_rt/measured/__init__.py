@@ -19,17 +19,21 @@ ADC samples, in ADC counts, with the project's sign convention (``I − jQ``) un
 >>> report = measured.inspect_capture("adc_data_Raw_0.bin", "profile.cfg"); print(report.to_json())
 """
 
+from .align import RisPowerSeries, SweepAlignment, fit_alignment, manual_alignment, ris_power_series
 from .channels import combine_channels
 from .dca1000 import CaptureInfo, FrameBlock, RawCapture, iter_frames, open_raw, read_raw
 from .emulate_raw import (AdcImpairments, EmulatedCapture, QuantizedCube, Recording, quantize_cube,
                           write_raw_capture)
 from .errors import MeasuredFormatError
 from .emulate_capture import EmulatedExperiment, dca1000_radar, emulate_capture
+from .emulate_recording import EmulatedRecording, RecordingPlan, emulate_recording
 from .files import capture_files
 from .import_capture import default_processing, import_capture
 from .inspect import CaptureInspection, Flag, Peak, inspect_capture, load_config, plot_inspection
 from .layout import RawLayout, decode_frames, encode_frames
+from .leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
+from .ris_timing import RisProgram, chirp_states
 from .sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
 from .sweep_schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
                              write_sweep_schedule)
@@ -37,6 +41,9 @@ from .studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
 from .ti_config import TiChirp, TiChirpConfig, slope_step, start_frequency_step
 
 __all__ = [
+    "EmulatedRecording", "LEAKAGE_METHODS", "RecordingPlan", "RisPowerSeries", "RisProgram", "SweepAlignment",
+    "apply_range_gate", "chirp_states", "emulate_recording", "fit_alignment", "manual_alignment", "range_gate_basis",
+    "ris_power_series", "subtract_background",
     "AdcImpairments", "CaptureInfo", "CaptureInspection", "DroppedPackets", "EmulatedCapture", "EmulatedExperiment",
     "Flag", "SweepSchedule", "dca1000_radar", "default_processing", "emulate_capture", "format_sweep_schedule",
     "import_capture", "parse_sweep_schedule", "read_sweep_schedule", "write_sweep_schedule",

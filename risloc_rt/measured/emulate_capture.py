@@ -41,7 +41,7 @@ from .sweep_schedule import SweepSchedule, write_sweep_schedule
 from .ti_config import TiChirpConfig, slope_step
 
 __all__ = ["FULL_SCALE_OVER_NOISE", "ADC_START_TIME", "RAMP_MARGIN", "MIN_IDLE", "EmulatedExperiment",
-           "dca1000_radar", "full_scale", "emulate_capture"]
+           "dca1000_radar", "full_scale", "emulate_capture", "check_folder", "write_frames", "schedule_fields"]
 
 FULL_SCALE_OVER_NOISE = 1e4
 """Input amplitude of the top ADC code, in units of the nominal noise rms."""
@@ -91,7 +91,7 @@ def full_scale(radar: RadarConfig) -> float:
     return FULL_SCALE_OVER_NOISE * math.sqrt(db_to_linear(radar.noise_power_dbm - 30.0))
 
 
-def _sweep_schedule(angles_deg: np.ndarray, **fields) -> SweepSchedule:
+def sweep_schedule_of(angles_deg: np.ndarray, **fields) -> SweepSchedule:
     """The schedule, as an azimuth grid (start/stop/step) when the sweep is one, else the explicit list."""
     az, el = angles_deg[:, 0], angles_deg[:, 1]
     if len(az) >= 2 and np.ptp(el) < 1e-9:
@@ -103,6 +103,61 @@ def _sweep_schedule(angles_deg: np.ndarray, **fields) -> SweepSchedule:
             except MeasuredFormatError:
                 pass
     return SweepSchedule(angles_deg=tuple((float(a), float(e)) for a, e in angles_deg), **fields)
+
+
+def schedule_fields(ris, truth) -> dict:
+    """The sweep schedule's RIS and truth fields of a ``RisConfig`` and a ``Truth`` (or None)."""
+    return dict(
+        ris_position=tuple(float(x) for x in ris.pose.position),
+        ris_facing=tuple(float(x) for x in ris.pose.position + ris.pose.normal),
+        loopback_delay_ns=float(ris.loopback_delay * 1e9), ris_mode=ris.mode, ris_rows=ris.num_rows,
+        ris_columns=ris.num_columns, ris_element_spacing=float(ris.element_spacing),
+        relay_rx_angle_deg=tuple(float(x) for x in np.rad2deg(ris.relay_rx_angle)),
+        truth_ue_position=None if truth is None else tuple(float(x) for x in truth.ue_position))
+
+
+def check_folder(folder: str | Path) -> Path:
+    """``folder`` as a Path, refused when it is a file or already holds ``adc_data*`` files or ``sweep.toml``."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise MeasuredFormatError(f"{folder} is a file; give a folder for the DCA1000 capture (-o FOLDER)")
+    if folder.is_dir():
+        clash = sorted(p.name for p in folder.iterdir() if p.name.startswith(PREFIX) or p.name == SCHEDULE_NAME)
+        if clash:
+            raise MeasuredFormatError(f"{folder} already holds {', '.join(clash[:3])}; risloc does not overwrite a "
+                                      "capture: give a new or empty folder, or remove those files")
+    return folder
+
+
+def write_frames(frames: np.ndarray, radar: RadarConfig, folder: Path, *, adc_bits: int = 16,
+                 dropped_packets_rate: float = 0.0, dc_offset: complex = 0j, iq_gain_db: float = 0.0,
+                 power_offset_db: float = 0.0,
+                 rng: np.random.Generator | None = None) -> tuple[EmulatedCapture, float, float]:
+    """Write ``frames: complex [F, K, N]`` [√W] as one-Rx DCA1000 raw files + ``.cfg`` into ``folder``.
+
+    Returns the raw capture, the full scale [√W] and the ADC counts per √W. ``power_offset_db``
+    raises the counts per √W by that many dB (a receiver gain the model does not know).
+    """
+    if adc_bits not in (12, 14, 16):
+        raise MeasuredFormatError(f"adc_bits={adc_bits} must be 12, 14 or 16 (the xWR ADC's resolutions)")
+    if not 0.0 <= dropped_packets_rate < 1.0:
+        raise MeasuredFormatError(f"dropped_packets_rate={dropped_packets_rate} must lie in [0, 1)")
+    try:
+        cfg = TiChirpConfig.from_radar(radar, rx_mask=0b0001, tx_order=(0b001,), adc_start_time=ADC_START_TIME,
+                                       ramp_margin=RAMP_MARGIN, num_frames=frames.shape[0],
+                                       adc_bits=adc_bits, adc_format="complex1x")
+    except MeasuredFormatError as exc:
+        raise MeasuredFormatError(f"{exc} (simulate with risloc_rt.measured.emulate_capture.dca1000_radar(radar))") \
+            from None
+    fs = full_scale(radar) / 10.0 ** (power_offset_db / 20.0)
+    counts = 2.0 ** (adc_bits - 1) / fs
+    impairments = AdcImpairments(full_scale=fs, dc_offset=complex(dc_offset) / counts, iq_gain_imbalance_db=iq_gain_db)
+    recording = Recording(form="packets" if dropped_packets_rate > 0 else "raw", lanes=2,
+                          drop_probability=dropped_packets_rate, prefix=PREFIX)
+    folder.mkdir(parents=True, exist_ok=True)
+    raw = write_raw_capture(frames[:, :, None, :], cfg, folder, recording=recording, impairments=impairments,
+                            convention="paper", rng=rng)
+    return raw, fs, counts
 
 
 def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16, dropped_packets_rate: float = 0.0,
@@ -126,49 +181,15 @@ def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16,
     rng : numpy.random.Generator, optional
         Needed when packets are dropped.
     """
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise MeasuredFormatError(f"{folder} is a file; give a folder for the DCA1000 capture (-o FOLDER)")
-    if folder.is_dir():
-        clash = sorted(p.name for p in folder.iterdir() if p.name.startswith(PREFIX) or p.name == SCHEDULE_NAME)
-        if clash:
-            raise MeasuredFormatError(f"{folder} already holds {', '.join(clash[:3])}; risloc does not overwrite a "
-                                      "capture: give a new or empty folder, or remove those files")
-    if adc_bits not in (12, 14, 16):
-        raise MeasuredFormatError(f"adc_bits={adc_bits} must be 12, 14 or 16 (the xWR ADC's resolutions)")
-    if not 0.0 <= dropped_packets_rate < 1.0:
-        raise MeasuredFormatError(f"dropped_packets_rate={dropped_packets_rate} must lie in [0, 1)")
     if capture.radar.frames_per_beam != 1:
         raise MeasuredFormatError(f"the capture has frames_per_beam={capture.radar.frames_per_beam}; the emulator "
                                   "writes one frame per beam (frames_per_beam=1)")
-    radar = capture.radar
-    try:
-        cfg = TiChirpConfig.from_radar(radar, rx_mask=0b0001, tx_order=(0b001,), adc_start_time=ADC_START_TIME,
-                                       ramp_margin=RAMP_MARGIN, num_frames=capture.cube.shape[0],
-                                       adc_bits=adc_bits, adc_format="complex1x")
-    except MeasuredFormatError as exc:
-        raise MeasuredFormatError(f"{exc} (simulate with risloc_rt.measured.emulate_capture.dca1000_radar(radar))") \
-            from None
-    fs = full_scale(radar)
-    counts = 2.0 ** (adc_bits - 1) / fs
-    impairments = AdcImpairments(full_scale=fs, dc_offset=complex(dc_offset) / counts, iq_gain_imbalance_db=iq_gain_db)
-    recording = Recording(form="packets" if dropped_packets_rate > 0 else "raw", lanes=2,
-                          drop_probability=dropped_packets_rate, prefix=PREFIX)
-    folder.mkdir(parents=True, exist_ok=True)
-    cube = np.asarray(capture.cube)[:, :, None, :]
-    raw = write_raw_capture(cube, cfg, folder, recording=recording, impairments=impairments, convention="paper",
-                            rng=rng)
-    ris = capture.ris
-    truth = None if capture.truth is None else tuple(float(x) for x in capture.truth.ue_position)
-    schedule = _sweep_schedule(
-        np.rad2deg(capture.sweep.angles),
-        frames_per_beam=1, first_frame=0, channel=0,
-        ris_position=tuple(float(x) for x in ris.pose.position),
-        ris_facing=tuple(float(x) for x in ris.pose.position + ris.pose.normal),
-        loopback_delay_ns=float(ris.loopback_delay * 1e9), ris_mode=ris.mode, ris_rows=ris.num_rows,
-        ris_columns=ris.num_columns, ris_element_spacing=float(ris.element_spacing),
-        relay_rx_angle_deg=tuple(float(x) for x in np.rad2deg(ris.relay_rx_angle)),
-        truth_ue_position=truth)
+    folder = check_folder(folder)
+    raw, fs, counts = write_frames(np.asarray(capture.cube), capture.radar, folder, adc_bits=adc_bits,
+                                   dropped_packets_rate=dropped_packets_rate, dc_offset=dc_offset,
+                                   iq_gain_db=iq_gain_db, rng=rng)
+    schedule = sweep_schedule_of(np.rad2deg(capture.sweep.angles), frames_per_beam=1, first_frame=0, channel=0,
+                               **schedule_fields(capture.ris, capture.truth))
     path = write_sweep_schedule(schedule, folder / SCHEDULE_NAME, comment=(
         f"risloc simulate --format dca1000: {schedule.num_beams} beams, one frame each from frame 0; "
         f"full scale {fs:.6g} sqrt(W) = 2^{adc_bits - 1} counts"))

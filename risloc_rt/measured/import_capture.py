@@ -3,11 +3,14 @@
 The one bridge from measured data to the DSP: ``risloc capture import`` writes the result with
 ``save_capture`` and ``risloc locate`` processes it like a simulated capture.
 
-Frame selection: beam m is recorded frame ``first_frame + m·frames_per_beam``, the **first**
-frame of each beam (a RIS that holds a beam for several frames has settled by the first one it
-shows the radar in full; the others are skipped). One virtual channel (``schedule.channel``) is
-kept, giving a cube ``[M, K, N]`` complex128 in ADC counts with the project's sign convention
-(``I − jQ``, ``docs/measured-captures.md``).
+Frame selection: with a manual ``first_frame``, beam m is recorded frame ``first_frame +
+m·frames_per_beam`` (the **first** frame of each beam; the others are skipped); with
+``first_frame = "auto"`` the RIS program is fitted to the recording (:mod:`.align`: sync frames,
+the beam-dependent power, a dwell that is not a whole number of frames, a drifting RIS clock) and
+each beam gets the frame most probably wholly inside it. One virtual channel
+(``schedule.channel``), or several combined (maximal ratio), gives a cube ``[M, K, N]``
+complex128 in ADC counts with the project's sign convention (``I − jQ``,
+``docs/measured-captures.md``); then the self-interference is removed (:mod:`.leakage`).
 """
 
 from __future__ import annotations
@@ -21,18 +24,26 @@ import numpy as np
 import scipy.fft
 
 from dsp import BeamSweep, ProcessingConfig, RisPose
+from dsp.radar import SPEED_OF_LIGHT
 
 from ..model.capture import Capture, provenance
 from ..model.ris import RisConfig
 from ..model.scenario import Truth
+from .align import fit_alignment, manual_alignment, ris_power_series
+from .channels import combine_channels
 from .dca1000 import iter_frames, open_raw
 from .errors import MeasuredFormatError
 from .inspect import load_config
 from .layout import RawLayout
+from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
+from .ris_timing import chirp_fractions
 from .sweep_schedule import SweepSchedule, format_sweep_schedule, read_sweep_schedule
 from .ti_config import TiChirpConfig
 
-__all__ = ["import_capture", "default_processing"]
+__all__ = ["import_capture", "default_processing", "DEFAULT_LEAKAGE"]
+
+DEFAULT_LEAKAGE = "gate"
+"""Self-interference removal on import (chosen by the measurements in docs/measured-captures.md)."""
 
 
 def default_processing(num_samples: int, num_chirps: int) -> ProcessingConfig:
@@ -68,9 +79,39 @@ def _truth(schedule: SweepSchedule, ris: RisConfig) -> Truth | None:
                  velocity=0.0, aod=np.asarray(ris.pose.angles_to(ue), float))
 
 
+def _channels(channels: Sequence[int] | None, sched: SweepSchedule, cfg: TiChirpConfig) -> tuple[int, ...]:
+    chans = (sched.channel,) if channels is None else tuple(int(c) for c in channels)
+    if not chans or len(set(chans)) != len(chans):
+        raise MeasuredFormatError(f"channels {list(chans)} must be distinct virtual channel indices, e.g. 0,1,2,3")
+    for c in chans:
+        if not 0 <= c < cfg.num_virtual:
+            where = "sweep schedule channel" if channels is None else "channel"
+            raise MeasuredFormatError(
+                f"{where} = {c} but the configuration has {cfg.num_virtual} virtual channel(s) ({cfg.chirps_per_loop} "
+                f"chirp(s) per loop x {cfg.num_rx} rx); give channel = 0 … {cfg.num_virtual - 1}")
+    return chans
+
+
+def _mrc_weights(cube: np.ndarray, radar, min_range: float) -> np.ndarray:
+    """Maximal-ratio weights ``conj(h_v)`` [V]: h_v the RIS return's complex amplitude in channel v.
+
+    ``cube [M, K, V, N]``: the chirp-mean range profile (Hann) of every beam and channel; the
+    strongest (beam, range bin) beyond ``min_range`` summed over channels gives h_v there.
+    """
+    N = cube.shape[-1]
+    prof = np.fft.ifft(cube.mean(axis=1) * np.hanning(N + 2)[1:-1], axis=-1)              # [M, V, N]
+    rng = np.arange(N) * radar.sample_rate / N * SPEED_OF_LIGHT / (2 * radar.slope)
+    power = np.sum(np.abs(prof) ** 2, axis=1)
+    power[:, (rng < min_range) | (rng > rng[-1] - min_range)] = 0
+    m, r = np.unravel_index(int(np.argmax(power)), power.shape)
+    return np.conj(prof[m, :, r])
+
+
 def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
                    schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool = False,
-                   form: str = "auto", frames_per_block: int = 8) -> Capture:
+                   form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
+                   leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
+                   channels: Sequence[int] | None = None, min_confidence: float = 0.5) -> Capture:
     """Import a recorded RIS sweep as a :class:`~risloc_rt.model.capture.Capture`.
 
     Parameters
@@ -85,6 +126,17 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         LVDS lanes (default: the Studio JSON's, else 2).
     iq_swap : bool
         The file stores Q before I.
+    first_frame : int, "auto" or None
+        Overrides the schedule's ``first_frame``: an int is the manual alignment (beam m at
+        ``first_frame + m·frames_per_beam``), ``"auto"`` finds the sweep (:mod:`.align`).
+    leakage : {"gate", "background", "none"}
+        Self-interference removal (:mod:`.leakage`); ``gate_range`` [m] for the gate.
+    channels : sequence of int, optional
+        Virtual channels to use (default: the schedule's ``channel``); several are combined by
+        maximal-ratio combining on the RIS return (weights ``conj(h_v)``, h_v its complex
+        amplitude in channel v at the strongest beam).
+    min_confidence : float
+        ``"auto"`` refuses an alignment whose confidence is below this.
 
     Returns
     -------
@@ -92,15 +144,17 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         ``cube`` complex128 ``[M, K, N]`` [ADC counts]; ``radar = config.to_radar_config()`` with the
         schedule's ``frames_per_beam``; the schedule's sweep and RIS; :func:`default_processing`;
         ``frame_index`` the recorded frame of each beam; provenance ``source="measurement"`` with the
-        sha256 of every file, the config text, the schedule and the reader's issues; ``truth`` from
-        the schedule's ``[truth]`` or None.
+        sha256 of every file, the config text, the schedule, the alignment, the leakage removal, the
+        channels and the reader's issues; ``truth`` from the schedule's ``[truth]`` or None.
 
     Raises
     ------
     MeasuredFormatError
-        Bad files, ``first_frame = "auto"``, a channel the configuration does not have, or a
-        recording with too few frames for the schedule (the message gives both counts).
+        Bad files or options, a channel the configuration does not have, a recording with too
+        few frames for the schedule, or an ``"auto"`` alignment below ``min_confidence``.
     """
+    if leakage not in LEAKAGE_METHODS:
+        raise MeasuredFormatError(f"leakage = {leakage!r} must be one of {', '.join(LEAKAGE_METHODS)}")
     config_text, config_path, cfg_lanes = None, None, None
     if isinstance(config, TiChirpConfig):
         cfg = config
@@ -112,40 +166,82 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         cfg, cfg_lanes = load_config(config_path)
         config_text = config_path.read_text(encoding="utf-8", errors="replace")
     sched = schedule if isinstance(schedule, SweepSchedule) else read_sweep_schedule(schedule)
-    wanted = sched.frame_indices()          # raises for first_frame = "auto"
-    if sched.channel >= cfg.num_virtual:
-        raise MeasuredFormatError(
-            f"sweep schedule channel = {sched.channel} but the configuration has {cfg.num_virtual} virtual "
-            f"channel(s) ({cfg.chirps_per_loop} chirp(s) per loop x {cfg.num_rx} rx); give channel = 0 … "
-            f"{cfg.num_virtual - 1}")
+    chans = _channels(channels, sched, cfg)
+    if first_frame is None:
+        first_frame = "auto" if sched.first_frame is None else sched.first_frame
+    if first_frame != "auto" and (isinstance(first_frame, bool) or not isinstance(first_frame, (int, np.integer))
+                                  or first_frame < 0):
+        raise MeasuredFormatError(f"first frame {first_frame!r} must be an integer >= 0 or 'auto'")
     lanes = lanes or cfg_lanes or 2
     layout = RawLayout.from_config(cfg, lanes=lanes, iq_swap=iq_swap)
     info = open_raw(raw, layout, form=form, expected_frames=cfg.num_frames or None)
-    needed = sched.frames_needed
-    if info.num_frames < needed:
+    radar = replace(cfg.to_radar_config(), frames_per_beam=sched.frames_per_beam)
+    program = sched.program
+    fractions = chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval)
+    if first_frame == "auto":
+        def blocks():
+            return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
+        series = ris_power_series(blocks, radar, min_range=gate_range)
+        align = fit_alignment(series, program, fractions=fractions, max_drift=sched.max_clock_drift,
+                              frame_width=radar.frame_duration / radar.frame_interval)
+        if align.confidence < min_confidence:
+            runner = align.runner_up or {}
+            raise MeasuredFormatError(
+                f"{info.files[0]}: the sweep start could not be found reliably (confidence {align.confidence:.2f} < "
+                f"{min_confidence:g}; best first frame {align.first_frame}, runner-up {runner.get('first_frame')}; RIS "
+                f"return at {align.feature.get('range', float('nan')):.2f} m, {align.feature.get('snr_db', 0):.1f} dB); "
+                "give first_frame in the sweep schedule (or --first-frame N), add the RIS's [sync] pattern, or "
+                "lower --min-confidence")
+    else:
+        align = manual_alignment(program, int(first_frame), num_frames=info.num_frames, fractions=fractions)
+        needed = int(align.frame_index[-1]) + 1
+        if info.num_frames < needed:
+            raise MeasuredFormatError(
+                f"{info.files[0]}: the recording holds {info.num_frames} whole frame(s) but the sweep schedule needs "
+                f"{needed} (first_frame {first_frame} + ({sched.num_beams} beams - 1) x frames_per_beam "
+                f"{sched.frames_per_beam} + 1); check first_frame, frames_per_beam and the sweep's beam count, or "
+                "whether the recording stopped early")
+    wanted = align.frame_index
+    off = set(int(f) for f in align.off_frames) if leakage == "background" else set()
+    if leakage == "background" and not off:
         raise MeasuredFormatError(
-            f"{info.files[0]}: the recording holds {info.num_frames} whole frame(s) but the sweep schedule needs "
-            f"{needed} (first_frame {sched.first_frame} + ({sched.num_beams} beams - 1) x frames_per_beam "
-            f"{sched.frames_per_beam} + 1); check first_frame, frames_per_beam and the sweep's beam count, or "
-            "whether the recording stopped early")
+            f"{info.files[0]}: leakage removal 'background' needs frames with the RIS off, and the alignment leaves "
+            "none (record frames before or after the sweep, or describe the [sync] pattern); use --leakage gate")
+    last = max([int(wanted.max())] + list(off)) + 1
 
-    M, K, N = sched.num_beams, cfg.num_loops, cfg.num_samples
-    cube = np.empty((M, K, N), np.complex128)
-    beam_of = {int(f): m for m, f in enumerate(wanted)}
+    M, K, N, V = sched.num_beams, cfg.num_loops, cfg.num_samples, len(chans)
+    cube4 = np.empty((M, K, V, N), np.complex128)
+    background = np.zeros((K, V, N), np.complex128)
+    beams_of: dict[int, list[int]] = {}
+    for m, f in enumerate(wanted):
+        beams_of.setdefault(int(f), []).append(m)
     damaged_beams: list[int] = []
     dropped: list[dict[str, Any]] = []
     issues: list[dict[str, Any]] = []
-    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=needed):
+    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=last):
         dropped.extend(asdict(d) for d in block.dropped)
         issues.extend(asdict(i) for i in block.issues)
         for j in range(block.cube.shape[0]):
-            m = beam_of.get(block.first_frame + j)
-            if m is not None:
-                cube[m] = block.cube[j, :, sched.channel, :]
+            f = block.first_frame + j
+            frame = block.cube[j][:, list(chans), :]
+            for m in beams_of.get(f, ()):
+                cube4[m] = frame
                 if block.damaged[j]:
                     damaged_beams.append(m)
+            if f in off:
+                background += frame
+    if V == 1:
+        weights = np.ones(1, complex)
+        cube = cube4[:, :, 0, :]
+    else:
+        weights = _mrc_weights(cube4, radar, gate_range)
+        cube = combine_channels(cube4, channels=list(range(V)), weights=weights)
+    if leakage == "gate":
+        cube = apply_range_gate(cube, range_gate_basis(radar, gate_range))
+    elif leakage == "background":
+        bg = np.einsum("kvn,v->kn", background / len(off), weights / np.sum(np.abs(weights)))
+        cube = subtract_background(cube, bg)
 
-    radar = replace(cfg.to_radar_config(), frames_per_beam=sched.frames_per_beam)
     sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
     ris = _ris(sched)
     prov = provenance(
@@ -155,10 +251,16 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         config={"path": None if config_path is None else str(config_path),
                 "sha256": None if config_path is None else _sha256(config_path), "text": config_text},
         schedule=format_sweep_schedule(sched),
-        reader={"form": info.form, "lanes": lanes, "iq_swap": bool(iq_swap), "channel": sched.channel,
+        alignment=align.to_dict(),
+        leakage={"method": leakage, "gate_range": gate_range if leakage == "gate" else None,
+                 "background_frames": len(off)},
+        channels={"channels": list(chans), "combine": "single" if V == 1 else "mrc",
+                  "weights": [[float(w.real), float(w.imag)] for w in weights]},
+        reader={"form": info.form, "lanes": lanes, "iq_swap": bool(iq_swap), "channel": chans[0],
                 "frames_recorded": info.num_frames, "truncated_bytes": info.truncated_bytes,
                 "notes": list(info.notes), "dropped_packets": dropped, "packet_issues": issues,
-                "damaged_beams": damaged_beams},
+                "damaged_beams": sorted(set(damaged_beams))},
     )
-    return Capture(cube=cube, sweep=sweep, radar=radar, ris=ris, processing=default_processing(N, K),
-                   frame_index=np.asarray(wanted, np.int64), provenance=prov, truth=_truth(sched, ris))
+    return Capture(cube=np.ascontiguousarray(cube, np.complex128), sweep=sweep, radar=radar, ris=ris,
+                   processing=default_processing(N, K), frame_index=np.asarray(wanted, np.int64), provenance=prov,
+                   truth=_truth(sched, ris))

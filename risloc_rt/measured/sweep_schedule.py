@@ -6,23 +6,17 @@ recording, how many frames each beam lasts, the beam angles, the virtual channel
 with, the RIS pose and hardware, and optionally the truth::
 
     frames_per_beam = 1
-    first_frame = 0
-    channel = 0
-
-    [sweep]
+    first_frame = 0              # or "auto"; also channel = 0, max_clock_drift = 0.02
+    [sweep]                      # also elevation_deg, or angles_deg = [[az, el], ...]
     start_deg = -45.0
     stop_deg = 45.0
     step_deg = 1.5
-    elevation_deg = 0.0          # or: angles_deg = [[-45.0, 0.0], [-43.5, 0.0], ...]
-
     [ris]
     position = [0.0, 13.38, 0.0]
     facing = [0.0, 0.0, 0.0]
-    loopback_delay_ns = 1.78
-    mode = "relay"
-    rows = 16
-    columns = 4
-
+    loopback_delay_ns = 1.78     # and mode = "relay", rows = 16, columns = 4 ...
+    [sync]                       # optional; also off_frames, cycles, gap_frames
+    on_frames = 5
     [truth]                      # optional
     ue_position = [0.0, 0.0, 0.0]
 
@@ -43,11 +37,13 @@ import numpy as np
 
 from .._files import atomic_write_bytes
 from .errors import MeasuredFormatError
+from .ris_timing import RisProgram
 
 __all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
            "write_sweep_schedule"]
 
-_TOP = ("frames_per_beam", "first_frame", "channel", "sweep", "ris", "truth")
+_TOP = ("frames_per_beam", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth", "sync")
+_SYNC = ("on_frames", "off_frames", "cycles", "gap_frames")
 _SWEEP = ("start_deg", "stop_deg", "step_deg", "elevation_deg", "angles_deg")
 _RIS = ("position", "facing", "loopback_delay_ns", "mode", "rows", "columns", "element_spacing",
         "relay_rx_angle_deg", "yaw_deg")
@@ -65,7 +61,8 @@ class SweepSchedule:
     frames_per_beam : int
         Recorded frames per beam (>= 1); the import takes the first frame of each beam.
     first_frame : int or None
-        Index of the sweep's first frame in the recording; ``None`` is ``"auto"`` (not supported yet).
+        Index of the sweep's first frame in the recording; ``None`` is ``"auto"`` (found on import,
+        :mod:`.align`).
     channel : int
         Virtual channel used for localization.
     ris_position, ris_facing : tuple of 3 floats
@@ -83,6 +80,10 @@ class SweepSchedule:
     grid : tuple (start, stop, step, elevation) or None
         The azimuth grid the angles came from (kept so that the file can be written back the same way).
     truth_ue_position : tuple of 3 floats or None
+    sync_on_frames, sync_off_frames, sync_cycles, sync_gap_frames : int
+        The RIS's on/off sync pattern before the sweep (``[sync]``; 0: none), nominal frames.
+    max_clock_drift : float
+        Largest RIS clock rate error ``first_frame = "auto"`` searches (default 0.02 = 2 %).
     """
 
     angles_deg: tuple[tuple[float, float], ...]
@@ -100,6 +101,18 @@ class SweepSchedule:
     yaw_deg: float = 0.0
     grid: tuple[float, float, float, float] | None = None
     truth_ue_position: tuple[float, float, float] | None = None
+    sync_on_frames: int = 0
+    sync_off_frames: int = 0
+    sync_cycles: int = 0
+    sync_gap_frames: int = 0
+    max_clock_drift: float = 0.02
+
+    @property
+    def program(self) -> RisProgram:
+        """The RIS's program (sync cycles, gap, beams) in nominal frames (:class:`.ris_timing.RisProgram`)."""
+        return RisProgram(num_beams=self.num_beams, frames_per_beam=self.frames_per_beam,
+                          sync_on=self.sync_on_frames, sync_off=self.sync_off_frames, sync_cycles=self.sync_cycles,
+                          sync_gap=self.sync_gap_frames)
 
     @classmethod
     def azimuth(cls, start_deg: float, stop_deg: float, step_deg: float, *, elevation_deg: float = 0.0,
@@ -118,8 +131,8 @@ class SweepSchedule:
         """Recorded frame of each beam: ``first_frame + m·frames_per_beam`` [M] (int64)."""
         if self.first_frame is None:
             raise MeasuredFormatError(
-                "first_frame = \"auto\" is not supported yet: give the first sweep frame, e.g. first_frame = 0 "
-                "(the index of the first frame of the first beam in the recording)")
+                "first_frame = \"auto\" is found from the recording on import (import_capture); give the first sweep "
+                "frame, e.g. first_frame = 0, to list the frames without the recording")
         return self.first_frame + self.frames_per_beam * np.arange(self.num_beams, dtype=np.int64)
 
     @property
@@ -274,6 +287,21 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
                  fix="give the relay Rx beam [az, el] in degrees")
     yaw = _float(ris.get("yaw_deg", 0.0), source, "ris.yaw_deg", fix="give the panel yaw in degrees")
 
+    drift = _float(doc.get("max_clock_drift", 0.02), source, "max_clock_drift", minimum=0.0,
+                   fix="give the largest RIS clock rate error to search as a fraction, e.g. 0.02 (2 %), below 0.5")
+    if drift >= 0.5:
+        raise MeasuredFormatError(f"{source}: max_clock_drift = {drift:g} must be below 0.5; e.g. 0.02 (2 %)")
+    sync = _table(doc, "sync", source, required=False)
+    sync_values = {k: 0 for k in _SYNC}
+    if sync is not None:
+        _check_keys(sync, _SYNC, source, "sync.")
+        for key in _SYNC:
+            sync_values[key] = _int(sync.get(key, 0), source, f"sync.{key}", minimum=0,
+                                    fix="give whole nominal frames, e.g. [sync] on_frames = 5, off_frames = 5, "
+                                        "cycles = 3, gap_frames = 2")
+        if sync_values["cycles"] and not sync_values["on_frames"]:
+            raise MeasuredFormatError(f"{source}: sync.cycles = {sync_values['cycles']} needs sync.on_frames >= 1 "
+                                      "(the frames the RIS is on in each cycle)")
     truth = _table(doc, "truth", source, required=False)
     ue = None
     if truth is not None:
@@ -285,7 +313,10 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
     return SweepSchedule(angles_deg=angles, frames_per_beam=fpb, first_frame=first, ris_position=position,
                          ris_facing=facing, loopback_delay_ns=delay, ris_mode=mode, ris_rows=rows,
                          ris_columns=columns, channel=channel, ris_element_spacing=spacing,
-                         relay_rx_angle_deg=(rx[0], rx[1]), yaw_deg=yaw, grid=grid, truth_ue_position=ue)
+                         relay_rx_angle_deg=(rx[0], rx[1]), yaw_deg=yaw, grid=grid, truth_ue_position=ue,
+                         sync_on_frames=sync_values["on_frames"], sync_off_frames=sync_values["off_frames"],
+                         sync_cycles=sync_values["cycles"], sync_gap_frames=sync_values["gap_frames"],
+                         max_clock_drift=drift)
 
 
 def read_sweep_schedule(path: str | Path) -> SweepSchedule:
@@ -307,6 +338,8 @@ def _as_document(s: SweepSchedule) -> dict[str, Any]:
     doc: dict[str, Any] = {"frames_per_beam": s.frames_per_beam,
                            "first_frame": "auto" if s.first_frame is None else s.first_frame,
                            "channel": s.channel}
+    if s.max_clock_drift != 0.02:
+        doc["max_clock_drift"] = s.max_clock_drift
     if s.grid is not None:
         doc["sweep"] = {"start_deg": s.grid[0], "stop_deg": s.grid[1], "step_deg": s.grid[2],
                         "elevation_deg": s.grid[3]}
@@ -322,6 +355,9 @@ def _as_document(s: SweepSchedule) -> dict[str, Any]:
     if s.yaw_deg:
         ris["yaw_deg"] = s.yaw_deg
     doc["ris"] = ris
+    if s.sync_cycles or s.sync_on_frames or s.sync_off_frames or s.sync_gap_frames:
+        doc["sync"] = {"on_frames": s.sync_on_frames, "off_frames": s.sync_off_frames, "cycles": s.sync_cycles,
+                       "gap_frames": s.sync_gap_frames}
     if s.truth_ue_position is not None:
         doc["truth"] = {"ue_position": list(s.truth_ue_position)}
     return doc
@@ -345,9 +381,10 @@ def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None
     """The TOML text of ``schedule``; ``parse_sweep_schedule(format_sweep_schedule(s)) == s``."""
     doc = _as_document(schedule)
     lines = [f"# {line}" for line in (comment or "risloc sweep schedule (docs/formats.md)").splitlines()]
-    for key in ("frames_per_beam", "first_frame", "channel"):
-        lines.append(f"{key} = {_toml_value(doc[key])}")
-    for table in ("sweep", "ris", "truth"):
+    for key in ("frames_per_beam", "first_frame", "channel", "max_clock_drift"):
+        if key in doc:
+            lines.append(f"{key} = {_toml_value(doc[key])}")
+    for table in ("sweep", "ris", "sync", "truth"):
         if table in doc:
             lines.append("")
             lines.append(f"[{table}]")

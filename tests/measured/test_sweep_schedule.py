@@ -62,11 +62,28 @@ def test_explicit_angles_defaults_and_file(tmp_path):
     assert built.num_beams == 61 and parse_sweep_schedule(format_sweep_schedule(built)) == built
 
 
-def test_auto_first_frame_is_parsed_but_not_supported():
+def test_auto_first_frame_is_found_on_import_not_listed_without_the_recording():
     s = parse_sweep_schedule(_with(GOOD, "first_frame = 7", 'first_frame = "auto"'))
     assert s.first_frame is None
-    with pytest.raises(MeasuredFormatError, match="not supported yet: give the first sweep frame"):
+    with pytest.raises(MeasuredFormatError, match="found from the recording on import"):
         s.frame_indices()
+
+
+def test_sync_table_and_clock_drift_round_trip_and_bad_values():
+    text = _with(GOOD, "first_frame = 7", 'first_frame = "auto"\nmax_clock_drift = 0.05')
+    text += "\n[sync]\non_frames = 5\noff_frames = 4\ncycles = 3\ngap_frames = 2\n"
+    s = parse_sweep_schedule(text)
+    assert (s.sync_on_frames, s.sync_off_frames, s.sync_cycles, s.sync_gap_frames) == (5, 4, 3, 2)
+    assert s.max_clock_drift == 0.05 and s.program.sync_length == 3 * 9 + 2
+    assert parse_sweep_schedule(format_sweep_schedule(s)) == s
+    with pytest.raises(MeasuredFormatError, match=r"sync.cycles = 3 needs sync.on_frames >= 1"):
+        parse_sweep_schedule(text.replace("on_frames = 5", "on_frames = 0"))
+    with pytest.raises(MeasuredFormatError, match=r"sync.gap_frames = -1 must be an integer >= 0"):
+        parse_sweep_schedule(text.replace("gap_frames = 2", "gap_frames = -1"))
+    with pytest.raises(MeasuredFormatError, match=r"unknown key sync.'cycle'; did you mean sync.'cycles'"):
+        parse_sweep_schedule(text.replace("cycles = 3", "cycle = 3"))
+    with pytest.raises(MeasuredFormatError, match=r"max_clock_drift = 0.7 must be below 0.5"):
+        parse_sweep_schedule(text.replace("max_clock_drift = 0.05", "max_clock_drift = 0.7"))
 
 
 @pytest.mark.parametrize("old, new, match", [

@@ -1,0 +1,210 @@
+"""A whole recording as a real experiment leaves it: lead frames, RIS on/off sync, a sweep on a drifting RIS clock.
+
+:func:`emulate_recording` synthesises every recorded frame chirp by chirp from the scenario's
+paths (frozen geometry): the paths that do not pass through the RIS (hall echoes, targets, the
+panel's structure) in every frame; the RIS re-transmission of the beam the RIS shows at that
+chirp (:func:`~.ris_timing.chirp_states`: sync-on frames show ``sync_beam``, off frames nothing);
+a Tx→Rx leakage tone near zero range with per-chirp phase jitter; receiver noise; then the ADC
+and the DCA1000 files (:func:`~.emulate_capture.write_frames`). A beam boundary inside a frame
+switches the RIS between two of its chirps, as a free-running RIS does.
+
+It also injects what a calibration must find (:mod:`.calibration`): the radar's internal range
+offset (every delay longer by ``2·range_offset/c``), a receiver gain the model does not know
+(``power_offset_db``), and the RIS's true τ_RB and ζ (give them in ``scenario.ris``; the schedule
+written states ``nominal_ris``'s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from dsp import BeamSweep, db_to_linear
+from dsp.radar import SPEED_OF_LIGHT
+
+from ..model.beat import beat_cube
+from ..model.paths import PathSet
+from ..model.ris import RisConfig
+from ..model.scenario import Scenario, analytic_paths
+from .emulate_capture import (SCHEDULE_NAME, EmulatedExperiment, check_folder, dca1000_radar, schedule_fields,
+                              sweep_schedule_of, write_frames)
+from .errors import MeasuredFormatError, check_float
+from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
+from .sweep_schedule import write_sweep_schedule
+
+__all__ = ["RecordingPlan", "EmulatedRecording", "emulate_recording", "shift_paths"]
+
+
+@dataclass(frozen=True)
+class RecordingPlan:
+    """How the experiment runs (durations in nominal frames unless said otherwise).
+
+    Parameters
+    ----------
+    lead_frames : float
+        Radar frames recorded before the RIS program starts (fractional: the RIS's clock phase).
+    frames_per_beam : int
+    sync_on, sync_off, sync_cycles, sync_gap : int
+        The on/off sync pattern before the sweep (:class:`~.ris_timing.RisProgram`).
+    clock_drift : float
+        RIS clock rate error d: every RIS duration lasts ``(1 + d)`` × nominal radar frames.
+    tail_frames : int
+        Radar frames recorded after the sweep (RIS off).
+    sync_beam : (az, el) or None
+        Beam the RIS shows in sync-on frames [rad, RIS frame]; None: its relay Rx beam (pointed at the UE).
+    leakage_dbm : float or None
+        Tx→Rx leakage power at the ADC [dBm]; None: no leakage.
+    leakage_range : float
+        Apparent range of the leakage [m].
+    leakage_jitter : float
+        Phase noise of the leakage, rms per chirp [rad].
+    range_offset : float
+        The radar's internal range offset [m] (all delays + 2·range_offset/c).
+    power_offset_db : float
+        Receiver gain the model does not know [dB] (ADC counts per √W raised by it).
+    schedule_first_frame : {"auto", "true"}
+        What the written ``sweep.toml`` says: ``"auto"``, or the true first frame (when whole).
+    """
+
+    lead_frames: float = 0.0
+    frames_per_beam: int = 1
+    sync_on: int = 0
+    sync_off: int = 0
+    sync_cycles: int = 0
+    sync_gap: int = 0
+    clock_drift: float = 0.0
+    tail_frames: int = 2
+    sync_beam: tuple[float, float] | None = None
+    leakage_dbm: float | None = None
+    leakage_range: float = 0.08
+    leakage_jitter: float = 0.0
+    range_offset: float = 0.0
+    power_offset_db: float = 0.0
+    schedule_first_frame: str = "auto"
+
+    def __post_init__(self) -> None:
+        check_float(self.lead_frames, "lead_frames", "frames", non_negative=True)
+        if not -0.5 < self.clock_drift < 0.5:
+            raise MeasuredFormatError(f"clock_drift={self.clock_drift} must lie in (-0.5, 0.5)")
+        if self.schedule_first_frame not in ("auto", "true"):
+            raise MeasuredFormatError(f"schedule_first_frame={self.schedule_first_frame!r} must be 'auto' or 'true'")
+        if int(self.tail_frames) < 0:
+            raise MeasuredFormatError(f"tail_frames={self.tail_frames} must be >= 0")
+
+    def program(self, num_beams: int) -> RisProgram:
+        return RisProgram(num_beams=num_beams, frames_per_beam=self.frames_per_beam, sync_on=self.sync_on,
+                          sync_off=self.sync_off, sync_cycles=self.sync_cycles, sync_gap=self.sync_gap)
+
+    def start(self, program: RisProgram) -> float:
+        """Radar time the first beam starts [frames]."""
+        return self.lead_frames + program.sync_length * (1 + self.clock_drift)
+
+    @property
+    def dwell(self) -> float:
+        """Radar frames per beam."""
+        return self.frames_per_beam * (1 + self.clock_drift)
+
+
+@dataclass(frozen=True)
+class EmulatedRecording:
+    """What :func:`emulate_recording` wrote, and the truth an aligner must find."""
+
+    experiment: EmulatedExperiment
+    start: float
+    dwell: float
+    true_frame_index: np.ndarray
+    num_frames: int
+
+
+def shift_paths(paths: PathSet, delay: float, carrier_frequency: float) -> PathSet:
+    """``paths`` with every delay longer by ``delay`` [s] (and the carrier phase that goes with it)."""
+    return replace(paths, delay=paths.delay + delay,
+                   gain=paths.gain * np.exp(-2j * np.pi * carrier_frequency * delay))
+
+
+def _subset(paths: PathSet, keep: np.ndarray) -> PathSet:
+    return PathSet(paths.gain[keep], paths.delay[keep], paths.delay_rate[keep], paths.ris_incidence[keep],
+                   paths.ris_departure[keep], tuple(lab for lab, k in zip(paths.labels, keep) if k))
+
+
+def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: RecordingPlan = RecordingPlan(),
+                      rng: np.random.Generator, paths: PathSet | None = None, nominal_ris: RisConfig | None = None,
+                      noise: bool = True, adc_bits: int = 16, dc_offset: complex = 0j,
+                      iq_gain_db: float = 0.0, dropped_packets_rate: float = 0.0) -> EmulatedRecording:
+    """Write the recording of one RIS sweep experiment into ``folder`` (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Radar (made TI-compatible with :func:`~.emulate_capture.dca1000_radar`), RIS (its true
+        τ_RB and ζ), sweep, UE (frozen at ``ue_position``).
+    folder : path
+        Created if missing; refused if it holds a capture already.
+    plan : RecordingPlan
+    rng : numpy.random.Generator
+        Noise, leakage jitter, lost packets.
+    paths : PathSet, optional
+        Default: the analytic paths of the scenario (e.g. ``hall_paths(...).paths`` for a hall).
+    nominal_ris : RisConfig, optional
+        The RIS the written schedule describes (default ``scenario.ris``).
+    noise : bool
+        Add the receiver noise (``radar.noise_power``).
+    adc_bits, dc_offset, iq_gain_db, dropped_packets_rate
+        As :func:`~.emulate_capture.emulate_capture` (dc_offset in LSB counts).
+    """
+    folder = check_folder(folder)
+    radar = dca1000_radar(scenario.radar)
+    M, K, N = scenario.sweep.num_beams, radar.num_chirps, radar.num_samples
+    program = plan.program(M)
+    start, dwell = plan.start(program), plan.dwell
+    F = int(math.ceil(start + M * dwell)) + int(plan.tail_frames)
+    if F * K * N > 60_000_000:
+        raise MeasuredFormatError(f"the recording would hold {F} frames x {K} x {N} samples; shorten it (fewer lead, "
+                                  "sync or tail frames) or use a smaller radar")
+    base = analytic_paths(replace(scenario, radar=radar)) if paths is None else paths
+    if plan.range_offset:
+        base = shift_paths(base, 2 * plan.range_offset / SPEED_OF_LIGHT, radar.carrier_frequency)
+    via = base.via_ris
+    sync_beam = scenario.ris.relay_rx_angle if plan.sync_beam is None else np.asarray(plan.sync_beam, float)
+    one = BeamSweep(np.zeros((1, 2)))
+    static = beat_cube(_subset(base, ~via), radar=radar, sweep=one, ris=scenario.ris)[0]          # [K, N]
+    ris_paths = _subset(base, via)
+    beams = beat_cube(ris_paths, radar=radar, sweep=scenario.sweep, ris=scenario.ris)             # [M, K, N]
+    sync = beat_cube(ris_paths, radar=radar, sweep=BeamSweep(sync_beam[None]), ris=scenario.ris)  # [1, K, N]
+    table = np.concatenate([beams, sync, np.zeros((1, K, N), complex)])                          # [M + 2, K, N]
+
+    fractions = chirp_fractions(K, radar.chirp_interval, radar.frame_interval)
+    times = np.arange(F)[:, None] + fractions[None, :]
+    state = chirp_states(program, times, start=start, dwell=dwell)                               # [F, K]
+    row = np.where(state >= 0, state, np.where(state == SYNC, M, M + 1))
+    frames = table[row, np.arange(K)[None, :], :] + static[None]                                 # [F, K, N]
+    if plan.leakage_dbm is not None:
+        tau = 2 * plan.leakage_range / SPEED_OF_LIGHT
+        amp = math.sqrt(db_to_linear(plan.leakage_dbm - 30.0))
+        tone = np.exp(-2j * np.pi * radar.slope * tau * np.arange(N) * radar.sample_period)
+        jitter = rng.normal(0.0, plan.leakage_jitter, (F, K)) if plan.leakage_jitter else np.zeros((F, K))
+        frames += amp * np.exp(1j * jitter)[:, :, None] * tone[None, None, :]
+    if noise:
+        sigma = math.sqrt(radar.noise_power / 2)
+        frames += sigma * (rng.standard_normal(frames.shape) + 1j * rng.standard_normal(frames.shape))
+    raw, fs, counts = write_frames(frames, radar, folder, adc_bits=adc_bits, dropped_packets_rate=dropped_packets_rate,
+                                   dc_offset=dc_offset, iq_gain_db=iq_gain_db, power_offset_db=plan.power_offset_db,
+                                   rng=rng)
+    true_index = np.ceil(start + np.arange(M) * dwell - 1e-9).astype(np.int64)
+    whole = abs(start - round(start)) < 1e-9 and abs(dwell - round(dwell)) < 1e-9
+    first: int | None = int(round(start)) if plan.schedule_first_frame == "true" and whole else None
+    ris = nominal_ris or scenario.ris
+    schedule = sweep_schedule_of(
+        np.rad2deg(scenario.sweep.angles), frames_per_beam=plan.frames_per_beam, first_frame=first, channel=0,
+        sync_on_frames=plan.sync_on, sync_off_frames=plan.sync_off, sync_cycles=plan.sync_cycles,
+        sync_gap_frames=plan.sync_gap, max_clock_drift=max(0.02, 2 * abs(plan.clock_drift)),
+        **schedule_fields(ris, scenario.truth))
+    path = write_sweep_schedule(schedule, folder / SCHEDULE_NAME, comment=(
+        f"risloc emulated recording: {F} frames, sweep of {M} beams x {plan.frames_per_beam} frame(s) from radar "
+        f"frame {start:.3f}, RIS clock drift {plan.clock_drift:+.4%}; full scale {fs:.6g} sqrt(W)"))
+    exp = EmulatedExperiment(folder=folder, raw=raw, schedule_path=path, schedule=schedule, full_scale=fs,
+                             counts_per_unit=counts)
+    return EmulatedRecording(experiment=exp, start=start, dwell=dwell, true_frame_index=true_index, num_frames=F)
