@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Literal
+
 import numpy as np
 
 from dsp import RadarConfig
@@ -11,7 +15,9 @@ from .paths import PathFrames, PathSet
 from .phase import exact_fractional_cycles, wrapped_tone
 from .ris import RisConfig, ris_response
 
-__all__ = ["beat_cube", "add_noise"]
+__all__ = ["beat_cube", "add_noise", "NoiseStream"]
+
+NoiseStream = Literal["standard", "fast"]
 
 
 def beat_cube(
@@ -21,8 +27,10 @@ def beat_cube(
     sweep: BeamSweep,
     ris: RisConfig | None,
     out: np.ndarray | None = None,
+    noise: tuple[float, np.random.Generator] | None = None,
+    workers: int | None = None,
 ) -> np.ndarray:
-    """Noiseless beat cube of eq. (1) for every sweep beam.
+    """Beat cube of eq. (1) for every sweep beam, noiseless or with the fast noise stream.
 
     Parameters
     ----------
@@ -38,6 +46,12 @@ def beat_cube(
     out : complex128 array [M, K, N], optional
         Written in place and returned (saves allocating 75 MB per Table I cube in Monte Carlo
         loops).
+    noise : (float, numpy.random.Generator), optional
+        (σ² [W], rng): add CN(0, σ²) receiver noise from the ``"fast"`` stream of
+        :func:`add_noise`, beam by beam while the beam is in cache. ``None``: noiseless.
+    workers : int, optional
+        Threads that synthesise beams concurrently (default: up to 2, the CPU count). The cube
+        is the same, bit for bit, for any number of workers.
 
     Returns
     -------
@@ -86,17 +100,57 @@ def beat_cube(
     slow_cycles = exact_fractional_cycles([(radar.carrier_frequency, paths.delay_rate)], radar.chirp_interval)
     coef = _coefficients(paths, radar=radar, sweep=sweep, ris=ris)  # [M, L]
     if framed:
-        for m in range(m_beams):
+        def beam(m: int) -> None:
             _frame(cube[m], slow_cycles[m], wrapped_tone(fast_cycles[m], n_samples), coef[m], k_chirps)
     else:
-        _static(cube, slow_cycles, wrapped_tone(fast_cycles, n_samples), coef)
+        beam = _static(cube, slow_cycles, wrapped_tone(fast_cycles, n_samples), coef)
+    if noise is None:
+        _run_beams(beam, m_beams, workers)
+        return cube
+    noise_power, rng = noise
+    streams = _noise_streams(rng, m_beams)
+
+    def noisy_beam(m: int) -> None:
+        beam(m)
+        _add_beam_noise(cube[m], noise_power, streams[m], cube[m])
+
+    _run_beams(noisy_beam, m_beams, workers)
     return cube
 
 
-def _static(cube: np.ndarray, slow_cycles: np.ndarray, fast: np.ndarray, coef: np.ndarray) -> None:
-    """``cube[m] = Σ_l coef_{m,l} s_l f_lᵀ`` with tones shared by all beams, grouped by slow tone.
+def _run_beams(beam: Callable[[int], None], num_beams: int, workers: int | None) -> None:
+    """Call ``beam(m)`` for every beam, on up to ``workers`` threads (numpy releases the GIL)."""
+    workers = min(2, os.cpu_count() or 1) if workers is None else int(workers)
+    if workers <= 1 or num_beams < 2:
+        for m in range(num_beams):
+            beam(m)
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for _ in pool.map(beam, range(num_beams)):
+            pass
 
-    cube [M, K, N] (written), slow_cycles [L], fast [L, N] (tones), coef [M, L].
+
+def _noise_streams(rng: np.random.Generator, num_beams: int) -> list[np.random.Generator]:
+    """One child stream per beam, spawned from ``rng``'s seed sequence (``Generator.spawn``)."""
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
+    try:
+        return rng.spawn(num_beams)
+    except TypeError:  # a Generator built from a bare bit generator without a seed sequence
+        return [np.random.default_rng(s) for s in rng.integers(0, 2**63, size=num_beams)]
+
+
+def _add_beam_noise(frame: np.ndarray, noise_power: float, rng: np.random.Generator, out: np.ndarray) -> None:
+    """``out = frame + w``, w ~ CN(0, σ²) from float32 normals of ``rng`` (the fast stream) [K, N]."""
+    w = rng.standard_normal(frame.shape + (2,), dtype=np.float32)  # [..., (re, im)]
+    w *= np.float32(np.sqrt(noise_power / 2.0))
+    np.add(frame, w.view(np.complex64)[..., 0], out=out)
+
+
+def _static(cube: np.ndarray, slow_cycles: np.ndarray, fast: np.ndarray, coef: np.ndarray) -> Callable[[int], None]:
+    """``beam(m)`` writing ``cube[m] = Σ_l coef_{m,l} s_l f_lᵀ``, tones shared by all beams, grouped by slow tone.
+
+    cube [M, K, N] (written by ``beam``), slow_cycles [L], fast [L, N] (tones), coef [M, L].
     """
     keys, group = np.unique(slow_cycles, return_inverse=True)  # G distinct slow tones
     slow = wrapped_tone(keys, cube.shape[1])  # [G, K]
@@ -105,18 +159,21 @@ def _static(cube: np.ndarray, slow_cycles: np.ndarray, fast: np.ndarray, coef: n
         members = np.flatnonzero(group == g)
         np.matmul(coef[:, members], fast[members], out=h[:, g])  # [M, L_g] @ [L_g, N]
     if keys.size == 1:
-        np.multiply(slow[0][None, :, None], h, out=cube)  # [1, K, 1] * [M, 1, N]
-        return
+        def single(m: int) -> None:
+            np.multiply(slow[0][:, None], h[m], out=cube[m])  # [K, 1] * [1, N]
+        return single
     # Groups of paths that all miss the RIS are the same in every beam: one [K, N] frame.
     fixed = np.array([np.all(coef[:, group == g] == coef[:1, group == g]) for g in range(keys.size)])
     varying = ~fixed
     common = slow[fixed].T @ h[0, fixed] if fixed.any() and varying.any() else None  # [K, N]
     slow_t = slow[varying].T if common is not None else slow.T  # [K, G1]
     h = h[:, varying] if common is not None else h  # [M, G1, N]
-    for m in range(cube.shape[0]):
+
+    def grouped(m: int) -> None:
         np.matmul(slow_t, h[m], out=cube[m])  # [K, G1] @ [G1, N]
         if common is not None:
             cube[m] += common
+    return grouped
 
 
 def _frames_are_equal(paths: PathFrames) -> bool:
@@ -175,7 +232,8 @@ def _frame(out: np.ndarray, slow_cycles: np.ndarray, fast: np.ndarray, coef: np.
         np.matmul(slow.T, h, out=out)  # [K, G] @ [G, N]
 
 
-def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator, *, out: np.ndarray | None = None) -> np.ndarray:
+def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator, *, out: np.ndarray | None = None,
+              stream: NoiseStream = "standard", workers: int | None = None) -> np.ndarray:
     """``cube + w`` with w ~ CN(0, σ²) i.i.d. per sample.
 
     Parameters
@@ -188,16 +246,33 @@ def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator, *,
         Source of the noise.
     out : complex128 array [M, K, N], optional
         Where to write the result; may be ``cube`` itself (in place, no copy).
+    stream : {"standard", "fast"}
+        ``"standard"``: the real and imaginary parts of w[i] are the float64 normals 2i and 2i+1 of
+        one ``rng.standard_normal`` call, scaled by sqrt(σ²/2): the same numbers for the same seed
+        whether or not ``out`` is given. ``"fast"``: beam m draws float32 normals from its own
+        child stream ``rng.spawn(M)[m]``, so beams are drawn concurrently (2-3x faster on two
+        cores); the same distribution, other numbers, the same for any number of workers.
+    workers : int, optional
+        Threads of the ``"fast"`` stream (default up to 2).
 
     Notes
     -----
-    The real and imaginary parts of w[i] are the normals 2i and 2i+1 of one
-    ``rng.standard_normal`` call, scaled by sqrt(σ²/2): the same numbers for the same seed
-    whether or not ``out`` is given.
+    float32 normals have a 24-bit mantissa: each noise sample carries a relative rounding of
+    6e-8, i.e. the noise power is exact to 1e-7 and the noise floor to 5e-7 dB, far below any
+    Monte Carlo error. Both streams leave ``rng``'s own draw sequence in a new state.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator (numpy.random.default_rng(seed)), got {type(rng).__name__}")
+    if stream not in ("standard", "fast"):
+        raise ValueError(f"stream={stream!r} must be 'standard' (float64, one draw) or 'fast' (float32, per-beam streams)")
     cube = np.asarray(cube)
+    if stream == "fast":
+        frames = cube.reshape((-1,) + cube.shape[-2:]) if cube.ndim >= 2 else cube.reshape(1, 1, -1)
+        result = np.empty(frames.shape, dtype=np.result_type(cube.dtype, np.complex64)) if out is None \
+            else out.reshape(frames.shape)
+        streams = _noise_streams(rng, frames.shape[0])
+        _run_beams(lambda m: _add_beam_noise(frames[m], noise_power, streams[m], result[m]), frames.shape[0], workers)
+        return result.reshape(cube.shape) if out is None else out
     scale = np.sqrt(noise_power / 2.0)
     noise = rng.standard_normal(cube.shape + (2,))  # [..., (re, im)]
     noise *= scale

@@ -6,7 +6,7 @@ from typing import Literal
 
 import numpy as np
 
-from .beat import add_noise, beat_cube
+from .beat import NoiseStream, add_noise, beat_cube
 from .capture import Capture, provenance
 from .motion import advance_paths, analytic_frame_paths, sweep_reference_time
 from .paths import PathFrames, PathSet
@@ -26,6 +26,7 @@ def simulate(
     seed: int | None = None,
     provenance_extra: dict | None = None,
     motion: Motion = "sweep",
+    noise_stream: NoiseStream = "standard",
 ) -> Capture:
     """One realization of the beat cube for ``scenario``.
 
@@ -51,6 +52,10 @@ def simulate(
         first order by its delay rates (:func:`risloc_rt.model.motion.advance_paths`).
         ``"frozen"``: eq. (1)'s frozen geometry, the paths of the middle of the sweep in every
         frame. Both give the same cube, bit for bit, when nothing moves.
+    noise_stream : {"standard", "fast"}
+        The receiver noise's stream (:func:`risloc_rt.model.beat.add_noise`): ``"fast"`` draws
+        float32 normals per beam, concurrently with the synthesis of each beam (a Table I
+        capture in about half the time); the same distribution, other numbers than ``"standard"``.
 
     Returns
     -------
@@ -69,9 +74,13 @@ def simulate(
         paths = advance_paths(paths, radar=scenario.radar, num_beams=m)
     elif isinstance(paths, PathFrames) and motion == "frozen":
         raise ValueError("motion='frozen' needs a PathSet (one geometry for the whole sweep), got a PathFrames")
-    cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris)
-    if noise:
-        cube = add_noise(cube, scenario.radar.noise_power, rng, out=cube)
+    if noise and noise_stream == "fast":
+        cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris,
+                         noise=(scenario.radar.noise_power, rng))
+    else:
+        cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris)
+        if noise:
+            cube = add_noise(cube, scenario.radar.noise_power, rng, out=cube, stream=noise_stream)
     # The provenance lists the paths of the middle frame (the reference time) for a moving radar.
     listed = paths
     if isinstance(paths, PathFrames):
@@ -85,7 +94,7 @@ def simulate(
         processing=scenario.processing,
         frame_index=np.arange(m),
         provenance=provenance("simulation", scenario=scenario.name, seed=seed, noise=noise,
-                              motion=motion,
+                              motion=motion, **({"noise_stream": noise_stream} if noise_stream != "standard" else {}),
                               paths=[{"label": lab, "delay": float(t), "power_dbm": float(10 * np.log10(max(pw, 1e-300)) + 30)}
                                      for lab, t, pw in zip(listed.labels, listed.delay, listed.power)],
                               **(provenance_extra or {})),
