@@ -66,7 +66,7 @@ def trace_cache(args: argparse.Namespace):
 
 
 def trace_settings(args: argparse.Namespace):
-    """:class:`TraceSettings` with ``--depth`` and ``--samples`` applied."""
+    """:class:`TraceSettings` with ``--depth``, ``--samples`` and the mechanism flags applied."""
     from ..hall.raytrace.tracer import TraceSettings
 
     changes = {}
@@ -74,6 +74,13 @@ def trace_settings(args: argparse.Namespace):
         changes["max_depth"] = args.depth
     if args.samples is not None:
         changes["samples_per_src"] = args.samples
+    if getattr(args, "diffuse", None) is not None:
+        if not 0.0 <= args.diffuse <= 1.0:
+            raise CliError(f"--diffuse {args.diffuse:g} must be a scattering coefficient in [0, 1] (e.g. 0.3 for rough concrete)")
+        changes.update(diffuse_reflection=True, scattering_coefficient=args.diffuse)
+    for flag in ("diffraction", "refraction"):
+        if getattr(args, flag, False):
+            changes[flag] = True
     return TraceSettings(**changes)
 
 
@@ -100,9 +107,14 @@ def plot_traced_profile(hs, traced, path: Path) -> None:
 
 
 def add_trace_flags(p: argparse.ArgumentParser) -> None:
-    """``--depth``, ``--samples``, ``--no-cache``."""
+    """``--depth``, ``--samples``, ``--diffuse``, ``--diffraction``, ``--refraction``, ``--no-cache``."""
     p.add_argument("--depth", type=int, help="ray-tracing depth (default 3)")
     p.add_argument("--samples", type=int, help="rays per source (default 100000)")
+    p.add_argument("--diffuse", type=float, metavar="S",
+                   help="trace diffuse reflection with scattering coefficient S in [0, 1] on every material "
+                        "(Lambertian; rough concrete at 60 GHz: 0.2-0.4; the 256 strongest radar-RIS legs are kept)")
+    p.add_argument("--diffraction", action="store_true", help="trace first-order edge diffraction (sionna-rt)")
+    p.add_argument("--refraction", action="store_true", help="trace refraction through walls and objects (sionna-rt)")
     p.add_argument("--no-cache", action="store_true", help="always re-trace (default: reuse cached traces)")
 
 

@@ -110,6 +110,22 @@ class TracedPaths:
                  for c, o in zip(self.interactions[index], self.objects[index]) if c != 0]
         return " > ".join(parts) if parts else "LOS"
 
+    def strongest(self, count: int) -> "TracedPaths":
+        """The ``count`` paths of largest |amplitude|, in their original (delay) order.
+
+        Returns ``self`` when it holds no more than ``count`` paths; ties at the cut keep the
+        earlier path.
+        """
+        if len(self) <= count:
+            return self
+        keep = np.sort(np.argsort(-np.abs(self.amplitude), kind="stable")[:count])
+        return TracedPaths(
+            tx_position=self.tx_position, rx_position=self.rx_position, frequency=self.frequency,
+            delay=self.delay[keep], amplitude=self.amplitude[keep], departure=self.departure[keep],
+            arrival=self.arrival[keep], delay_rate=self.delay_rate[keep], interactions=self.interactions[keep],
+            objects=self.objects[keep], vertices=self.vertices[keep], object_names=self.object_names,
+        )
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Arrays for an ``.npz`` file (object names as a JSON string); inverse: :meth:`from_arrays`."""
         import json

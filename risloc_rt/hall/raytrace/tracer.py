@@ -30,6 +30,9 @@ __all__ = ["TraceResult", "TraceSettings", "paths_to_traced", "r_hat", "solve_pa
 
 #: Name of the transmitter and of the monostatic receiver added to the scene.
 RADAR_TX, RADAR_RX = "radar_tx", "radar_rx"
+#: Radar → RIS legs kept per RIS point with diffuse reflection on (the strongest): every ordered
+#: pair of legs is a loop-back candidate, and 10⁵ rays give ~3·10⁴ diffuse legs (10⁹ pairs).
+MAX_DIFFUSE_LEGS = 256
 #: Closest a RIS point may be to the radar [m] (sionna drops segments shorter than ~1 cm).
 MIN_RIS_DISTANCE = 0.01
 #: Loaded scenes kept in memory, keyed by (content hash, frequency).
@@ -140,7 +143,22 @@ def solve_paths(
     radios += [rt.Receiver(name=f"ris_{i}", position=mi.Point3f(*map(float, p))) for i, p in enumerate(ris)]
     scene.add(radios)
     solver = rt.PathSolver(deterministic=True)
-    return solver(
+    saved = {}
+    if settings.scattering_coefficient is not None:
+        for name, material in scene.radio_materials.items():
+            if hasattr(material, "scattering_coefficient"):
+                saved[name] = material.scattering_coefficient
+                material.scattering_coefficient = settings.scattering_coefficient
+    try:
+        return _solve(solver, scene, settings)
+    finally:
+        for name, value in saved.items():  # the loaded scene is reused by later traces
+            scene.radio_materials[name].scattering_coefficient = value
+
+
+def _solve(solver: Any, scene: Any, settings: TraceSettings) -> Any:
+    """One deterministic solve, evaluated before returning (materials may change afterwards)."""
+    paths = solver(
         scene,
         max_depth=settings.max_depth,
         max_num_paths_per_src=settings.max_num_paths_per_src,
@@ -153,6 +171,8 @@ def solve_paths(
         diffraction=settings.diffraction,
         seed=settings.seed,
     )
+    paths.tau.numpy()  # Dr.Jit is lazy: evaluate while the materials are the ones asked for
+    return paths
 
 
 def paths_to_traced(
@@ -353,6 +373,8 @@ def trace_scene(
     t = time.perf_counter()
     traced = paths_to_traced(paths, loaded, radar_position=radar, ris_positions=ris, radar_velocity=velocity,
                              max_depth=settings.max_depth)
+    if settings.diffuse_reflection:
+        traced = (traced[0], *(leg.strongest(MAX_DIFFUSE_LEGS) for leg in traced[1:]))
     timing["convert"] = time.perf_counter() - t
     result = TraceResult(monostatic=traced[0], legs=traced[1:], scene_hash=loaded.content_hash,
                          cache_hit=False, timing=timing, settings=settings, radar_velocity=velocity)
