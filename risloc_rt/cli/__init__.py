@@ -1,7 +1,7 @@
 """The ``risloc`` command line: one module per verb, each a thin layer over the library.
 
 ``demo``, ``simulate``, ``locate``, ``trace``, ``scene`` (``build``, ``check``, ``show``), ``capture`` and
-``study`` (``sweep``, ``map``).
+``study`` (``sweep``, ``map``), ``speed``.
 
 One error style (``docs/robustness.md``): every error is one line on stderr,
 ``risloc VERB: error: ...``, naming what is wrong and how to fix it. Exit status 2 for bad input
@@ -43,7 +43,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``risloc``."""
-    from . import capture, demo, locate, scene, simulate, study, trace
+    from . import capture, demo, locate, scene, simulate, speed, study, trace
 
     parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     locate.add_parser(sub)
     capture.add_parser(sub)
     study.add_parser(sub)
+    speed.add_parser(sub)
     return parser
 
 
