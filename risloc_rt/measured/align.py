@@ -25,10 +25,13 @@ alignments are refined on a 10× finer grid.
 
 **Confidence.** With Gaussian residuals of the best fit's variance ``σ̂² = RSS_best/(F − J − 2)``
 (J free levels), each refined candidate c gets the posterior weight ``w_c ∝ exp(−(RSS_c −
-RSS_best)/(2σ̂²))`` (flat prior). A frame is *clean* for beam m under c when at most
-``MIX_TOLERANCE`` (5 %) of its chirps see another state. Each beam gets the frame with the largest
-posterior probability of being clean; the **confidence** is the posterior probability that every
-selected frame is clean. Only the eight best coarse alignments are refined, so the far ones
+RSS_best)/(2σ̂²))`` (flat prior). A frame is *among beam m's best* under c when its share of
+the beam's chirps is within ``MIX_TOLERANCE`` (5 %) of the largest share any frame has (1 when a
+frame lies wholly inside the dwell; less with one frame per beam and a RIS not synchronised to
+the radar: then every frame straddles two beams, and the beam is reported *mixed*). Each beam
+gets the frame most probably among its best; the **confidence** is the posterior probability that
+every selected frame is. It is 0 when the fitted program does not beat a constant level (noise
+alone, no RIS modulation) in an F-test at ``NULL_P`` = 1e-3. Only the eight best coarse alignments are refined, so the far ones
 (worse by many σ̂²) count as zero. Without sync frames and with one frame per beam only the
 sweep's edges pin it down, and the confidence says so.
 """
@@ -39,6 +42,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 import numpy as np
+import scipy.stats
 
 from dsp import RadarConfig
 from dsp.radar import SPEED_OF_LIGHT
@@ -50,10 +54,13 @@ from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
 __all__ = ["SweepAlignment", "RisPowerSeries", "ris_power_series", "fit_alignment", "manual_alignment",
            "select_frames"]
 
+NULL_P = 1e-3
+"""The fit must beat one constant level (no RIS) at this significance (F-test), else the confidence is 0."""
 _SUB_CHIRPS = 16
 _TOP = 8
 MIX_TOLERANCE = 0.05
-"""A frame counts as showing one beam when at most this fraction of its chirps see another state."""
+"""Share of a frame's chirps [0…1]: a frame is among a beam's best when its share of the beam is within this of
+the largest any frame has; a beam is *mixed* when its frame has less than 1 − this of it."""
 
 
 @dataclass(frozen=True)
@@ -70,9 +77,9 @@ class SweepAlignment:
     frames_per_beam : int
         The schedule's nominal frames per beam.
     frame_index : int array [M]
-        Recorded frame used for each beam: the first frame lying wholly inside the beam's dwell.
+        Recorded frame used for each beam: the one holding most of it (manual: the first).
     mixed_beams : tuple of int
-        Beams with no frame wholly inside their dwell (the frame with most of the beam is used).
+        Beams whose frame has more than ``MIX_TOLERANCE`` of its chirps in another state.
     off_frames : int array
         Frames with the RIS off for every chirp (background subtraction uses them).
     confidence : float or None
@@ -82,7 +89,7 @@ class SweepAlignment:
         ``delta_rss`` (its misfit above the best, in units of σ̂²).
     feature : dict
         The RIS return the fit used: ``range_bin``, ``range`` [m], ``snr_db`` (its strongest
-        frames over the noise).
+        frames over the noise), ``no_ris_probability`` (the F-test's p-value against no RIS).
     """
 
     method: str
@@ -319,30 +326,40 @@ def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, f
     sigma2 = max(rss0 / max(F - J - 2, 1), 1e-30)
     weight = np.exp(-0.5 * (cand[:, 2] - rss0) / sigma2)
     weight /= weight.sum()
-    # For each beam the frame most probably clean (<= MIX_TOLERANCE of its chirps in another state).
+    # For each beam the frame most probably among its best (MIX_TOLERANCE of the largest share of the beam).
     m = np.arange(M)
     options = np.floor(t0 + m * dwell)[:, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, :]     # [M, O]
     lo = cand[:, 0][:, None, None] + m[None, :, None] * cand[:, 1][:, None, None]                     # [C, M, 1]
     hi = lo + cand[:, 1][:, None, None]
-    margin = np.minimum(options[None] - lo, hi - options[None] - frame_width)                         # [C, M, O]
-    clean = (margin >= -MIX_TOLERANCE * frame_width) & (options[None] >= 0) & (options[None] < F)
-    p_clean = np.einsum("c,cmo->mo", weight, clean)
-    pick = np.argmax(p_clean + 1e-9 * np.arange(options.shape[1], 0, -1)[None, :], axis=1)
+    share = np.clip(np.minimum(options[None] + frame_width, hi) - np.maximum(options[None], lo), 0, None) / frame_width
+    share = np.where((options[None] >= 0) & (options[None] < F), share, -1.0)                       # [C, M, O]
+    good = share >= share.max(axis=2, keepdims=True) - MIX_TOLERANCE
+    p_good = np.einsum("c,cmo->mo", weight, good)
+    pick = np.argmax(p_good + 1e-9 * np.arange(options.shape[1], 0, -1)[None, :], axis=1)
     idx = options[m, pick].astype(np.int64)
-    ok = clean[:, m, pick].all(axis=1)                                                             # [C]
+    ok = good[:, m, pick].all(axis=1)                                                               # [C]
     confidence = float(np.sum(weight[ok]))
+    # Is there a RIS at all? F-test of the fitted program against one constant level (noise alone).
+    root = np.sqrt(np.maximum(s, 0))
+    rss_null = float(np.sum((root - root.mean()) ** 2))
+    dof = max(F - J - 2, 1)
+    stat = ((rss_null - rss0) / (J - 1)) / (rss0 / dof) if rss0 > 0 else np.inf
+    p_null = float(scipy.stats.f.sf(stat, J - 1, dof))
+    if p_null > NULL_P:
+        confidence = 0.0
     runner = None
     if not ok.all():
         j = int(np.flatnonzero(~ok)[np.argmin(cand[~ok, 2])])
         r_idx, _ = select_frames(program, cand[j, 0], cand[j, 1], frame_width=frame_width)
         runner = {"first_frame": int(r_idx[0]), "start": float(cand[j, 0]), "dwell": float(cand[j, 1]),
                   "delta_rss": float((cand[j, 2] - rss0) / sigma2)}
-    mixed = p_clean[m, pick] < 0.5
+    mixed = share[best_i, m, pick] < 1 - MIX_TOLERANCE
     feature: dict[str, Any] = {}
     if isinstance(series, RisPowerSeries):
         top = float(np.percentile(s, 99))
         feature = {"range_bin": series.range_bin, "range": series.range,
                    "snr_db": float(10 * np.log10(max(top, 1e-300) / max(3 * series.noise, 1e-300)))}
+    feature["no_ris_probability"] = p_null
     return SweepAlignment(method="auto", start=t0, dwell=dwell, frames_per_beam=P, frame_index=idx,
                           mixed_beams=tuple(int(m) for m in np.flatnonzero(mixed)),
                           off_frames=_off_frames(program, t0, dwell, F, fractions), confidence=confidence,

@@ -228,8 +228,12 @@ class EmulatedCapture:
 
 def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Path, *,
                       recording: Recording = Recording(), impairments: AdcImpairments = AdcImpairments(),
-                      convention: Convention = "paper", rng: np.random.Generator | None = None) -> EmulatedCapture:
+                      convention: Convention = "paper", rng: np.random.Generator | None = None,
+                      overwrite: bool = False) -> EmulatedCapture:
     """Write ``cube`` as the DCA1000 files of a capture made with ``config``, plus its ``.cfg``.
+
+    Every file is written atomically; the split files appear together, only once all are
+    complete (:class:`~risloc_rt.measured.files.SplitWriter`).
 
     Parameters
     ----------
@@ -239,7 +243,7 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
     config : TiChirpConfig
         Waveform and ADC; written to ``<prefix>.cfg`` with ``num_frames = F``.
     folder : path
-        Existing folder; existing files of the same names are replaced.
+        Existing folder; existing ``<prefix>_Raw_<i>.bin`` files are refused unless ``overwrite``.
     recording : Recording
         Raw or packet form, lanes, I/Q swap, losses, split size, truncation.
     impairments : AdcImpairments
@@ -248,6 +252,8 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
         Sign convention of ``cube``.
     rng : numpy.random.Generator, optional
         Needed for noise or random packet loss.
+    overwrite : bool, default False
+        Replace existing split files (and the ``.cfg``) of the same names.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -268,21 +274,25 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
     stream = stream[:stream.size - recording.truncate_bytes]
     cfg = config.with_frames(F)
     cfg_path = folder / f"{recording.prefix}.cfg"
-    atomic_write_bytes(cfg_path, format_sdk_cfg(
-        cfg, comment=f"written by risloc_rt.measured.emulate_raw: {layout.describe()}").encode("utf-8"))
+    if cfg_path.exists() and not overwrite:
+        raise MeasuredFormatError(f"{cfg_path} exists; risloc does not overwrite a capture: give a new or empty "
+                                  "folder, remove it, or pass overwrite=True")
     if recording.form == "raw":
-        with SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size) as writer:
+        with SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size,
+                         overwrite=overwrite) as writer:
             writer.write(stream.data)
             files = writer.close()
         dropped: tuple[int, ...] = ()
     else:
         writer = SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size,
-                             record_size=10 + recording.payload_size)
+                             record_size=10 + recording.payload_size, overwrite=overwrite)
         with writer:
             rec = PacketRecorder(writer, payload_size=recording.payload_size, drop=frozenset(recording.drop_packets),
                                  drop_probability=recording.drop_probability, rng=rng)
             rec.write(stream.data)
             files = rec.close()
         dropped = tuple(rec.dropped)
+    atomic_write_bytes(cfg_path, format_sdk_cfg(
+        cfg, comment=f"written by risloc_rt.measured.emulate_raw: {layout.describe()}").encode("utf-8"))
     return EmulatedCapture(files=files, cfg_path=cfg_path, config=cfg, layout=layout, quantized=quant,
                            dropped_sequences=dropped, stream_bytes=int(stream.size))

@@ -8,9 +8,11 @@ the limit; raw-mode files may be cut anywhere, packet-recorded files between pac
 from __future__ import annotations
 
 import re
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Iterator, Sequence
 
+from .._files import atomic_open
 from .errors import MeasuredFormatError
 
 __all__ = ["SplitWriter", "capture_files", "split_name"]
@@ -83,6 +85,13 @@ def iter_file_bytes(files: Sequence[Path], block: int) -> Iterator[memoryview]:
 class SplitWriter:
     """Writes a byte stream to ``<folder>/<prefix>_Raw_<i>.bin``, starting a new file at ``max_file_size``.
 
+    The files are written **atomically, all together**: each goes to a hidden temporary file in
+    the folder (``risloc_rt._files.atomic_open``) and every one is renamed into place only when
+    :meth:`close` is reached without an error; an exception (or Ctrl-C) leaves no split file,
+    half-written or otherwise. Existing split files of the prefix are refused unless
+    ``overwrite``: a stale ``_Raw_3.bin`` next to a new two-file capture would be read as its
+    continuation.
+
     Parameters
     ----------
     folder : path
@@ -94,25 +103,35 @@ class SplitWriter:
     record_size : int or None
         Write records of this size whole (packet-recorded form): a file holds as many whole
         records as fit. None cuts at exactly ``max_file_size`` bytes (raw form).
+    overwrite : bool, default False
+        Replace existing split files of the same names.
     """
 
     def __init__(self, folder: str | Path, prefix: str, *, max_file_size: int | None = None,
-                 record_size: int | None = None) -> None:
+                 record_size: int | None = None, overwrite: bool = False) -> None:
         self.folder, self.prefix = Path(folder), prefix
         self.limit = max_file_size
         if max_file_size is not None and record_size is not None and max_file_size < record_size:
             raise MeasuredFormatError(f"max_file_size={max_file_size} is smaller than one packet ({record_size} bytes)")
         if max_file_size is not None and max_file_size < 2:
             raise MeasuredFormatError(f"max_file_size={max_file_size} must be >= 2 bytes")
+        if not overwrite and self.folder.is_dir():
+            stale = sorted(q.name for q in self.folder.iterdir()
+                           if (m := _SPLIT.match(q.name)) and m["stem"] == f"{prefix}_Raw_")
+            if stale:
+                raise MeasuredFormatError(
+                    f"{self.folder} already holds {', '.join(stale[:3])}; risloc does not overwrite a capture: give "
+                    "a new or empty folder, remove those files, or pass overwrite=True")
         self.files: list[Path] = []
+        self._stack = ExitStack()
         self._fh = None
         self._size = 0
 
     def _open_next(self) -> None:
         if self._fh is not None:
-            self._fh.close()
+            self._fh.close()               # its temporary file is renamed into place at close()
         path = self.folder / split_name(self.prefix, len(self.files))
-        self._fh = open(path, "wb")
+        self._fh = self._stack.enter_context(atomic_open(path))
         self.files.append(path)
         self._size = 0
 
@@ -142,15 +161,14 @@ class SplitWriter:
             data = data[len(part):]
 
     def close(self) -> tuple[Path, ...]:
-        """Close the current file; returns every file written."""
+        """Finish: every split file is renamed into place; returns them."""
         if self._fh is None:
             self._open_next()
-        self._fh.close()
+        self._stack.close()
         return tuple(self.files)
 
     def __enter__(self) -> "SplitWriter":
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._fh is not None and not self._fh.closed:
-            self._fh.close()
+        self._stack.__exit__(*exc)         # an exception: every temporary file is removed, nothing renamed

@@ -93,7 +93,8 @@ def _channels(channels: Sequence[int] | None, sched: SweepSchedule, cfg: TiChirp
 
 
 def _mrc_weights(cube: np.ndarray, radar, min_range: float) -> np.ndarray:
-    """Maximal-ratio weights ``conj(h_v)`` [V]: h_v the RIS return's complex amplitude in channel v.
+    """Maximal-ratio weights ``conj(h_v)·h_0/|h_0|`` [V]: h_v the RIS return's complex amplitude in channel v
+    (the combined cube keeps the first channel's phase).
 
     ``cube [M, K, V, N]``: the chirp-mean range profile (Hann) of every beam and channel; the
     strongest (beam, range bin) beyond ``min_range`` summed over channels gives h_v there.
@@ -104,7 +105,8 @@ def _mrc_weights(cube: np.ndarray, radar, min_range: float) -> np.ndarray:
     power = np.sum(np.abs(prof) ** 2, axis=1)
     power[:, (rng < min_range) | (rng > rng[-1] - min_range)] = 0
     m, r = np.unravel_index(int(np.argmax(power)), power.shape)
-    return np.conj(prof[m, :, r])
+    h = prof[m, :, r]
+    return np.conj(h) * (h[0] / abs(h[0]) if abs(h[0]) > 0 else 1.0)
 
 
 def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
@@ -133,8 +135,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         Self-interference removal (:mod:`.leakage`); ``gate_range`` [m] for the gate.
     channels : sequence of int, optional
         Virtual channels to use (default: the schedule's ``channel``); several are combined by
-        maximal-ratio combining on the RIS return (weights ``conj(h_v)``, h_v its complex
-        amplitude in channel v at the strongest beam).
+        maximal-ratio combining on the RIS return (weights ``conj(h_v)·h_0/|h_0|``, h_v its complex
+        amplitude in channel v at the strongest beam and range bin; output ``Σ w_v y_v / Σ |w_v|``).
     min_confidence : float
         ``"auto"`` refuses an alignment whose confidence is below this.
 

@@ -30,9 +30,11 @@ def _scenario(**kw):
 
 
 def _worst_margin(frame_index, start, dwell):
-    """Smallest margin [frames] of the selected frames inside their true beams (negative: mixed)."""
+    """Largest shortfall of a selected frame's share of its true beam below the best any frame has [0…1]."""
     lo = start + np.arange(len(frame_index)) * dwell
-    return float(np.min(np.minimum(frame_index - lo, lo + dwell - frame_index - 1.0)))
+    f = frame_index[:, None] + np.arange(-3, 4)[None, :] * 0 + np.arange(-3, 4)[None, :]
+    share = lambda x: np.clip(np.minimum(x + 1.0, (lo + dwell)[:, None]) - np.maximum(x, lo[:, None]), 0, None)  # noqa: E731
+    return float(np.min(share(frame_index[:, None])[:, 0] - share(f).max(axis=1)))
 
 
 def test_chirp_states_follow_the_program():

@@ -112,3 +112,25 @@ def test_combine_channels_gives_the_localization_cube(make_config, make_tone):
     assert np.abs(combine_channels(cube, channels=None)).max() < 0.5       # unaligned sum loses amplitude
     with pytest.raises(MeasuredFormatError, match="outside the 8 virtual channels"):
         combine_channels(cube, channels=8)
+
+
+def test_split_files_appear_together_or_not_at_all(tmp_path, make_config, make_tone):
+    """Atomic split writes: an error mid-stream leaves no split file; an existing capture is not overwritten."""
+    from risloc_rt.measured.files import SplitWriter
+
+    with pytest.raises(RuntimeError, match="link down"):
+        with SplitWriter(tmp_path, "adc_data", max_file_size=100) as writer:
+            writer.write(b"x" * 250)                 # three files begun
+            raise RuntimeError("link down")
+    assert list(tmp_path.iterdir()) == []            # neither split files nor temporaries
+    cfg = make_config()
+    em = write_raw_capture(make_tone(cfg, 2, range_bin=3), cfg, tmp_path, recording=Recording(max_file_size=3000))
+    assert len(em.files) >= 2 and all(p.is_file() for p in em.files)
+    before = [p.read_bytes() for p in em.files]
+    with pytest.raises(MeasuredFormatError, match="does not overwrite a capture"):
+        write_raw_capture(make_tone(cfg, 2, range_bin=5), cfg, tmp_path)
+    assert [p.read_bytes() for p in em.files] == before
+    again = write_raw_capture(make_tone(cfg, 2, range_bin=5), cfg, tmp_path, overwrite=True,
+                              recording=Recording(max_file_size=3000))
+    assert [p.read_bytes() for p in again.files] != before
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
