@@ -1,0 +1,108 @@
+"""The fast paths at Table I sizes: DSP (screened zoom vs the paper's full grid) and synthesis.
+
+DSP: for the paper scenario (both cases) and the default hall (both radar positions), noisy
+captures are processed with ``dsp.localize(dsp.scan_beams(...))`` — the paper's method — once with
+``doppler_search="full"`` (the N_DFT × K_DFT transform of every beam, the reference) and once with
+the screened ``"zoom"`` search, on the same cube. It prints the median time of each, their ratio,
+and whether the best beam, every beam's grid peak (delay and Doppler bins) and the estimate are
+identical, plus the largest relative difference of the peak and P_ave values.
+
+Synthesis: a Table I capture of the default hall's kept paths (``simulate``), with the standard
+noise stream and with the fast one (float32 per-beam streams, threaded), median of ``--repeat``.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+import dsp
+from risloc_rt.hall.pruning import AliasWarning
+from risloc_rt.hall.scenario import hall_paths, hall_scenario
+from risloc_rt.model.scenario import PAPER_CASES, paper_scenario
+from risloc_rt.model.simulate import simulate
+
+
+def _paper_path(cube, capture, search):
+    t0 = time.perf_counter()
+    scan = dsp.scan_beams(cube, capture.sweep, capture.radar, replace(capture.processing, doppler_search=search))
+    loc = dsp.localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
+    return loc, time.perf_counter() - t0
+
+
+def _cases():
+    for case in PAPER_CASES:
+        yield f"paper {case}", paper_scenario(case), None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AliasWarning)
+        for index in (0, 1):
+            hs = hall_scenario("paper_hall", radar_index=index)
+            yield f"paper_hall radar {index}", hs.base, hall_paths(hs).paths
+
+
+def bench_dsp(realizations: int, full: int, seed: int) -> None:
+    print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
+          f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}")
+    for (name, scenario, paths), ss in zip(_cases(), np.random.SeedSequence(seed).spawn(4)):
+        t_zoom, t_full, beam, bins, est, diff = [], [], 0, 0, 0, 0.0
+        for r, child in enumerate(ss.spawn(realizations)):
+            cap = simulate(scenario, rng=np.random.default_rng(child), paths=paths)
+            zoom, t = _paper_path(cap.cube, cap, "zoom")
+            t_zoom.append(t)
+            if r >= full:
+                continue
+            ref, t = _paper_path(cap.cube, cap, "full")
+            t_full.append(t)
+            beam += zoom.beam_index == ref.beam_index
+            bins += bool(np.array_equal(zoom.scan.delay_bin, ref.scan.delay_bin)
+                         and np.array_equal(zoom.scan.doppler_bin, ref.scan.doppler_bin))
+            est += bool(np.array_equal(zoom.position, ref.position))
+            for a, b in ((zoom.scan.peak_power, ref.scan.peak_power), (zoom.scan.average_power, ref.scan.average_power)):
+                diff = max(diff, float(np.max(np.abs(a / b - 1))))
+        mz, mf = np.median(t_zoom), np.median(t_full)
+        print(f"{name:<24} {len(t_zoom):>3} {mz:>9.3f} {mf:>9.2f} {mf / mz:>9.0f} {beam:>6}/{full:<2} "
+              f"{bins:>6}/{full:<2} {est:>10}/{full:<2} {diff:>13.1e}")
+
+
+def bench_synthesis(repeat: int) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AliasWarning)
+        hs = hall_scenario("paper_hall")
+        paths = hall_paths(hs).paths
+    rng = np.random.default_rng(0)
+    out = {}
+    for stream in ("standard", "fast"):
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            simulate(hs.base, rng=rng, paths=paths, noise_stream=stream)
+            times.append(time.perf_counter() - t0)
+        out[stream] = (np.median(times), min(times))
+    print(f"synthesis of a noisy Table I capture, default hall ({len(paths)} kept paths), median (best) of {repeat}:")
+    for stream, (med, best) in out.items():
+        print(f"  noise stream {stream:<9} {med:.3f} s ({best:.3f} s), {out['standard'][0] / med:.2f}x the standard")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--realizations", type=int, default=5)
+    parser.add_argument("--full", type=int, default=2, help="realizations also run with the full 2-D DFT")
+    parser.add_argument("--repeat", type=int, default=9)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    print(f"risloc-rt fast-path benchmark; {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+          f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    bench_dsp(args.realizations, min(args.full, args.realizations), args.seed)
+    bench_synthesis(args.repeat)
+
+
+if __name__ == "__main__":
+    main()
