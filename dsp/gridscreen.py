@@ -183,10 +183,13 @@ def screened_scan(
             if above.size > n_dft // 4:
                 q, p, value, krow = _dense_beam(y * np.outer(w_k, w_n), processing, first)
             else:
-                if not np.all(np.isin(above, cols)):
-                    cols = np.union1d(cols, above)
-                    q, pi, value, krow = zoom_block(_range_columns(y, cols, n_dft, w_k, w_n), processing)
                 p = int(cols[pi])
+                extra = np.setdiff1d(above, cols, assume_unique=True)
+                if extra.size:  # the other columns that may hold the maximum, as one more block
+                    q2, pi2, value2, krow2 = zoom_block(_range_columns(y, extra, n_dft, w_k, w_n), processing)
+                    p2 = int(extra[pi2])
+                    if value2 > value or (value2 == value and (q2, p2) < (q, p)):  # the full search's order
+                        q, p, value, krow = q2, p2, value2, krow2
             q_best[j], p_best[j], power[j] = q, p, value
             average[j] = _row_values(y, krow, average_columns(p), n_dft, w_k, w_n).mean()
     return q_best, p_best, power, average
