@@ -70,18 +70,18 @@ def scalloping_loss_db(window: str, length: int, offset: float) -> float:
 
 
 @functools.lru_cache(maxsize=4)
-def _dft_table(length: int, size: int) -> np.ndarray:
-    """``e^{+j2π (i·p mod size)/size}`` [length, size]: exact phases (integers reduced first)."""
-    roots = np.exp(2j * np.pi * np.arange(size) / size)  # the size distinct values
-    table = roots[np.outer(np.arange(length, dtype=np.int64), np.arange(size, dtype=np.int64)) % size]
+def _dft_table(rows: int, cols: int, modulus: int) -> np.ndarray:
+    """``e^{+j2π (r·c mod modulus)/modulus}`` [rows, cols]: exact phases (integers reduced first)."""
+    roots = np.exp(2j * np.pi * np.arange(modulus) / modulus)  # the modulus distinct values
+    table = roots[np.outer(np.arange(rows, dtype=np.int64), np.arange(cols, dtype=np.int64)) % modulus]
     table.flags.writeable = False
     return table
 
 
 def _range_columns(y: np.ndarray, columns: np.ndarray, n_dft: int, w_k: np.ndarray, w_n: np.ndarray) -> np.ndarray:
     """``w_k Σ_n w_n y[k, n] e^{+j2π p n / N_DFT}`` at the delay columns p [K, P] (float64, exact phases)."""
-    kernel = _dft_table(y.shape[1], n_dft)[:, columns] * w_n[:, None]  # [N, P]
-    return (y @ kernel) * w_k[:, None]
+    kernel = _dft_table(n_dft, y.shape[1], n_dft)[columns] * w_n  # [P, N]
+    return (y @ kernel.T) * w_k[:, None]
 
 
 def _fine_bins_near(coarse_bins: np.ndarray, k_coarse: int, k_dft: int) -> np.ndarray:
@@ -107,7 +107,7 @@ def zoom_block(spectrum: np.ndarray, processing: ProcessingConfig) -> tuple[int,
     prof = (coarse.real**2 + coarse.imag**2).max(axis=1)  # [K_c]
     candidates = np.flatnonzero(prof >= prof.max() * 10.0 ** (-processing.zoom_margin_db / 10.0))
     fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
-    kernel = _dft_table(k, processing.k_dft).T[fine]  # [Q, K]
+    kernel = _dft_table(processing.k_dft, k, processing.k_dft)[fine]  # [Q, K]
     z = kernel @ spectrum  # [Q, P]
     power = z.real**2 + z.imag**2
     qi, pi = np.unravel_index(int(power.argmax()), power.shape)
@@ -226,5 +226,5 @@ def _dense_beam(frame: np.ndarray, processing: ProcessingConfig, first: int) -> 
 def _row_values(y: np.ndarray, krow: np.ndarray, columns: np.ndarray, n_dft: int, w_k: np.ndarray,
                 w_n: np.ndarray) -> np.ndarray:
     """Unnormalised |z(q, p)|² at the delay columns p of the Doppler row with kernel ``krow`` [P]."""
-    z = (krow * w_k) @ y @ (_dft_table(y.shape[1], n_dft)[:, columns] * w_n[:, None])
+    z = ((krow * w_k) @ y) @ (_dft_table(n_dft, y.shape[1], n_dft)[columns] * w_n).T
     return z.real**2 + z.imag**2
