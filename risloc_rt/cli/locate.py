@@ -15,6 +15,10 @@ __all__ = ["add_parser"]
 
 def _run(args: argparse.Namespace) -> int:
     capture = load_capture(args.capture)
+    if args.calibration is not None:
+        from ..measured.calibration import apply_to_capture, read_calibration
+
+        capture = apply_to_capture(capture, read_calibration(args.calibration))
     processing = processing_overrides(args, capture.processing)
     out = Path(args.out) if args.out else None
     result = report_capture(Path(args.capture).stem, capture, out_dir=out, processing=processing, timing={},
@@ -33,6 +37,8 @@ def add_parser(sub) -> None:
                                      f"{EXIT_NO_DETECTION} when nothing was detected (no position), 2 for bad input.")
     loc.add_argument("capture", help="capture file (.npz) from 'risloc simulate' or a converter")
     loc.add_argument("--out", help="directory for result.json and plots (default: print only)")
+    loc.add_argument("--calibration", metavar="FILE",
+                     help="a calibration file from 'risloc calibrate': its tau_RB and range offset set the distance")
     add_processing_flags(loc)
     add_estimator_flags(loc)
     loc.set_defaults(func=_run)

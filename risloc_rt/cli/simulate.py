@@ -46,8 +46,15 @@ def _placed_scenario(args: argparse.Namespace) -> Scenario:
 
 
 def _run(args: argparse.Namespace) -> int:
+    cal = None
+    if args.calibration is not None:
+        from ..measured.calibration import apply_to_scenario, calibrated_paths, read_calibration
+
+        cal = read_calibration(args.calibration)
     if args.scene is None:
         scenario = _scenario_from_args(args)
+        if cal is not None:
+            scenario = apply_to_scenario(scenario, cal)
         paths, extra = None, None
     elif args.distance is not None or args.aod is not None:
         raise CliError("--distance/--aod place the UE of the analytic scenario; with --scene use --ue X,Y,Z")
@@ -60,6 +67,8 @@ def _run(args: argparse.Namespace) -> int:
                            ue_position=ue, ue_velocity=velocity)
         if args.tx_power_dbm is not None:
             hs = replace(hs, base=replace(hs.base, radar=replace(hs.base.radar, tx_power_dbm=args.tx_power_dbm)))
+        if cal is not None:
+            hs = replace(hs, base=apply_to_scenario(hs.base, cal))
         scenario = replace(hs.base, processing=processing_overrides(args, hs.base.processing))
         traced = quiet_hall_paths(hs, trace_cache(args))
         paths = traced.paths
@@ -73,6 +82,9 @@ def _run(args: argparse.Namespace) -> int:
         from ..measured.emulate_capture import dca1000_radar
 
         scenario = replace(scenario, radar=dca1000_radar(scenario.radar))
+    if cal is not None:
+        paths = calibrated_paths(scenario, paths, cal)
+        extra = {**(extra or {}), "calibration": str(args.calibration)}
     capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
                        paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep")
     t = capture.truth
@@ -101,8 +113,16 @@ def _write_dca1000(args: argparse.Namespace, capture) -> int:
         dc = complex(i, q)
     if args.complex64:
         raise CliError("--complex64 applies to --format npz; a DCA1000 capture holds int16 ADC codes")
+    offset = 0.0
+    if args.calibration is not None:
+        from ..measured.calibration import adc_power_offset_db, read_calibration
+        from ..measured.emulate_capture import full_scale
+
+        offset = adc_power_offset_db(read_calibration(args.calibration), 2.0 ** (args.adc_bits - 1) /
+                                     full_scale(capture.radar))
     exp = emulate_capture(capture, args.output, adc_bits=args.adc_bits, dropped_packets_rate=args.dropped_packets_rate,
-                          dc_offset=dc, iq_gain_db=args.iq_gain_db, rng=np.random.default_rng([args.seed, 1]))
+                          dc_offset=dc, iq_gain_db=args.iq_gain_db, power_offset_db=offset,
+                          rng=np.random.default_rng([args.seed, 1]))
     t = capture.truth
     print(f"wrote {exp.folder}: {exp.raw_path.name} ({len(exp.raw.files)} file(s), {exp.raw.stream_bytes} bytes, "
           f"{len(exp.raw.dropped_sequences)} dropped packet(s)), {exp.config_path.name}, {exp.schedule_path.name}: "
@@ -141,6 +161,9 @@ def add_parser(sub) -> None:
                      help="dca1000: probability of losing each UDP packet (packet-recorded form; default: 0)")
     sim.add_argument("--dc-offset", metavar="I,Q", help="dca1000: ADC DC offset [LSB counts] (default: 0,0)")
     sim.add_argument("--iq-gain-db", type=float, default=0.0, help="dca1000: Q/I gain imbalance [dB] (default: 0)")
+    sim.add_argument("--calibration", metavar="FILE",
+                     help="a calibration file from 'risloc calibrate': range offset, tau_RB, zeta, noise power (and, "
+                          "with --format dca1000, the ADC counts per watt)")
     add_trace_flags(sim)
     add_processing_flags(sim)
     sim.set_defaults(func=_run)

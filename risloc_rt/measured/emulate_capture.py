@@ -161,7 +161,7 @@ def write_frames(frames: np.ndarray, radar: RadarConfig, folder: Path, *, adc_bi
 
 
 def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16, dropped_packets_rate: float = 0.0,
-                    dc_offset: complex = 0j, iq_gain_db: float = 0.0,
+                    dc_offset: complex = 0j, iq_gain_db: float = 0.0, power_offset_db: float = 0.0,
                     rng: np.random.Generator | None = None) -> EmulatedExperiment:
     """Write ``capture`` as a DCA1000 recording of one RIS sweep into ``folder`` (see the module doc).
 
@@ -178,6 +178,8 @@ def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16,
         ADC DC offset [LSB counts].
     iq_gain_db : float
         Q/I gain imbalance [dB].
+    power_offset_db : float
+        Receiver gain the model does not know: ADC counts per √W raised by it [dB].
     rng : numpy.random.Generator, optional
         Needed when packets are dropped.
     """
@@ -187,7 +189,7 @@ def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16,
     folder = check_folder(folder)
     raw, fs, counts = write_frames(np.asarray(capture.cube), capture.radar, folder, adc_bits=adc_bits,
                                    dropped_packets_rate=dropped_packets_rate, dc_offset=dc_offset,
-                                   iq_gain_db=iq_gain_db, rng=rng)
+                                   iq_gain_db=iq_gain_db, power_offset_db=power_offset_db, rng=rng)
     schedule = sweep_schedule_of(np.rad2deg(capture.sweep.angles), frames_per_beam=1, first_frame=0, channel=0,
                                **schedule_fields(capture.ris, capture.truth))
     path = write_sweep_schedule(schedule, folder / SCHEDULE_NAME, comment=(

@@ -1,0 +1,58 @@
+"""``risloc calibrate CAPTURE --scene HALL -o calibration.toml``: the radar's range offset, the RIS's τ_RB and ζ,
+the noise floor and the power offset, fitted against the ray-traced hall (``docs/formats.md``, "Calibration files")."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .common import CliError, add_trace_flags, trace_cache, trace_settings, vector
+
+__all__ = ["add_parser"]
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..io.capture_file import load_capture
+    from ..measured.calibrate import calibrate_capture
+    from ..measured.calibration import write_calibration
+    from ..measured.hall_model import hall_model, ue_position_of
+
+    out = Path(args.output)
+    if out.suffix not in (".toml", ".json"):
+        raise CliError(f"-o {args.output}: name a .toml or .json file (e.g. -o calibration.toml)")
+    if out.exists() and not args.force:
+        raise CliError(f"-o {args.output} exists; risloc does not overwrite it: give another name or --force")
+    capture = load_capture(args.capture)
+    ue, source = ue_position_of(capture, None if args.ue is None else vector(args.ue, "--ue"))
+    model = hall_model(capture, args.scene, ue, ue_source=source, trace=trace_settings(args), cache=trace_cache(args))
+    cal = calibrate_capture(capture, model.traced.paths, max_range_offset=args.max_range_offset)
+    path = write_calibration(cal, out)
+    print(f"calibrated {args.capture} against {model.scenario.scene_xml.parent.name} (radar at "
+          f"{[round(float(x), 3) for x in ue]} m, {source}): wrote {path}")
+    rows = [("range offset", cal.range_offset * 1e3, cal.range_offset_std * 1e3, "mm"),
+            ("RIS loop-back delay tau_RB", cal.loopback_delay * 1e9, cal.loopback_delay_std * 1e9, "ns"),
+            ("RIS amplification zeta", cal.amplification_db, cal.amplification_db_std, "dB"),
+            ("noise power", cal.noise_power_dbm, cal.noise_power_dbm_std, "dBm"),
+            ("power offset (ADC counts^2 per W)", cal.power_offset_db, cal.power_offset_db_std, "dB")]
+    for name, value, std, unit in rows:
+        print(f"  {name:36s} {value:+12.4f} ± {std:.2g} {unit}")
+    return 0
+
+
+def add_parser(sub) -> None:
+    """Add ``calibrate`` to an ``add_subparsers()`` object."""
+    cal = sub.add_parser("calibrate", help="fit range offset, tau_RB, zeta, noise floor and power offset of a capture "
+                                           "against a ray-traced hall",
+                         description="Fit the radar's internal range offset, the RIS's loop-back delay and "
+                                     "amplification, the noise floor and the receiver's power offset to a measured "
+                                     "capture of a static radar at a known position, with 1-sigma uncertainties; "
+                                     "'risloc simulate/locate/compare --calibration FILE' use the file.")
+    cal.add_argument("capture", help="capture file (.npz) from 'risloc capture import'")
+    cal.add_argument("--scene", required=True, help="the hall (name in scenes/ or folder) the capture was made in")
+    cal.add_argument("--ue", metavar="X,Y,Z", help="the radar's position [m] (default: the capture's truth)")
+    cal.add_argument("-o", "--output", required=True, help="calibration file to write (.toml or .json)")
+    cal.add_argument("--force", action="store_true", help="replace an existing output file")
+    cal.add_argument("--max-range-offset", type=float, default=0.3, metavar="M",
+                     help="range offsets searched, +-M metres (default: %(default)s)")
+    add_trace_flags(cal)
+    cal.set_defaults(func=_run)

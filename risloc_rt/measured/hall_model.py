@@ -1,0 +1,63 @@
+"""The ray-traced hall seen by a measured capture: the model side of ``risloc calibrate`` and ``risloc compare``.
+
+The hall's scenario takes the capture's radar, sweep and RIS (the sweep schedule's pose, τ_RB,
+mode and ζ) and a radar position: the capture's truth, or one given; the traced paths are built
+with them (``hall.hall_paths``, pruned to what the radar can see).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..hall.pruning import AliasWarning
+from ..hall.scenario import HallPaths, HallScenario, hall_paths, hall_scenario
+from ..model.capture import Capture
+from ..model.ris import RisConfig
+from .errors import MeasuredFormatError
+
+__all__ = ["HallModel", "hall_model", "ue_position_of"]
+
+
+@dataclass(frozen=True)
+class HallModel:
+    """A traced hall for one capture: the scenario and its kept paths (√W, delays with τ_RB)."""
+
+    scenario: HallScenario
+    traced: HallPaths
+    ue_position: np.ndarray
+    ue_source: str
+
+
+def ue_position_of(capture: Capture, ue: Any = None, *, estimate: Any = None) -> tuple[np.ndarray, str]:
+    """The radar position to model: ``ue`` if given, else the capture's truth, else ``estimate``; and which."""
+    if ue is not None:
+        return np.asarray(ue, float), "given"
+    if capture.truth is not None:
+        return np.asarray(capture.truth.ue_position, float), "truth"
+    if estimate is not None:
+        return np.asarray(estimate, float), "estimate"
+    raise MeasuredFormatError("the capture has no truth (no [truth] ue_position in its sweep schedule); give the "
+                              "radar's position with --ue X,Y,Z")
+
+
+def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, ue_source: str = "given",
+               ris: RisConfig | None = None, trace: Any = None, cache: Any = None) -> HallModel:
+    """Trace ``scene`` for the capture's radar, sweep and RIS (or ``ris``) with the radar at ``ue_position``."""
+    hs = hall_scenario(scene, radar=capture.radar, sweep=capture.sweep, processing=capture.processing,
+                       ue_position=ue_position, ue_velocity=np.zeros(3), trace=trace)
+    ris = capture.ris if ris is None else ris
+    if np.linalg.norm(ris.pose.position - hs.base.ris.pose.position) > 0.05:
+        raise MeasuredFormatError(
+            f"the capture's RIS is at {np.round(ris.pose.position, 3).tolist()} m but the scene's is at "
+            f"{np.round(hs.base.ris.pose.position, 3).tolist()} m; give the scene the experiment was done in (or fix "
+            "the sweep schedule's [ris] position)")
+    hs = replace(hs, base=replace(hs.base, ris=ris))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AliasWarning)
+        traced = hall_paths(hs, cache=cache)
+    return HallModel(scenario=hs, traced=traced, ue_position=np.asarray(ue_position, float), ue_source=ue_source)

@@ -1,0 +1,135 @@
+"""risloc calibrate: injected radar range offset, τ_RB, ζ and receiver gain recovered from an emulated hall recording.
+
+The emulator synthesises the traced default hall (radar position 1: 13.38 m, 21°) with the *true*
+RIS (τ_RB 1.93 ns, ζ 42.0 dB) and radar (range offset 12.3 mm, +7 dB receiver gain, Tx→Rx
+leakage) while the sweep schedule states the nominal RIS (1.78 ns, 45.532 dB); the calibration
+fits against the hall traced with the nominal RIS. Tolerances in physical units: τ_RB 0.02 ns,
+ζ 0.5 dB, range offset 1 mm.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dsp import RadarConfig
+from risloc_rt.cli import main
+from risloc_rt.io.capture_file import load_capture, save_capture
+from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
+from risloc_rt.measured.calibrate import calibrate_capture
+from risloc_rt.measured.calibration import read_calibration
+from risloc_rt.measured.hall_model import hall_model
+
+RANGE_OFFSET, TAU_RB, ZETA_DB, GAIN_DB = 0.0123, 1.93e-9, 42.0, 7.0
+TRACE = ["--depth", "2", "--samples", "20000"]
+
+
+@pytest.fixture(scope="module")
+def hall_capture(tmp_path_factory):
+    from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.hall.raytrace.tracer import TraceSettings
+    from risloc_rt.hall.scenario import hall_paths, hall_scenario
+
+    root = tmp_path_factory.mktemp("cal")
+    cache = TraceCache(root / "cache")
+    settings = TraceSettings(max_depth=2, samples_per_src=20000)
+    hs = hall_scenario("paper_hall", radar_index=1, radar=dca1000_radar(RadarConfig()), trace=settings)
+    nominal = hs.base.ris
+    true = replace(hs, base=replace(hs.base, ris=replace(nominal, loopback_delay=TAU_RB, amplification_db=ZETA_DB)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        traced = hall_paths(true, cache=cache)
+    plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2,
+                         range_offset=RANGE_OFFSET, power_offset_db=GAIN_DB, leakage_dbm=-10.0)
+    rec = emulate_recording(true.base, root / "rec", plan=plan, paths=traced.paths, nominal_ris=nominal,
+                            rng=np.random.default_rng(3))
+    exp = rec.experiment
+    capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
+    path = save_capture(capture, root / "capture.npz")
+    return {"capture": capture, "path": path, "cache": cache, "settings": settings, "root": root,
+            "counts_db": 20 * np.log10(exp.counts_per_unit), "noise_dbm": true.base.radar.noise_power_dbm}
+
+
+def test_calibration_recovers_the_injected_values(hall_capture):
+    cap = hall_capture["capture"]
+    assert cap.ris.loopback_delay == pytest.approx(1.78e-9) and cap.ris.amplification_db == pytest.approx(45.532)
+    model = hall_model(cap, "paper_hall", cap.truth.ue_position, trace=hall_capture["settings"],
+                       cache=hall_capture["cache"])
+    cal = calibrate_capture(cap, model.traced.paths)
+    print(f"calibration: range offset {cal.range_offset * 1e3:.3f} ± {cal.range_offset_std * 1e3:.3f} mm (injected "
+          f"{RANGE_OFFSET * 1e3}), tau_RB {cal.loopback_delay * 1e9:.4f} ± {cal.loopback_delay_std * 1e9:.4f} ns "
+          f"(injected {TAU_RB * 1e9}), zeta {cal.amplification_db:.3f} ± {cal.amplification_db_std:.3f} dB (injected "
+          f"{ZETA_DB}), noise {cal.noise_power_dbm:.3f} ± {cal.noise_power_dbm_std:.3f} dBm (injected "
+          f"{hall_capture['noise_dbm']:.3f}), power offset {cal.power_offset_db:.3f} ± {cal.power_offset_db_std:.3f} dB "
+          f"(injected {hall_capture['counts_db']:.3f})")
+    assert abs(cal.range_offset - RANGE_OFFSET) <= 1e-3
+    assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9
+    assert abs(cal.amplification_db - ZETA_DB) <= 0.5
+    assert abs(cal.noise_power_dbm - hall_capture["noise_dbm"]) <= 0.5
+    assert abs(cal.power_offset_db - hall_capture["counts_db"]) <= 0.5
+    assert 0 < cal.range_offset_std < 1e-3 and 0 < cal.loopback_delay_std < 0.02e-9 and 0 < cal.amplification_db_std < 0.5
+
+
+def test_calibrate_cli_file_and_locate_with_it(hall_capture, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("RISLOC_CACHE_DIR", str(hall_capture["cache"].directory))
+    cap_path = str(hall_capture["path"])
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(out), *TRACE]) == 0
+    text = capsys.readouterr().out
+    assert "range offset" in text and "tau_RB" in text
+    cal = read_calibration(out)
+    assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9 and abs(cal.range_offset - RANGE_OFFSET) <= 1e-3
+    assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(out), *TRACE]) == 2     # no overwrite
+    assert "exists" in capsys.readouterr().err
+    assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(tmp_path / "cal.json"), *TRACE]) == 0
+    assert read_calibration(tmp_path / "cal.json").amplification_db == pytest.approx(cal.amplification_db, abs=1e-9)
+    capsys.readouterr()
+
+    truth = hall_capture["capture"].truth.distance
+    from risloc_rt.io.report import process_capture
+    from risloc_rt.measured.calibration import apply_to_capture
+
+    raw, _ = process_capture(hall_capture["capture"])
+    fixed, _ = process_capture(apply_to_capture(hall_capture["capture"], cal))
+    print(f"distance error: nominal tau_RB {1e3 * (raw.distance - truth):+.2f} mm, calibrated "
+          f"{1e3 * (fixed.distance - truth):+.2f} mm")
+    # nominal: off by the range offset plus (tau_RB error) c/2 = 12.3 + 22.5 mm; calibrated: within 2 mm
+    assert abs(raw.distance - truth - 0.0348) < 0.003 and abs(fixed.distance - truth) < 0.002
+    assert main(["locate", cap_path, "--calibration", str(out)]) == 0
+
+
+def test_simulate_with_a_calibration(hall_capture, tmp_path, capsys):
+    from risloc_rt.measured.calibration import Calibration, write_calibration
+
+    cal = write_calibration(Calibration(range_offset=0.02, loopback_delay=2.0e-9, amplification_db=40.0,
+                                        noise_power_dbm=-60.0, power_offset_db=100.0), tmp_path / "c.toml")
+    out = tmp_path / "sim.npz"
+    assert main(["simulate", "--distance", "8", "--aod", "10,0", "--no-noise", "--calibration", str(cal),
+                 "-o", str(out)]) == 0
+    sim = load_capture(out)
+    assert sim.ris.loopback_delay == pytest.approx(2.0e-9) and sim.ris.amplification_db == 40.0
+    assert sim.radar.noise_power_dbm == -60.0
+    capsys.readouterr()
+    from risloc_rt.io.report import process_capture
+    loc, _ = process_capture(sim)                                       # the range offset is in the data
+    assert loc.distance - 8.0 == pytest.approx(0.02, abs=1e-3)
+    assert main(["locate", str(out), "--calibration", str(cal)]) == 0
+    assert "8.000" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("content, message", [
+    ("format = 'x'\n", "expected 'risloc-calibration' version 1"),
+    ("format = 'risloc-calibration'\nversion = 1\n[radar]\nrange_offset_m = 0.0\n", "radar.noise_power_dbm is missing"),
+    ("format = 'risloc-calibration'\nversion = 1\n[radar\n", "not valid TOML"),
+])
+def test_bad_calibration_files_are_one_line_errors(tmp_path, capsys, content, message):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(content)
+    assert main(["simulate", "--no-noise", "--calibration", str(bad), "-o", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err, err
+    assert main(["simulate", "--no-noise", "--calibration", str(tmp_path / "none.toml"), "-o", str(tmp_path / "x.npz")]) == 2
+    assert "calibration file" in capsys.readouterr().err and not (tmp_path / "x.npz").exists()
