@@ -38,6 +38,8 @@ whole beam and the zoom.
 from __future__ import annotations
 
 import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -55,7 +57,7 @@ SCREEN_HEADROOM_DB = 1.5
 _F32_SLACK = 1e-5
 
 #: Bytes of complex64 screen work per chunk of beams (cache-sized).
-_SCREEN_CHUNK = 8 * 2**20
+_SCREEN_CHUNK = 4 * 2**20
 
 
 def scalloping_loss_db(window: str, length: int, offset: float) -> float:
@@ -116,7 +118,7 @@ def zoom_block(spectrum: np.ndarray, processing: ProcessingConfig) -> tuple[int,
 
 def screened_scan(
     cube: np.ndarray, processing: ProcessingConfig, first: int, window_kn: tuple[np.ndarray, np.ndarray],
-    average_columns: Callable[[int], np.ndarray],
+    average_columns: Callable[[int], np.ndarray], workers: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Grid maxima and P_ave of every beam of ``cube [M, K, N]``.
 
@@ -131,6 +133,9 @@ def screened_scan(
         The slow- and fast-time windows w_K, w_N.
     average_columns : callable
         ``p -> int array``: the delay bins of eq. (P_ave) around a peak at bin p.
+    workers : int, optional
+        Threads over chunks of beams (default: up to 2, the CPU count); the result does not
+        depend on it.
 
     Returns
     -------
@@ -144,6 +149,7 @@ def screened_scan(
     m, k, n = cube.shape
     n_dft = processing.n_dft
     n_c = scipy.fft.next_fast_len(n)
+    workers = min(2, os.cpu_count() or 1) if workers is None else int(workers)
     # Fine column p sits at n_c·p/N_DFT native samples: between samples lo and lo + 1.
     pos = np.arange(n_dft) * (n_c / n_dft)
     lo = np.floor(pos).astype(np.int64) % n_c
@@ -152,13 +158,14 @@ def screened_scan(
     doppler_margin = 10.0 ** ((scalloping_loss_db(processing.window, k, 0.5) + SCREEN_HEADROOM_DB) / 10.0)
     w_k, w_n = window_kn
     w32 = np.outer(w_k, w_n).astype(np.float32)
-    reach = int(np.ceil(n_dft / n_c)) + 1  # fine columns per native sample, plus one
+    reach = int(np.ceil(n_dft / n_c))  # fine columns per native sample
     q_best = np.empty(m, dtype=np.int64)
     p_best = np.empty(m, dtype=np.int64)
     power = np.empty(m)
     average = np.empty(m)
     step = max(1, _SCREEN_CHUNK // (8 * k * n_c))
-    for i in range(0, m, step):
+
+    def chunk(i: int) -> None:
         block = cube[i:i + step].astype(np.complex64)
         block *= w32
         norms = np.array([np.sqrt(np.vdot(b, b).real) for b in block], dtype=np.float64)  # ‖x‖_F [c]
@@ -192,6 +199,15 @@ def screened_scan(
                         q, p, value, krow = q2, p2, value2, krow2
             q_best[j], p_best[j], power[j] = q, p, value
             average[j] = _row_values(y, krow, average_columns(p), n_dft, w_k, w_n).mean()
+
+    starts = range(0, m, step)
+    if workers <= 1 or len(starts) < 2:
+        for i in starts:
+            chunk(i)
+    else:  # numpy and scipy.fft release the GIL: chunks of beams on threads, same results
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for _ in pool.map(chunk, starts):
+                pass
     return q_best, p_best, power, average
 
 

@@ -130,3 +130,14 @@ def test_scalloping_loss_is_the_window_response_between_bins(window, offset, los
     # Closed forms for large N: boxcar |sinc(1/2)|² = (2/π)² → 3.92 dB; Hann at half a bin:
     # (8/(3π))² ... = 1.42 dB.
     assert scalloping_loss_db(window, 4096, offset) == pytest.approx(loss_db, abs=2e-3)
+
+
+def test_threads_do_not_change_the_result(make_radar, make_processing):
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    rng = np.random.default_rng(3)
+    cube = add_noise(np.zeros((9, 16, 64), complex) + 0.3 * _tone(radar, 1e-8, 2e-9), 1.0, rng)
+    windows = (np.hanning(17)[:-1], np.hanning(65)[:-1])
+    runs = [gridscreen.screened_scan(cube, processing, 0, windows, lambda p: np.array([p]), workers=w) for w in (1, 3)]
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(a, b)
