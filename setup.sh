@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-step set-up of risloc-rt on a fresh Debian machine (Python >= 3.11, run as root or with sudo):
-# Debian's python3-venv and libllvm19 when missing, then a virtual environment with pinned packages.
+# Debian's python3-venv and libllvm19 when missing (and chromium for --test), then a virtual environment with pinned packages.
 #
 #   ./setup.sh           create .venv and install risloc-rt (then: .venv/bin/risloc demo)
 #   ./setup.sh --test    the same plus the test tools     (then: .venv/bin/python -m pytest)
@@ -31,6 +31,9 @@ for lib in /usr/lib/*-linux-gnu/libLLVM.so.{17,18,19,20,21}* /usr/lib/*-linux-gn
   [ -e "$lib" ] && have_llvm="$lib" && break
 done
 [ -n "$have_llvm" ] || [ -n "${DRJIT_LIBLLVM_PATH:-}" ] || need_apt+=(libllvm19)
+# --test only: Debian's chromium, the headless browser tests/measured/test_compare.py opens the
+# 'risloc compare' page in (no browser download; the test is skipped without it).
+if [ "$extras" = "[test]" ] && ! command -v chromium >/dev/null; then need_apt+=(chromium); fi
 if ((${#need_apt[@]})); then
   if command -v apt-get >/dev/null; then
     SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo

@@ -43,7 +43,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``risloc``."""
-    from . import calibrate, capture, demo, locate, scene, simulate, speed, study, trace
+    from . import calibrate, capture, compare, demo, locate, scene, simulate, speed, study, trace
 
     parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     locate.add_parser(sub)
     capture.add_parser(sub)
     calibrate.add_parser(sub)
+    compare.add_parser(sub)
     study.add_parser(sub)
     speed.add_parser(sub)
     return parser

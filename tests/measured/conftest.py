@@ -65,3 +65,43 @@ def make_config():
 @pytest.fixture
 def make_tone():
     return tone_cube
+
+
+# ---------------------------------------------------------------------------------------------- emulated hall
+RANGE_OFFSET, TAU_RB, ZETA_DB, GAIN_DB = 0.0123, 1.93e-9, 42.0, 7.0
+"""Injected into the emulated hall recording: range offset [m], true τ_RB [s], ζ [dB], receiver gain [dB]."""
+TRACE = ["--depth", "2", "--samples", "20000"]
+
+
+@pytest.fixture(scope="session")
+def injected_hall(tmp_path_factory):
+    """The default hall (radar position 1: 13.38 m, 21°) recorded with a true RIS (τ_RB 1.93 ns, ζ 42 dB) and radar
+    (range offset 12.3 mm, +7 dB gain, Tx→Rx leakage) while the sweep schedule states the nominal RIS; imported."""
+    import warnings
+
+    from dsp import RadarConfig
+    from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.hall.raytrace.tracer import TraceSettings
+    from risloc_rt.hall.scenario import hall_paths, hall_scenario
+    from risloc_rt.io.capture_file import save_capture
+    from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
+
+    root = tmp_path_factory.mktemp("hall")
+    cache = TraceCache(root / "cache")
+    settings = TraceSettings(max_depth=2, samples_per_src=20000)
+    hs = hall_scenario("paper_hall", radar_index=1, radar=dca1000_radar(RadarConfig()), trace=settings)
+    nominal = hs.base.ris
+    true = replace(hs, base=replace(hs.base, ris=replace(nominal, loopback_delay=TAU_RB, amplification_db=ZETA_DB)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        traced = hall_paths(true, cache=cache)
+    plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2,
+                         range_offset=RANGE_OFFSET, power_offset_db=GAIN_DB, leakage_dbm=-10.0)
+    rec = emulate_recording(true.base, root / "rec", plan=plan, paths=traced.paths, nominal_ris=nominal,
+                            rng=np.random.default_rng(3))
+    exp = rec.experiment
+    capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
+    path = save_capture(capture, root / "capture.npz")
+    return {"capture": capture, "path": path, "cache": cache, "settings": settings, "root": root,
+            "counts_db": 20 * np.log10(exp.counts_per_unit), "noise_dbm": true.base.radar.noise_power_dbm,
+            "range_offset": RANGE_OFFSET, "tau_rb": TAU_RB, "zeta_db": ZETA_DB, "trace": TRACE}

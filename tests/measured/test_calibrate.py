@@ -9,48 +9,24 @@ fits against the hall traced with the nominal RIS. Tolerances in physical units:
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
-from dsp import RadarConfig
 from risloc_rt.cli import main
-from risloc_rt.io.capture_file import load_capture, save_capture
-from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
+from risloc_rt.io.capture_file import load_capture
 from risloc_rt.measured.calibrate import calibrate_capture
 from risloc_rt.measured.calibration import read_calibration
 from risloc_rt.measured.hall_model import hall_model
 
-RANGE_OFFSET, TAU_RB, ZETA_DB, GAIN_DB = 0.0123, 1.93e-9, 42.0, 7.0
+RANGE_OFFSET, TAU_RB, ZETA_DB = 0.0123, 1.93e-9, 42.0          # what conftest.injected_hall injects
 TRACE = ["--depth", "2", "--samples", "20000"]
 
 
 @pytest.fixture(scope="module")
-def hall_capture(tmp_path_factory):
-    from risloc_rt.hall.raytrace.cache import TraceCache
-    from risloc_rt.hall.raytrace.tracer import TraceSettings
-    from risloc_rt.hall.scenario import hall_paths, hall_scenario
-
-    root = tmp_path_factory.mktemp("cal")
-    cache = TraceCache(root / "cache")
-    settings = TraceSettings(max_depth=2, samples_per_src=20000)
-    hs = hall_scenario("paper_hall", radar_index=1, radar=dca1000_radar(RadarConfig()), trace=settings)
-    nominal = hs.base.ris
-    true = replace(hs, base=replace(hs.base, ris=replace(nominal, loopback_delay=TAU_RB, amplification_db=ZETA_DB)))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        traced = hall_paths(true, cache=cache)
-    plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2,
-                         range_offset=RANGE_OFFSET, power_offset_db=GAIN_DB, leakage_dbm=-10.0)
-    rec = emulate_recording(true.base, root / "rec", plan=plan, paths=traced.paths, nominal_ris=nominal,
-                            rng=np.random.default_rng(3))
-    exp = rec.experiment
-    capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
-    path = save_capture(capture, root / "capture.npz")
-    return {"capture": capture, "path": path, "cache": cache, "settings": settings, "root": root,
-            "counts_db": 20 * np.log10(exp.counts_per_unit), "noise_dbm": true.base.radar.noise_power_dbm}
+def hall_capture(injected_hall):
+    assert (injected_hall["range_offset"], injected_hall["tau_rb"], injected_hall["zeta_db"]) == (RANGE_OFFSET, TAU_RB,
+                                                                                                ZETA_DB)
+    return injected_hall
 
 
 def test_calibration_recovers_the_injected_values(hall_capture):

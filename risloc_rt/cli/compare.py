@@ -1,0 +1,73 @@
+"""``risloc compare CAPTURE --scene HALL -o DIR``: a measured capture against the ray-traced hall, as a page."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .common import CliError, add_trace_flags, trace_cache, trace_settings, vector
+
+__all__ = ["add_parser"]
+
+_OWN = ("index.html", "comparison.json", "range_profiles.png", "delay_doppler.png", "sweep_power.png")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..io.capture_file import load_capture
+    from ..io.report import process_capture
+    from ..measured.calibration import read_calibration
+    from ..measured.compare import compare_capture
+    from ..measured.compare_report import write_comparison
+    from ..measured.hall_model import hall_model, ue_position_of
+
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise CliError(f"-o {args.output} is a file; give a folder for the comparison page")
+    if out.is_dir() and not args.force:
+        clash = [name for name in _OWN if (out / name).exists()]
+        if clash:
+            raise CliError(f"-o {args.output} already holds {', '.join(clash[:3])}; give a new folder or --force")
+    capture = load_capture(args.capture)
+    cal = None if args.calibration is None else read_calibration(args.calibration)
+    ue = None if args.ue is None else vector(args.ue, "--ue")
+    estimate = None
+    if ue is None and capture.truth is None:
+        loc, _ = process_capture(capture)
+        estimate = loc.position
+        if estimate is None:
+            raise CliError(f"{args.capture} has no truth and no position could be estimated (nothing detected); "
+                           "give the radar's position with --ue X,Y,Z")
+    position, source = ue_position_of(capture, ue, estimate=estimate)
+    ris = None
+    if cal is not None:
+        from dataclasses import replace
+
+        ris = replace(capture.ris, loopback_delay=cal.loopback_delay, amplification_db=cal.amplification_db)
+    model = hall_model(capture, args.scene, position, ue_source=source, ris=ris, trace=trace_settings(args),
+                       cache=trace_cache(args))
+    comparison = compare_capture(capture, model, calibration=cal)
+    written = write_comparison(comparison, out)
+    s = comparison.summary
+    print(f"wrote {written['index']} ({len(written) - 1} more files): {s['peaks']} measured peak(s) at the best beam "
+          f"{comparison.beam}, {s['explained']} explained by traced paths, {s['unexplained']} unexplained; delay "
+          f"residual rms {s['delay_residual_rms_mm'] if s['delay_residual_rms_mm'] is not None else float('nan'):.2f} mm,"
+          f" power residual rms {s['power_residual_rms_db'] if s['power_residual_rms_db'] is not None else float('nan'):.2f}"
+          f" dB; P_ave rms difference {s['pave_rms_difference_db']:.2f} dB; radar at {[round(float(v), 3) for v in position]}"
+          f" m ({source})")
+    return 0
+
+
+def add_parser(sub) -> None:
+    """Add ``compare`` to an ``add_subparsers()`` object."""
+    p = sub.add_parser("compare", help="compare a measured capture with the ray-traced hall (HTML page, figures, JSON)",
+                       description="Measured vs ray-traced: range profiles, delay-Doppler maps and the sweep power, "
+                                   "every measured peak associated with a traced path (docs/measured-captures.md).")
+    p.add_argument("capture", help="capture file (.npz), e.g. from 'risloc capture import'")
+    p.add_argument("--scene", required=True, help="the hall (name in scenes/ or folder)")
+    p.add_argument("--ue", metavar="X,Y,Z", help="the radar's position [m] (default: the capture's truth, else the "
+                                                 "estimate)")
+    p.add_argument("--calibration", metavar="FILE", help="a calibration file from 'risloc calibrate'")
+    p.add_argument("-o", "--output", required=True, help="folder for index.html, comparison.json and the PNG figures")
+    p.add_argument("--force", action="store_true", help="replace the page in an existing folder")
+    add_trace_flags(p)
+    p.set_defaults(func=_run)

@@ -1,0 +1,180 @@
+"""Measured vs ray-traced: the numbers behind ``risloc compare`` (the page is :mod:`.compare_report`).
+
+The simulated side is the traced hall (:mod:`.hall_model`) at the capture's radar position,
+synthesised with eq. (1) for the capture's radar, sweep and RIS (calibrated when a calibration is
+given: τ_RB, ζ, range offset), scaled to ADC counts by the receiver gain G (the calibration's
+power offset; without one, ``G = (mean|y|² − σ²)/mean|s|²``, the measured signal power over the
+simulated) and given white noise at the measured floor σ² (the chirp-to-chirp variance), so both
+sides go through the same DSP (``dsp.delay_doppler_map`` and ``dsp.scan_beams``).
+
+**Peaks.** Local maxima of the measured zero-Doppler range profile at the best beam, at least
+``prominence_db`` (6 dB) prominent and ``floor_db`` (12 dB) above the profile's median, beyond
+the range gate. Each is associated with the traced path that contributes most power at that beam
+among those whose apparent range lies within 1.5 range cells (the label ``hall.path_table``
+gives, e.g. ``ris_loopback: out LOS | back LOS``), or marked ``"unexplained"``. Its simulated
+counterpart is the simulated profile's local maximum nearest to it within 1.5 cells; the **delay residual** is the
+measured minus the simulated peak range [mm] (peaks interpolated by a parabola in dB), the
+**power residual** measured minus simulated peak power [dB].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import scipy.signal
+
+from dsp import delay_doppler_map
+
+from ..hall.path_table import apparent_distance
+from ..io.report import process_capture
+from ..model.beat import beat_cube
+from ..model.capture import Capture
+from ..model.ris import ris_response
+from .calibration import Calibration, apply_to_scenario, calibration_delay
+from .emulate_recording import shift_paths
+from .hall_model import HallModel
+
+__all__ = ["Comparison", "compare_capture"]
+
+FORMAT = "risloc-comparison"
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Both sides and the peak table. Profiles are zero-Doppler powers [counts²] on ``distance`` [m]."""
+
+    measured: Capture
+    simulated: Capture
+    beam: int
+    distance: np.ndarray
+    profile_measured: np.ndarray
+    profile_simulated: np.ndarray
+    mean_profile_measured: np.ndarray
+    mean_profile_simulated: np.ndarray
+    ddm_measured: Any
+    ddm_simulated: Any
+    pave_measured: np.ndarray
+    pave_simulated: np.ndarray
+    peaks: list[dict[str, Any]]
+    summary: dict[str, Any]
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``comparison.json`` document (``docs/formats.md``)."""
+        return {"format": FORMAT, "version": 1, **self.info, "best_beam": self.beam,
+                "best_beam_angle_deg": np.rad2deg(self.measured.sweep.angles[self.beam]).tolist(),
+                "peaks": self.peaks, "summary": self.summary,
+                "sweep": {"angle_deg": np.rad2deg(self.measured.sweep.angles[:, 0]).tolist(),
+                          "pave_measured_db": _db(self.pave_measured).tolist(),
+                          "pave_simulated_db": _db(self.pave_simulated).tolist()}}
+
+
+def _db(x: np.ndarray) -> np.ndarray:
+    return 10 * np.log10(np.maximum(np.asarray(x, float), 1e-300))
+
+
+def _interp(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]:
+    """Parabolic peak (distance [m], power [dB]) around bin i."""
+    if 0 < i < len(db) - 1:
+        a, b, c = db[i - 1], db[i], db[i + 1]
+        den = a - 2 * b + c
+        if den < 0:
+            p = 0.5 * (a - c) / den
+            return float(distance[i] + p * (distance[1] - distance[0])), float(b - 0.25 * (a - c) * p)
+    return float(distance[i]), float(db[i])
+
+
+def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibration | None = None,
+                    rng: np.random.Generator | None = None, prominence_db: float = 6.0,
+                    floor_db: float = 12.0) -> Comparison:
+    """Compare ``capture`` with the traced hall ``model`` (module docstring)."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    y = np.asarray(capture.cube)
+    M, K, N = y.shape
+    radar, processing = capture.radar, capture.processing
+    scenario = model.scenario.base
+    paths = model.traced.paths
+    ris = scenario.ris
+    if calibration is not None:
+        scenario = apply_to_scenario(scenario, calibration)
+        ris = scenario.ris
+        paths = shift_paths(paths, calibration_delay(calibration), radar.carrier_frequency)
+    clean = beat_cube(paths, radar=radar, sweep=capture.sweep, ris=ris)                    # [M, K, N] √W
+    noise = float(np.sum(np.abs(y - y.mean(axis=1, keepdims=True)) ** 2) / (M * (K - 1) * N))
+    if calibration is not None:
+        gain = 10 ** (calibration.power_offset_db / 10)
+        gain_source = "calibration"
+    else:
+        gain = max(float(np.mean(np.abs(y) ** 2)) - noise, 1e-30) / max(float(np.mean(np.abs(clean) ** 2)), 1e-300)
+        gain_source = "signal power ratio"
+    sim = clean * math.sqrt(gain)
+    sim = sim + math.sqrt(noise / 2) * (rng.standard_normal(sim.shape) + 1j * rng.standard_normal(sim.shape))
+    leak = capture.provenance.get("leakage") or {}
+    if leak.get("method") == "gate":
+        from .leakage import apply_range_gate, range_gate_basis
+        sim = apply_range_gate(sim, range_gate_basis(radar, float(leak["gate_range"])))
+    simulated = replace(capture, cube=sim, ris=ris, provenance={"source": "simulation", "scene": str(model.scenario.scene_xml)})
+    loc_m, _ = process_capture(capture)
+    loc_s, _ = process_capture(simulated)
+    beam = int(loc_m.beam_index)
+    ddm_m = delay_doppler_map(y[beam], radar, processing)
+    ddm_s = delay_doppler_map(sim[beam], radar, processing)
+    dist = ddm_m.distance
+    prof_m, prof_s = ddm_m.profile(0.0), ddm_s.profile(0.0)
+    mean_m = np.mean([delay_doppler_map(y[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+    mean_s = np.mean([delay_doppler_map(sim[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+
+    db_m, db_s = _db(prof_m), _db(prof_s)
+    gate = float(leak.get("gate_range") or 0.0) + 2 * radar.range_resolution
+    found, _ = scipy.signal.find_peaks(db_m, prominence=prominence_db, height=np.median(db_m) + floor_db)
+    found = [int(i) for i in found if gate <= dist[i] < radar.max_range - gate]
+    app = apparent_distance(paths, radar)
+    contribution = np.abs(paths.gain) ** 2
+    if paths.via_ris.any():
+        r = ris_response(ris, capture.sweep, paths.ris_incidence[paths.via_ris], paths.ris_departure[paths.via_ris],
+                         wavelength=radar.wavelength)[beam]
+        contribution = contribution.copy()
+        contribution[paths.via_ris] *= np.abs(r) ** 2
+    cell = radar.range_resolution
+    sim_peaks, _ = scipy.signal.find_peaks(db_s)                   # local maxima of the simulated profile
+    peaks: list[dict[str, Any]] = []
+    for i in sorted(found, key=lambda j: -db_m[j]):
+        d_m, p_m = _interp(dist, db_m, i)
+        near = np.flatnonzero(np.abs(app - d_m) <= 1.5 * cell)
+        entry: dict[str, Any] = {"distance_m": d_m, "power_db": p_m}
+        if near.size:
+            best = near[np.argmax(contribution[near])]
+            cand = sim_peaks[np.abs(dist[sim_peaks] - d_m) <= 1.5 * cell]
+            j = int(cand[np.argmin(np.abs(dist[cand] - d_m))]) if cand.size else i
+            d_s, p_s = _interp(dist, db_s, j)
+            entry.update(label=paths.labels[best], explained=True, path_distance_m=float(app[best]),
+                         simulated_distance_m=d_s, simulated_power_db=p_s,
+                         delay_residual_mm=1e3 * (d_m - d_s), power_residual_db=p_m - p_s)
+        else:
+            entry.update(label="unexplained", explained=False, path_distance_m=None, simulated_distance_m=None,
+                         simulated_power_db=None, delay_residual_mm=None, power_residual_db=None)
+        peaks.append(entry)
+    explained = [p for p in peaks if p["explained"]]
+    rms = (lambda xs: float(np.sqrt(np.mean(np.square(xs)))) if xs else None)
+    pave_m, pave_s = loc_m.scan.average_power, loc_s.scan.average_power
+    summary = {
+        "peaks": len(peaks), "explained": len(explained), "unexplained": len(peaks) - len(explained),
+        "delay_residual_rms_mm": rms([p["delay_residual_mm"] for p in explained]),
+        "power_residual_rms_db": rms([p["power_residual_db"] for p in explained]),
+        "power_residual_mean_db": float(np.mean([p["power_residual_db"] for p in explained])) if explained else None,
+        "pave_rms_difference_db": float(np.sqrt(np.mean((_db(pave_m) - _db(pave_s)) ** 2))),
+        "pave_peak_beam_measured": int(np.argmax(pave_m)), "pave_peak_beam_simulated": int(np.argmax(pave_s)),
+        "noise_counts2": noise, "gain_db": float(10 * np.log10(gain)), "gain_source": gain_source,
+        "estimate_position_m": None if loc_m.position is None else [float(v) for v in loc_m.position],
+        "estimate_distance_m": None if loc_m.distance is None else float(loc_m.distance),
+    }
+    info = {"scene": str(model.scenario.scene_xml.parent), "ue_position_m": [float(v) for v in model.ue_position],
+            "ue_source": model.ue_source, "calibrated": calibration is not None,
+            "units": "distance m, residuals mm and dB, powers dB of ADC counts^2"}
+    return Comparison(measured=capture, simulated=simulated, beam=beam, distance=dist, profile_measured=prof_m,
+                      profile_simulated=prof_s, mean_profile_measured=mean_m, mean_profile_simulated=mean_s,
+                      ddm_measured=ddm_m, ddm_simulated=ddm_s, pave_measured=pave_m, pave_simulated=pave_s,
+                      peaks=peaks, summary=summary, info=info)

@@ -1,0 +1,150 @@
+"""The ``risloc compare`` folder: PNG figures, ``comparison.json`` and a self-contained ``index.html``.
+
+``index.html`` needs nothing but the folder: the figures are PNG files next to it (relative
+links), the style is inline, nothing is fetched from a network. A small inline script marks each
+figure ``data-loaded="yes"`` once the browser has decoded it (``complete && naturalWidth > 0``)
+and writes the count into ``#figure-status``, so a headless browser can check the page.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._files import atomic_open, atomic_write_bytes
+from .compare import Comparison
+
+__all__ = ["FIGURES", "write_comparison"]
+
+FIGURES = {"range_profiles": "range_profiles.png", "delay_doppler": "delay_doppler.png", "sweep": "sweep_power.png"}
+
+
+def _db(x: np.ndarray) -> np.ndarray:
+    return 10 * np.log10(np.maximum(np.asarray(x, float), 1e-300))
+
+
+def _save(fig: Any, path: Path) -> None:
+    with atomic_open(path) as fh:
+        fig.savefig(fh, format="png", dpi=90)
+
+
+def _figures(c: Comparison, folder: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    angle = np.rad2deg(c.measured.sweep.angles[:, 0])
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    for ax, (meas, sim, title) in zip(axes, ((c.profile_measured, c.profile_simulated,
+                                               f"best beam {c.beam} ({angle[c.beam]:+.1f}°)"),
+                                              (c.mean_profile_measured, c.mean_profile_simulated, "mean over the sweep"))):
+        ax.plot(c.distance, _db(meas), lw=1.0, label="measured")
+        ax.plot(c.distance, _db(sim), lw=1.0, alpha=0.8, label="ray-traced")
+        ax.set_ylabel("power [dB counts²]")
+        ax.set_title(f"zero-Doppler range profile, {title}")
+        ax.grid(alpha=0.3)
+    for p in c.peaks:
+        axes[0].annotate(p["label"][:40], (p["distance_m"], p["power_db"]), fontsize=6, rotation=30,
+                         color="k" if p["explained"] else "r")
+    axes[0].legend()
+    axes[1].set_xlabel("range τ·c/2 [m]")
+    fig.tight_layout()
+    _save(fig, folder / FIGURES["range_profiles"])
+    plt.close(fig)
+
+    dm, ds = _db(c.ddm_measured.power), _db(c.ddm_simulated.power)
+    vmax = max(dm.max(), ds.max())
+    vmin = vmax - 70
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    for ax, d, ddm, title in ((axes[0], dm, c.ddm_measured, "measured"), (axes[1], ds, c.ddm_simulated, "ray-traced")):
+        im = ax.imshow(d, aspect="auto", origin="lower", vmin=vmin, vmax=vmax, cmap="viridis",
+                       extent=(ddm.distance[0], ddm.distance[-1], ddm.velocity[0], ddm.velocity[-1]))
+        ax.set_title(f"delay-Doppler map, {title}, beam {c.beam}")
+        ax.set_xlabel("range τ·c/2 [m]")
+    axes[0].set_ylabel("velocity [m/s]")
+    fig.colorbar(im, ax=axes, label="power [dB counts²] (one scale)")
+    _save(fig, folder / FIGURES["delay_doppler"])
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(angle, _db(c.pave_measured), "o-", ms=3, label="measured")
+    ax.plot(angle, _db(c.pave_simulated), "s-", ms=3, alpha=0.8, label="ray-traced")
+    ax.set_xlabel("RIS beam azimuth [deg]")
+    ax.set_ylabel("P_ave [dB counts²]")
+    ax.set_title("sweep power P_ave")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    _save(fig, folder / FIGURES["sweep"])
+    plt.close(fig)
+
+
+def _fmt(v: Any, digits: int = 3) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return html.escape(str(v))
+
+
+def _html(c: Comparison, doc: dict[str, Any]) -> str:
+    s = doc["summary"]
+    rows = "\n".join(
+        f"<tr class=\"{'explained' if p['explained'] else 'unexplained'}\"><td>{i}</td><td>{_fmt(p['distance_m'], 4)}</td>"
+        f"<td>{_fmt(p['power_db'], 2)}</td><td>{_fmt(p['label'])}</td><td>{_fmt(p['simulated_distance_m'], 4)}</td>"
+        f"<td>{_fmt(p['delay_residual_mm'], 2)}</td><td>{_fmt(p['power_residual_db'], 2)}</td></tr>"
+        for i, p in enumerate(doc["peaks"]))
+    summary = "\n".join(f"<tr><th>{html.escape(k)}</th><td id=\"summary-{html.escape(k)}\">{_fmt(v, 3)}</td></tr>"
+                        for k, v in s.items() if not isinstance(v, list))
+    figs = "\n".join(f"<figure><img src=\"{name}\" alt=\"{key}\" data-figure=\"{key}\"><figcaption>{key.replace('_', ' ')}"
+                     f"</figcaption></figure>" for key, name in FIGURES.items())
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>risloc compare: measured vs ray-traced</title>
+<style>body{{font-family:sans-serif;margin:1.5em;max-width:1250px}} table{{border-collapse:collapse;margin:1em 0}}
+td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}} tr.unexplained td{{color:#b00}}
+img{{max-width:100%;border:1px solid #ddd}} figure{{margin:1em 0}}</style></head>
+<body>
+<h1>Measured vs ray-traced</h1>
+<p>Scene <code>{html.escape(doc['scene'])}</code>, radar at {html.escape(str([round(v, 3) for v in doc['ue_position_m']]))} m
+({html.escape(doc['ue_source'])}), best beam {doc['best_beam']}, {'calibrated' if doc['calibrated'] else 'not calibrated'};
+numbers in <a href="comparison.json">comparison.json</a>. Figures loaded: <span id="figure-status">0/{len(FIGURES)}</span>.</p>
+<h2>Summary</h2>
+<table id="summary">{summary}</table>
+<h2>Peaks of the measured range profile (best beam)</h2>
+<table id="peaks"><tr><th>#</th><th>range [m]</th><th>power [dB]</th><th>traced path</th><th>simulated range [m]</th>
+<th>delay residual [mm]</th><th>power residual [dB]</th></tr>
+{rows}
+</table>
+{figs}
+<script>
+function markFigures() {{
+  var imgs = document.querySelectorAll("img[data-figure]"), ok = 0;
+  for (var i = 0; i < imgs.length; i++) {{
+    var good = imgs[i].complete && imgs[i].naturalWidth > 0;
+    imgs[i].setAttribute("data-loaded", good ? "yes" : "no");
+    if (good) ok++;
+  }}
+  document.getElementById("figure-status").textContent = ok + "/" + imgs.length;
+}}
+window.addEventListener("load", markFigures);
+</script>
+</body></html>
+"""
+
+
+def write_comparison(c: Comparison, folder: str | Path) -> dict[str, Path]:
+    """Write the figures, ``comparison.json`` and ``index.html`` into ``folder``; returns their paths."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    _figures(c, folder)
+    doc = c.to_json()
+    doc["figures"] = dict(FIGURES)
+    atomic_write_bytes(folder / "comparison.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8"))
+    atomic_write_bytes(folder / "index.html", _html(c, doc).encode("utf-8"))
+    return {"index": folder / "index.html", "json": folder / "comparison.json",
+            **{k: folder / v for k, v in FIGURES.items()}}
