@@ -70,8 +70,8 @@ def test_auto_alignment_finds_start_and_drift_and_localizes(drifting, tmp_path, 
     cap = load_capture(out)
     a = cap.provenance["alignment"]
     print(f"auto alignment: start {a['start']:.3f} (true {rec.start:.3f}) frames, dwell {a['dwell']:.5f} (true "
-          f"{rec.dwell:.5f}), drift {a['drift']:+.5f} (true +0.01300), confidence {a['confidence']:.3f}, worst margin "
-          f"{_worst_margin(cap.frame_index, rec.start, rec.dwell):+.3f} frames")
+          f"{rec.dwell:.5f}), drift {a['drift']:+.5f} (true +0.01300), confidence {a['confidence']:.3f}, worst share shortfall "
+          f"{_worst_margin(cap.frame_index, rec.start, rec.dwell):+.3f}")
     assert a["method"] == "auto" and 0.5 <= a["confidence"] <= 1.0
     assert abs(a["start"] - rec.start) <= 0.15                      # frames
     assert abs(a["drift"] - 0.013) <= 0.002
