@@ -70,7 +70,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if dask is not None:
         from ..studies.engine import connect_dask
 
-        dask = _guarded(lambda: connect_dask(args.dask), args.out)
+        dask = _guarded(lambda: connect_dask(args.dask, timeout=args.dask_timeout), args.out)
         if isinstance(dask, int):
             return dask
     try:
@@ -141,6 +141,8 @@ def add_parser(sub) -> None:
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="study folder (created; reopened to continue)")
     sw.add_argument("--workers", type=_workers, help="local worker processes (default: all cores)")
     sw.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://10.0.0.5:8786")
+    sw.add_argument("--dask-timeout", type=float, default=10.0, metavar="S",
+                    help="seconds to wait for the Dask scheduler (default 10)")
     sw.add_argument("--force", action="store_true", help="use a folder that holds another study (its log is kept)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     sw.set_defaults(func=_sweep)

@@ -27,6 +27,9 @@ __all__ = ["StudyError", "Batch", "plan_batches", "run_batch", "execute", "defau
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
+#: Test hook: with this variable naming a file that does not exist yet, the worker running the first
+#: batch creates it and dies (exit without cleanup), as a worker killed by the OOM killer would.
+DIE_ONCE = "RISLOC_STUDY_TEST_DIE_ONCE"
 #: Single-threaded numerical libraries in worker processes: the workers are the parallelism.
 _ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -92,6 +95,11 @@ def _prepared(params: dict[str, Any]) -> Any:
 def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:
     """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable)."""
     import numpy as np
+
+    marker = os.environ.get(DIE_ONCE)
+    if marker and point == 0 and start == 0 and not os.path.exists(marker):  # the retry test's dying worker
+        Path(marker).touch()
+        os._exit(9)
 
     from .kernel import run_once
 
@@ -231,13 +239,14 @@ def _run_dask(spec: StudySpec, batches: list[Batch], address: Any, take: Callabl
         futures = {client.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed,
                                  key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
                                  retries=MAX_ATTEMPTS - 1): b for b in batches}
-        for fut in as_completed(futures):
-            b = futures[fut]
-            try:
-                take(fut.result(), b)
-            except KilledWorker as exc:
-                raise StudyError(f"{b.label}: Dask workers died running it ({exc}); the finished runs are kept, "
-                                 "rerun the same command to continue") from None
+        with client.as_current():
+            for fut in as_completed(list(futures)):
+                b = futures[fut]
+                try:
+                    take(fut.result(), b)
+                except KilledWorker as exc:
+                    raise StudyError(f"{b.label}: Dask workers died running it ({exc}); the finished runs are kept, "
+                                     "rerun the same command to continue") from None
     finally:
         if isinstance(address, str):
             client.close()

@@ -146,6 +146,8 @@ def parse_values(name: str, text: str) -> list[Any]:
             if step <= 0 or hi < lo:
                 raise ValueError(f"--vary {name}={item}: a range LO:HI:STEP needs STEP > 0 and HI >= LO")
             count = int(math.floor((hi - lo) / step + 1e-9)) + 1
+            if count > 10_000:
+                raise ValueError(f"--vary {name}={item} makes {count} values (more than 10000); use a larger STEP")
             out += [check_value(name, round(lo + i * step, 12)) for i in range(count)]
         else:
             out.append(check_value(name, item))
