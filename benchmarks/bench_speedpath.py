@@ -100,6 +100,38 @@ def bench_random_beams(count: int, seed: int) -> None:
           f"largest relative peak difference {worst:.1e}")
 
 
+def bench_adversarial(batches: int, seed: int) -> None:
+    """Small beams (K = 16, N = 64) with 2-3 near-equal returns within 1.5 cells in delay and Doppler
+    (interference between native samples, the screen's hard case), 4 windows: zoom vs full."""
+    radar = dsp.RadarConfig(num_samples=64, num_chirps=16)
+    res_t = radar.max_delay / radar.num_samples
+    res_nu = 1 / (radar.num_chirps * radar.carrier_frequency * radar.chirp_interval)
+    k, n = np.arange(16)[:, None], np.arange(64)[None, :]
+    rng = np.random.default_rng(seed)
+    total = mismatches = ties = 0
+    for window in ("hann", "hamming", "boxcar", "blackman"):
+        proc = dsp.ProcessingConfig(n_dft=127, k_dft=67, window=window)
+        for _ in range(batches):
+            cube = np.zeros((40, 16, 64), complex)
+            for m in range(40):
+                t0, n0 = rng.uniform(5, 55) * res_t, rng.uniform(-5, 5) * res_nu
+                for _ in range(rng.integers(2, 4)):
+                    tau, nu = t0 + rng.uniform(-1.5, 1.5) * res_t, n0 + rng.uniform(-1.5, 1.5) * res_nu
+                    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
+                    f2 = radar.carrier_frequency * nu * radar.chirp_interval
+                    cube[m] += (1 + 0.1 * rng.standard_normal()) * np.exp(2j * np.pi * (rng.uniform() - (k * f2 + n * f1) % 1.0))
+                cube[m] += np.sqrt(10 ** (rng.uniform(-25, 10) / 10) / 2) * (rng.standard_normal((16, 64))
+                                                                              + 1j * rng.standard_normal((16, 64)))
+            sweep = dsp.BeamSweep(np.zeros((40, 2)))
+            zoom = dsp.scan_beams(cube, sweep, radar, proc)
+            full = dsp.scan_beams(cube, sweep, radar, replace(proc, doppler_search="full"))
+            eq = (zoom.delay_bin == full.delay_bin) & (zoom.doppler_bin == full.doppler_bin)
+            tie = ~eq & np.isclose(zoom.peak_power, full.peak_power, rtol=1e-12, atol=0)
+            total, mismatches, ties = total + 40, mismatches + int((~eq & ~tie).sum()), ties + int(tie.sum())
+    print(f"adversarial small beams (2-3 near-equal returns within 1.5 cells, 4 windows): {total} beams, "
+          f"{mismatches} other cell than the full search, {ties} exact ties")
+
+
 def bench_synthesis(repeat: int) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AliasWarning)
@@ -126,12 +158,15 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=9)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--random-beams", type=int, default=0, help="also compare zoom and full on N random beams")
+    parser.add_argument("--adversarial", type=int, default=0, help="also run N batches of 40 adversarial small beams per window")
     args = parser.parse_args()
     print(f"risloc-rt fast-path benchmark; {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
     bench_dsp(args.realizations, min(args.full, args.realizations), args.seed)
     if args.random_beams:
         bench_random_beams(args.random_beams, args.seed)
+    if args.adversarial:
+        bench_adversarial(args.adversarial, args.seed)
     bench_synthesis(args.repeat)
 
 
