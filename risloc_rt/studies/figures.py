@@ -48,7 +48,7 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
     others = [n for n in summary["study"]["vary"] if n != xname]
     groups: dict[str, list[dict[str, Any]]] = {}
     for pt in summary["points"]:
-        label = ", ".join(f"{n}={pt['params'][n]}" for n in others) or "MAE"
+        label = ", ".join(f"{n}={pt['params'][n]}" for n in others)
         groups.setdefault(label, []).append(pt)
     categorical = xname is None or x_value(xname, summary["points"][0]["params"][xname]) is None
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), constrained_layout=True)
@@ -65,9 +65,9 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
             lo = [max(m - p["mae_ci95"][q][0] * scale, 0) if math.isfinite(p["mae_ci95"][q][0]) else 0 for m, p in zip(mae, pts)]
             hi = [max(p["mae_ci95"][q][1] * scale - m, 0) if math.isfinite(p["mae_ci95"][q][1]) else 0 for m, p in zip(mae, pts)]
             color = f"C{i}"
-            ax.errorbar(xs, mae, yerr=[lo, hi], marker="o", color=color, capsize=3, label=f"{label} (MAE)")
+            ax.errorbar(xs, mae, yerr=[lo, hi], marker="o", color=color, capsize=3, label=f"{label}: MAE" if label else "MAE (95 % CI)")
             crb = [p["crb"][q] * scale for p in pts]
-            ax.plot(xs, crb, "--", color=color, alpha=0.8, label=f"{label} (CRB, 1σ)")
+            ax.plot(xs, crb, "--", color=color, alpha=0.8, label=f"{label}: CRB" if label else "CRB (1σ)")
         ax.set_yscale("log")
         ax.set_xlabel(_label(xname) if xname else "point")
         if categorical and groups:
