@@ -70,3 +70,14 @@ def test_a_study_file_runs_and_prints_its_table(capsys, tmp_path):
     out = capsys.readouterr().out
     assert status == 0 and "refined" in out and "MAE pos" in out
     assert (tmp_path / "o" / "study.png").exists()
+
+
+@pytest.mark.parametrize("args, match", [
+    (["no_such_hall"], "no_such_hall"),
+    (["--spacing", "0"], "must be a positive number"),
+    (["--runs", "0"], "must be >= 1"),
+])
+def test_map_bad_input_is_one_line_exit_2(capsys, tmp_path, args, match):
+    status = main(["study", "map", *args, "--out", str(tmp_path / "m"), "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 2 and match in err and err.count("\n") == 1, err
