@@ -109,9 +109,27 @@ def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_s
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds}
 
 
-def _init_worker() -> None:
+def _init_worker(parent: int) -> None:
+    """Worker start-up: single-threaded BLAS, and die with the study process (a SIGKILLed study
+    leaves no orphan workers running): Linux's parent-death signal, else a watchdog thread."""
+    import signal
+    import threading
+
     for name in _ONE_THREAD:
         os.environ.setdefault(name, "1")
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
 
 
 def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, quiet: bool = False,
@@ -176,7 +194,7 @@ def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callabl
     try:
         while queue:
             pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_init_worker)
+                                       initializer=_init_worker, initargs=(os.getpid(),))
             running: dict[Any, Batch] = {}
             broken: list[Batch] = []
             try:

@@ -24,6 +24,16 @@ def _table(folder: Path) -> dict:
     return read_runs_table(folder / "runs.parquet").drop(["seconds"]).to_pydict()
 
 
+def _running_worker(pid: str) -> bool:
+    """Is ``pid`` still a live multiprocessing child (not a zombie, not a recycled pid)?"""
+    try:
+        cmd = Path(f"/proc/{pid}/cmdline").read_text(errors="ignore")
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return "multiprocessing" in cmd and state != "Z"
+
+
 def _cli(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "risloc_rt", "study", "sweep", "--vary", "tx_power_dbm=25,35", "--runs", "30",
             "--seed", "11", "--out", str(out), *small_cli_args(), *extra]
@@ -33,7 +43,7 @@ def _cli(out: Path, *extra: str) -> list[str]:
 def test_a_study_killed_with_sigkill_continues_and_ends_identical(tmp_path):
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     killed = tmp_path / "killed"
-    proc = subprocess.Popen(_cli(killed, "--workers", "1", "--quiet"), cwd=REPO, env=env,
+    proc = subprocess.Popen(_cli(killed, "--workers", "2", "--quiet"), cwd=REPO, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     log = killed / "runs.jsonl"
     deadline = time.monotonic() + 60
@@ -42,17 +52,23 @@ def test_a_study_killed_with_sigkill_continues_and_ends_identical(tmp_path):
             break
         time.sleep(0.02)
     assert proc.poll() is None, f"the study ended before it could be killed: {proc.stderr.read()!r}"
+    children = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
+    assert children  # its worker processes
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    deadline = time.monotonic() + 10  # the workers die with it (parent-death signal), no orphans left running
+    while time.monotonic() < deadline and any(_running_worker(c) for c in children):
+        time.sleep(0.1)
+    assert not any(_running_worker(c) for c in children)
     done = log.read_bytes().count(b"\n")
     assert 10 <= done < 60  # killed mid-way
     assert not (killed / "summary.json").exists()
     again = subprocess.run(_cli(killed, "--workers", "1", "--quiet"), cwd=REPO, env=env, capture_output=True, text=True)
     assert again.returncode == 0, again.stderr
-    whole = subprocess.run(_cli(tmp_path / "whole", "--workers", "2", "--quiet"), cwd=REPO, env=env,
+    whole = subprocess.run(_cli(tmp_path / "whole", "--workers", "1", "--quiet"), cwd=REPO, env=env,
                            capture_output=True, text=True)
     assert whole.returncode == 0, whole.stderr
-    assert _table(killed) == _table(tmp_path / "whole")  # also: 1 worker == 2 workers
+    assert _table(killed) == _table(tmp_path / "whole")  # also: 2 workers (restarted) == 1 worker
     assert len(_table(killed)["run"]) == 60
 
 
