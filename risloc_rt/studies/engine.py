@@ -199,9 +199,15 @@ def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callabl
             broken: list[Batch] = []
             try:
                 while queue or running:
-                    while queue and len(running) < workers:  # at most one batch per worker: a death names its batch
-                        b = queue.pop(0)
-                        running[pool.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed)] = b
+                    try:
+                        while queue and len(running) < workers:  # one batch per worker: a death names its batch
+                            b = queue[0]
+                            running[pool.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed)] = b
+                            queue.pop(0)
+                    except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
+                        broken += list(running.values())
+                        running.clear()
+                        break
                     finished, _ = wait(running, return_when=FIRST_COMPLETED)
                     for fut in finished:
                         b = running.pop(fut)

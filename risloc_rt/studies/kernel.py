@@ -150,16 +150,22 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
     and the run's time [s] (noise + DSP, one core).
     """
     start = time.perf_counter()
-    cube = add_noise(prep.cube, prep.radar.noise_power, run_rng(study_seed, point, run), out=buffer)
+    rng = run_rng(study_seed, point, run)
     p = prep.params
+    truth = prep.truth
+    clean = prep.cube
+    if p.get("aod_spread_deg", 0.0) > 0:  # this run's UE azimuth: its own cube (no sharing)
+        az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
+        cap = simulate(_analytic({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
+        clean, truth = cap.cube, cap.truth
+    cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer)
     loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,
                             loopback_delay=prep.loopback_delay, estimator=p["estimator"], pattern=prep.pattern,
                             pfa=p["pfa"])
     seconds = time.perf_counter() - start
-    truth = prep.truth
     detected = bool(loc.detected)
     nan = float("nan")
-    row: dict[str, Any] = {"point": point, "run": run, "detected": detected,
+    row: dict[str, Any] = {"point": point, "run": run, "detected": detected, "true_aod_az": float(truth.aod[0]),
                            "snr_db": float(loc.detection.snr_db) if loc.detection is not None else nan,
                            "flags": ",".join(c for c in loc.flag_codes), "seconds": seconds}
     if detected:

@@ -80,6 +80,9 @@ PARAMETERS: dict[str, Parameter] = {
     "distance": Parameter("float", 13.38, "m", "UE–RIS distance (paper: 13.38 m)", _positive),
     "aod_deg": Parameter("float", 0.0, "deg", "UE azimuth seen from the RIS, RIS frame (paper: 0°)",
                          lambda v: None if -90 < v < 90 else "must lie in (-90, 90)"),
+    "aod_spread_deg": Parameter("float", 0.0, "deg", "each run draws the UE azimuth uniformly within aod_deg ± spread/2 "
+                                "(its own noiseless cube per run: slower); the bound is at aod_deg",
+                                lambda v: None if 0 <= v < 90 else "must lie in [0, 90)"),
     "speed": Parameter("float", 0.0, "m/s", "UE radial speed, away from the RIS > 0 (moves during the sweep)"),
     "mode": Parameter("str", "relay", "", "RIS mode: 'relay' (the experiment) or 'reflective' (eq. (1))",
                       _in("relay", "reflective")),
@@ -97,7 +100,7 @@ PARAMETERS: dict[str, Parameter] = {
 }
 
 #: Parameters of the analytic geometry that a hall (``scene``) takes from its spec instead.
-ANALYTIC_ONLY = ("ris_size", "distance", "aod_deg", "speed", "structure")
+ANALYTIC_ONLY = ("ris_size", "distance", "aod_deg", "aod_spread_deg", "speed", "structure")
 
 
 def check_value(name: str, value: Any) -> Any:

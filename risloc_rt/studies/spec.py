@@ -110,11 +110,13 @@ class StudySpec:
 
     @property
     def key(self) -> str:
-        """sha256 of everything that determines each run's numbers (not ``runs``: more runs extend a study)."""
+        """sha256 of the study's settings (name, seed, fixed, grid; not ``runs``: more runs extend a study).
+
+        Parameters left at their defaults do not enter it, so a new parameter added to a later
+        version does not orphan an existing study folder."""
         d = self.to_dict()
         d.pop("runs")
         d.pop("description")
-        d["points"] = self.points()
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
