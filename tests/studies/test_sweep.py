@@ -87,9 +87,11 @@ def test_more_runs_extend_a_study_and_the_same_runs_give_the_same_numbers(small_
 
 
 def test_an_aod_spread_draws_each_runs_angle_within_it(small_spec, tmp_path):
-    spec = small_spec(runs=4, vary=(("tx_power_dbm", (35.0,)),), aod_spread_deg=6.0)
+    spec = small_spec(runs=4, vary=(("tx_power_dbm", (35.0,)),), aod_spread_deg=6.0, estimator="refined",
+                      structure=False)
     res = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False)
     t = read_runs_table(res.table).to_pydict()
     az = np.degrees(t["true_aod_az"])
     assert np.all(np.abs(az - 10.3) <= 3.0 + 1e-9) and len(set(np.round(az, 9))) == 4
-    assert np.all(np.degrees(np.abs(t["aod_az_error"])) < 0.75)  # the estimate follows each run's own angle
+    # the estimate follows each run's own angle: within 0.2° (≈ 4σ of the bound at ~37 dB), not 3°
+    assert np.all(np.degrees(np.abs(t["aod_az_error"])) < 0.2)
