@@ -93,5 +93,5 @@ def test_an_aod_spread_draws_each_runs_angle_within_it(small_spec, tmp_path):
     t = read_runs_table(res.table).to_pydict()
     az = np.degrees(t["true_aod_az"])
     assert np.all(np.abs(az - 10.3) <= 3.0 + 1e-9) and len(set(np.round(az, 9))) == 4
-    # the estimate follows each run's own angle: within 0.2° (≈ 4σ of the bound at ~37 dB), not 3°
+    # the estimate follows each run's own angle: within 0.2° (≈ 10σ of the bound at ~37 dB), not 3°
     assert np.all(np.degrees(np.abs(t["aod_az_error"])) < 0.2)
