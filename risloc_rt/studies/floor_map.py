@@ -16,6 +16,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -112,12 +113,15 @@ def _prepare(settings: MapSettings, ue: np.ndarray) -> PreparedPoint:
     radar = RadarConfig() if settings.tx_power_dbm is None else RadarConfig(tx_power_dbm=settings.tx_power_dbm)
     hs = hall_scenario(settings.scene, ue_position=ue, radar=radar,
                        trace=TraceSettings(max_depth=settings.depth, samples_per_src=settings.samples))
-    traced = hall_paths(hs, cache=TraceCache())
+    with warnings.catch_warnings(record=True) as caught:  # e.g. range aliasing: kept per cell, not printed
+        warnings.simplefilter("always")
+        traced = hall_paths(hs, cache=TraceCache())
     cap = simulate(hs.base, rng=np.random.default_rng(0), paths=traced.paths, noise=False)
     pattern = cap.ris.beam_pattern()
     crb = point_bound(cap.cube, radar=cap.radar, sweep=cap.sweep, pattern=pattern, pose=cap.ris.pose,
                       truth=cap.truth, loopback_delay=cap.ris.loopback_delay)
-    params = {"estimator": settings.estimator, "pfa": 1e-3}
+    params = {"estimator": settings.estimator, "pfa": 1e-3,
+              "warnings": sorted({str(w.message).split(":")[0] for w in caught})}
     return PreparedPoint(params=params, cube=cap.cube, radar=cap.radar, sweep=cap.sweep, processing=cap.processing,
                          pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay, pattern=pattern, truth=cap.truth,
                          crb=crb, seconds=time.perf_counter() - start)
@@ -177,6 +181,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
                 "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
                 "peb": prep.crb["position"], "peak_snr_db": prep.crb["peak_snr_db"],
                 "dominant_flag": flags.most_common(1)[0][0] if flags else "none", "flags": dict(flags),
+                "trace_warnings": prep.params["warnings"],
             })
     finally:
         bar.close()
@@ -188,7 +193,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     import pyarrow.parquet as pq
 
     buf_pq = io.BytesIO()
-    cols = {k: [c[k] if k != "flags" else json.dumps(c[k]) for c in out_cells] for k in out_cells[0]}
+    cols = {k: [json.dumps(c[k]) if k in ("flags", "trace_warnings") else c[k] for c in out_cells] for k in out_cells[0]}
     pq.write_table(pa.table(cols), buf_pq)
     atomic_write_bytes(folder / "map.parquet", buf_pq.getvalue())
     fig = plot_map(spec, out_cells, settings, folder / "map.png")
