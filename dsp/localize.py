@@ -192,7 +192,8 @@ def self_localize(
         The RIS array factor (for the refined AoD, the CRB and the flags); default
         ``BeamPattern()``: 16 × 4 relay RIS at λ/2, the paper's experiment.
     pfa : float, default 1e-3
-        False-alarm probability of the detector per capture.
+        False-alarm probability per capture: an upper bound for the windowed, half-bin search
+        used here (`dsp.detect` with ``pattern``, ``sweep``, ``oversample=2``).
     ue_height : float, optional
         Known world z of the radar [m]: for a 1-D sweep, the elevation is solved so that the
         position lies at that height (instead of assuming the sweep plane).
@@ -230,7 +231,9 @@ def self_localize(
             f"cube has {arr.shape[0]} beams (frames) but the sweep has {sweep.num_beams} angles; "
             "pass the BeamSweep the cube was recorded with"
         )
-    det = detect(arr, radar, pfa=pfa, min_range=processing.min_range)
+    # Pattern-matched windows on a half-bin grid (dsp.detect): 2 dB less SNR needed than the
+    # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
+    det = detect(arr, radar, pfa=pfa, min_range=processing.min_range, pattern=pattern, sweep=sweep, oversample=2)
     scan = scan_beams(arr, sweep, radar, processing)
     if not det.detected:
         return _no_position(scan, det)
@@ -351,7 +354,8 @@ def _no_position(scan: BeamScan, det: Detection) -> Localization:
                     "beam during the capture and that the frames are aligned with the sweep angles")
     else:
         flag = Flag("no-detection",
-                    f"no beam-dependent return above the threshold: sweep-integrated SNR {det.snr_db:.1f} dB < "
+                    f"no beam-dependent return above the threshold: SNR {det.snr_db:.1f} dB (integrated over "
+                    f"{det.integrated_beams} beams) < "
                     f"{det.threshold_db:.1f} dB at P_FA = {det.false_alarm_probability:g}; no position. Move closer, "
                     "raise the transmit power or the RIS gain, or accept a higher pfa")
     flags = (flag,) if flag.code == "no-detection" else (Flag("no-detection", "no RIS return detected: no position"), flag)
