@@ -10,7 +10,7 @@ import pytest
 from risloc_rt.io import process_capture
 from risloc_rt.model import simulate
 from risloc_rt.model.builder import analytic_scenario
-from risloc_rt.model.power_check import expected_loopback_snr_db, range_alias_flag
+from risloc_rt.model.power_check import expected_loopback_snr_db, measured_loopback_snr_db, range_alias_flag
 
 
 def _locate(scenario, seed=1):
@@ -20,11 +20,14 @@ def _locate(scenario, seed=1):
 
 
 @pytest.mark.parametrize("distance", [6.0, 13.38, 20.0])
-def test_the_prediction_matches_the_measured_snr_within_the_straddle_loss(distance):
+def test_the_prediction_matches_the_measured_snr(distance):
     capture, loc = _locate(analytic_scenario(distance=distance, aod=np.deg2rad([10.3, 0.0])))
     predicted = expected_loopback_snr_db(capture, capture.truth.distance, capture.truth.aod)
-    # the detector's un-padded grid loses 0-4 dB (Hann straddle in two dimensions) plus noise
-    assert -4.5 < loc.detection.snr_db - predicted < 0.5
+    # the fitted amplitude is off-grid: only its noise (1σ of β̂²: 2/√ρΣA², < 0.1 dB at >= 20 dB)
+    # and the structural reflection's leakage separate the two
+    assert abs(measured_loopback_snr_db(loc, capture) - predicted) < 0.3
+    # the detector's statistic integrates its window's beams on the half-bin grid: it reads lower
+    assert -3.0 < loc.detection.snr_db - predicted < 0.5
     assert "aliased" not in loc.flag_codes
 
 
