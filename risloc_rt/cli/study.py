@@ -13,24 +13,23 @@ from .common import CliError
 __all__ = ["add_parser"]
 
 
-def _workers(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{n} must be >= 1")
-    return n
+def _count(what: str):
+    """argparse type: an integer >= 1; ``what`` says what it counts in the error."""
+
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"{n} must be >= 1 ({what})")
+        return n
+
+    return parse
 
 
-def _runs(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{n} must be >= 1 (Monte Carlo runs per point)")
-    return n
+_workers = _count("worker processes")
+_runs = _count("Monte Carlo runs per point")
 
 
 def _guarded(call, out: Path):

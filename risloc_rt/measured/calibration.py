@@ -28,7 +28,7 @@ from dsp.radar import SPEED_OF_LIGHT
 from .._files import atomic_write_bytes
 from ..model.capture import Capture
 from ..model.scenario import Scenario
-from .errors import MeasuredFormatError
+from .errors import MeasuredFormatError, read_text_file
 
 __all__ = ["Calibration", "read_calibration", "write_calibration", "apply_to_capture", "apply_to_scenario",
            "calibration_delay", "calibrated_paths", "adc_power_offset_db"]
@@ -107,11 +107,8 @@ def write_calibration(calibration: Calibration, path: str | Path) -> Path:
 def read_calibration(path: str | Path) -> Calibration:
     """Read a calibration file (``.toml`` or ``.json``); every problem is one line naming the file and key."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise MeasuredFormatError(f"calibration file {path} does not exist; write one with 'risloc calibrate "
-                                  "CAPTURE --scene HALL -o calibration.toml'") from None
+    text = read_text_file(path, "calibration file",
+                          "write one with 'risloc calibrate CAPTURE --scene HALL -o calibration.toml'")
     try:
         doc = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
     except (ValueError, tomllib.TOMLDecodeError) as exc:

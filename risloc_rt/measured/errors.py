@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import operator
+from pathlib import Path
 from typing import Any
 
-__all__ = ["MeasuredFormatError"]
+__all__ = ["MeasuredFormatError", "read_text_file"]
 
 
 class MeasuredFormatError(ValueError):
@@ -45,3 +46,20 @@ def check_float(value: Any, name: str, unit: str, *, positive: bool = False,
     if non_negative and out < 0:
         raise MeasuredFormatError(f"{name}={out:g} {unit} must be >= 0")
     return out
+
+
+def read_text_file(path: Path, what: str, missing: str) -> str:
+    """The UTF-8 text of ``path``; a missing, unreadable or binary file is one :class:`MeasuredFormatError`.
+
+    ``what`` names the file's role ("sweep schedule"); ``missing`` says how to get one.
+    """
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MeasuredFormatError(f"{what} {path} does not exist; {missing}") from None
+    except IsADirectoryError:
+        raise MeasuredFormatError(f"{what} {path} is a folder; give the file") from None
+    except PermissionError:
+        raise MeasuredFormatError(f"{what} {path} cannot be read (permission denied)") from None
+    except UnicodeDecodeError:
+        raise MeasuredFormatError(f"{path}: not a UTF-8 text file; a {what} is text") from None

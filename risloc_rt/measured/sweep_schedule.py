@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .._files import atomic_write_bytes
-from .errors import MeasuredFormatError
+from .errors import MeasuredFormatError, read_text_file
 from .ris_timing import RisProgram
 
 __all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
@@ -322,13 +322,8 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
 def read_sweep_schedule(path: str | Path) -> SweepSchedule:
     """Read a sweep schedule file (TOML); errors name the file and the key."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise MeasuredFormatError(f"sweep schedule {path} does not exist; give the .toml written with the "
-                                  "recording (docs/formats.md, \"Sweep schedule files\")") from None
-    except UnicodeDecodeError:
-        raise MeasuredFormatError(f"{path}: not a UTF-8 text file; a sweep schedule is TOML text") from None
+    text = read_text_file(path, "sweep schedule",
+                          'give the .toml written with the recording (docs/formats.md, "Sweep schedule files")')
     return parse_sweep_schedule(text, source=str(path))
 
 

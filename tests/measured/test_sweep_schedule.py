@@ -7,6 +7,7 @@ import pytest
 
 from risloc_rt.measured import (MeasuredFormatError, SweepSchedule, format_sweep_schedule, parse_sweep_schedule,
                                 read_sweep_schedule)
+from risloc_rt.measured.calibration import read_calibration
 
 GOOD = """\
 frames_per_beam = 3
@@ -115,3 +116,17 @@ def test_missing_file_and_tables(tmp_path):
         read_sweep_schedule(tmp_path / "nope.toml")
     with pytest.raises(MeasuredFormatError, match=r"the \[ris\] table is missing"):
         parse_sweep_schedule(GOOD.split("[ris]")[0])
+
+
+@pytest.mark.parametrize("reader, what", [(read_sweep_schedule, "sweep schedule"),
+                                          (read_calibration, "calibration file")])
+def test_unreadable_text_files_are_one_line_errors(tmp_path, reader, what):
+    # regression: a binary calibration file raised UnicodeDecodeError (a traceback)
+    binary = tmp_path / "bad.toml"
+    binary.write_bytes(b"\xff\xfe\x00garbage")
+    for path, match in ((binary, "not a UTF-8 text file"), (tmp_path, "is a folder"),
+                        (tmp_path / "nope.toml", "does not exist")):
+        with pytest.raises(MeasuredFormatError, match=match) as info:
+            reader(path)
+        assert "\n" not in str(info.value)
+        assert what in str(info.value) or str(path) in str(info.value)
