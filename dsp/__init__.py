@@ -21,6 +21,7 @@ from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map
 from .sweep import BeamSweep
+from .threads import limit_threads, thread_count
 
 __all__ = [
     "AodFit",
@@ -41,6 +42,7 @@ __all__ = [
     "refine_estimate",
     "residual_test",
     "sweep_crb",
+    "thread_count",
     "tone_frequency_crb",
     "BeamScan",
     "BeamSweep",
@@ -55,6 +57,7 @@ __all__ = [
     "delay_doppler_map",
     "direction_from_angles",
     "linear_to_db",
+    "limit_threads",
     "localize",
     "scan_beams",
     "self_localize",

@@ -14,6 +14,7 @@ from .radar import SPEED_OF_LIGHT, RadarConfig
 from .gridscreen import screened_scan
 from .spectrum import CHUNK_BYTES, _windows, check_cube, windowed_range_spectrum
 from .sweep import BeamSweep
+from .threads import thread_count
 
 __all__ = ["BeamScan", "scan_beams"]
 
@@ -137,7 +138,7 @@ def scan_beams(
     # The paper's full search: the whole N_DFT × K_DFT map of every beam.
     step = max(1, CHUNK_BYTES // (16 * processing.k_dft * processing.n_dft))
     for i in range(0, m, step):
-        z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=-1)
+        z = scipy.fft.ifft(spectrum[i:i + step], n=processing.k_dft, axis=1, norm="forward", workers=thread_count())
         power = np.abs(z) ** 2 / gain**2  # [c, K_DFT, N_DFT]
         power[:, :, :first] = -1.0
         flat = power.reshape(power.shape[0], -1).argmax(axis=1)

@@ -36,6 +36,7 @@ from .pattern import BeamPattern
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
 from .sweep_window import SweepWindows, sweep_windows
+from .threads import thread_count
 
 __all__ = ["Detection", "detect", "check_beat_cube", "sweep_cfar_threshold"]
 
@@ -190,7 +191,7 @@ def _sweep_statistics(x: np.ndarray, windows: SweepWindows | None) -> tuple[np.n
             for j, r in enumerate(rr):
                 lo[i, j], hi[i, j] = r[0], r[-1] + 1
         best = np.empty(ko * no)
-    block = 32_768
+    block = 4_096  # cells per pass: the float64 running sums of a block stay in a 1 MiB L2 cache
     for c0 in range(0, ko * no, block):
         xb = flat[:, c0:c0 + block]
         dev = xb - xb.mean(axis=0)
@@ -250,7 +251,13 @@ def detect(
     -------
     Detection
     """
-    arr = check_beat_cube(cube, radar)
+    return _detect_checked(check_beat_cube(cube, radar), radar, pfa=pfa, min_range=min_range,
+                           max_candidates=max_candidates, pattern=pattern, sweep=sweep, oversample=oversample)
+
+
+def _detect_checked(arr: np.ndarray, radar: RadarConfig, *, pfa: float, min_range: float, max_candidates: int,
+                    pattern: BeamPattern | None, sweep: BeamSweep | None, oversample: int) -> Detection:
+    """:func:`detect` on a cube already through :func:`check_beat_cube` (no second pass over it)."""
     if not (isinstance(pfa, (float, int)) and 0 < pfa < 1):
         raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
     rmin = non_negative(min_range, "min_range", "m")
@@ -263,9 +270,9 @@ def detect(
         raise ValueError(f"cube has {m} beams but the sweep has {sweep.num_beams} angles; pass the cube's BeamSweep")
     ko, no = k * oversample, n * oversample
     if oversample == 1:
-        x = scipy.fft.ifft2(arr, axes=(1, 2), norm="forward", workers=-1)  # Σ y e^{+j2π(qk/K + pn/N)}, [M, K, N]
+        x = scipy.fft.ifft2(arr, axes=(1, 2), norm="forward", workers=thread_count())  # Σ y e^{+j2π(qk/K + pn/N)}, [M, K, N]
     else:  # single precision: the statistic needs ~1e-3, not 1e-16
-        x = scipy.fft.ifft2(arr.astype(np.complex64), s=(ko, no), axes=(1, 2), norm="forward", workers=-1)
+        x = scipy.fft.ifft2(arr.astype(np.complex64), s=(ko, no), axes=(1, 2), norm="forward", workers=thread_count())
     fast = np.arange(no) / no  # beat frequency [cycles/sample] of bin p
     first = int(np.searchsorted(fast, 2.0 * rmin / SPEED_OF_LIGHT * radar.slope * radar.sample_period))
     if first >= no:

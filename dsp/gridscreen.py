@@ -38,7 +38,6 @@ whole beam and the zoom.
 from __future__ import annotations
 
 import functools
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
@@ -46,6 +45,7 @@ import numpy as np
 import scipy.fft
 
 from .processing import ProcessingConfig, window_vector
+from .threads import thread_count
 
 __all__ = ["SCREEN_HEADROOM_DB", "screened_scan", "scalloping_loss_db"]
 
@@ -149,7 +149,7 @@ def screened_scan(
     m, k, n = cube.shape
     n_dft = processing.n_dft
     n_c = scipy.fft.next_fast_len(n)
-    workers = min(2, os.cpu_count() or 1) if workers is None else int(workers)
+    workers = thread_count() if workers is None else int(workers)
     # Fine column p sits at n_c·p/N_DFT native samples: between samples lo and lo + 1.
     pos = np.arange(n_dft) * (n_c / n_dft)
     lo = np.floor(pos).astype(np.int64) % n_c

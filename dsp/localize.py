@@ -18,7 +18,7 @@ from ._validate import finite, non_negative, positive
 from .beamscan import BeamScan, scan_beams
 from .crb import position_std, sweep_crb
 from .drift import delay_drift
-from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect
+from .detection import DEFAULT_PFA, Detection, _detect_checked, check_beat_cube
 from .flags import Flag
 from .geometry import RisPose, direction_from_angles
 from .pattern import BeamPattern
@@ -61,8 +61,9 @@ class Localization:
         d(θ̂), unit vector from the RIS toward the UE, world frame.
     position : float array [3]
         x̂_UE = x_RIS + d̂ · d(θ̂), world frame [m].
-    scan : BeamScan
-        The per-beam results the estimate was taken from.
+    scan : BeamScan or None
+        The paper's per-beam grid results (the estimate's source with the paper's estimator, the
+        P_ave profile reports plot); None when :func:`self_localize` was asked not to compute it.
     detection : Detection or None
         The detector's outcome (:func:`self_localize`); None from :func:`localize`, which runs
         the paper's method on a scan without a detector.
@@ -83,7 +84,8 @@ class Localization:
     ``distance``, ``delay_rate``, ``velocity``, ``direction`` and ``position`` are all NaN
     (arithmetic on them stays NaN, comparisons are False), ``flags`` starts with
     ``no-detection`` and :meth:`checked_position` raises. ``beam_index`` then names the scan's
-    strongest beam (for plots), not an AoD.
+    strongest beam (for plots; without a scan the detector's strongest beam, -1 if it found no
+    cell), not an AoD.
     """
 
     beam_index: int
@@ -94,7 +96,7 @@ class Localization:
     velocity: float
     direction: np.ndarray
     position: np.ndarray
-    scan: BeamScan
+    scan: BeamScan | None
     detection: Detection | None = None
     std: Uncertainty | None = None
     flags: tuple[Flag, ...] = ()
@@ -175,6 +177,7 @@ def self_localize(
     ue_height: float | None = None,
     height_range: float = 1.0,
     reference_time: float | None = None,
+    scan: bool = True,
 ) -> Localization:
     """Detect the RIS return in a beat cube ``[M, K, N]`` and localize the UE, with uncertainty and flags.
 
@@ -204,6 +207,12 @@ def self_localize(
         Move the distance to this time from the start of the sweep [s], with the measured
         radial velocity: ``d += v̂ (t - t_est)``. By default the position refers to t_est: the
         best beam's frame centre (paper) or the pattern-weighted mean frame time (refined).
+    scan : bool, default True
+        Run the paper's per-beam grid search for ``Localization.scan`` even when the refined
+        estimator does not need it (reports plot its P_ave profile). ``False`` skips it with the
+        refined estimator — every number of the result is the same, ``scan`` is None; a Monte
+        Carlo study saves the search's cost (0.1-2 s per Table I cube, most at low SNR, where
+        no beam's grid maximum can be screened). The paper's estimator always runs it.
 
     Returns
     -------
@@ -233,15 +242,18 @@ def self_localize(
         )
     # Pattern-matched windows on a half-bin grid (dsp.detect): 2 dB less SNR needed than the
     # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
-    det = detect(arr, radar, pfa=pfa, min_range=processing.min_range, pattern=pattern, sweep=sweep, oversample=2)
-    scan = scan_beams(arr, sweep, radar, processing)
+    det = _detect_checked(arr, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5, pattern=pattern,
+                          sweep=sweep, oversample=2)
+    if not isinstance(scan, bool):
+        raise TypeError(f"scan={scan!r} must be True or False")
+    grid = scan_beams(arr, sweep, radar, processing) if scan or estimator == "paper" else None
     if not det.detected:
-        return _no_position(scan, det)
+        return _no_position(grid, det)
 
     m = arr.shape[0]
     times = radar.beam_times(m)
     if estimator == "paper":
-        loc = localize(scan, radar=radar, pose=pose, loopback_delay=tau_rb)
+        loc = localize(grid, radar=radar, pose=pose, loopback_delay=tau_rb)
         tau, nu, aod = loc.delay, loc.delay_rate, np.array(loc.aod)
         mags, f1, f2 = beam_dtft(arr, radar, tau, nu)
         fit = fit_aod(mags, sweep, pattern, elevation=float(aod[1]))
@@ -339,12 +351,20 @@ def self_localize(
                         height_range=height_range, drift=drift)
     return Localization(
         beam_index=beam_index, aod=aod, delay=float(tau), distance=float(distance), delay_rate=float(nu),
-        velocity=float(velocity), direction=direction, position=position, scan=scan, detection=det, std=std,
+        velocity=float(velocity), direction=direction, position=position, scan=grid, detection=det, std=std,
         flags=flags, estimator=estimator, reference_time=float(t_ref),
     )
 
 
-def _no_position(scan: BeamScan, det: Detection) -> Localization:
+def _strongest_beam(scan: BeamScan | None, det: Detection) -> int:
+    """The scan's best beam, else the beam strongest in the detector's best cell (-1: none)."""
+    if scan is not None:
+        return scan.best_beam
+    power = det.beam_power
+    return int(np.argmax(power)) if power is not None and np.size(power) else -1
+
+
+def _no_position(scan: BeamScan | None, det: Detection) -> Localization:
     """A Localization that carries the detection outcome and no numbers."""
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
     if det.rejected:
@@ -360,7 +380,7 @@ def _no_position(scan: BeamScan, det: Detection) -> Localization:
                     "raise the transmit power or the RIS gain, or accept a higher pfa")
     flags = (flag,) if flag.code == "no-detection" else (Flag("no-detection", "no RIS return detected: no position"), flag)
     return Localization(
-        beam_index=scan.best_beam, aod=nan2, delay=math.nan, distance=math.nan, delay_rate=math.nan,
+        beam_index=_strongest_beam(scan, det), aod=nan2, delay=math.nan, distance=math.nan, delay_rate=math.nan,
         velocity=math.nan, direction=nan3, position=nan3, scan=scan, detection=det, std=None, flags=flags,
         estimator="none", reference_time=math.nan,
     )

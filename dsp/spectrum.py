@@ -23,6 +23,7 @@ from ._validate import as_finite_array, finite, require_complex_samples
 from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig
+from .threads import thread_count
 
 __all__ = ["DelayDopplerMap", "delay_doppler_map", "check_cube", "windowed_range_spectrum"]
 
@@ -76,7 +77,7 @@ def windowed_range_spectrum(
     for i in range(0, cube.shape[0], step):
         windowed = cube[i:i + step] * (w_k[:, None] * w_n[None, :])
         # Σ_n y[n] e^{+j2π p n / N_DFT}: an unscaled inverse DFT.
-        out[i:i + step] = scipy.fft.ifft(windowed, n=processing.n_dft, axis=-1, norm="forward", workers=-1)
+        out[i:i + step] = scipy.fft.ifft(windowed, n=processing.n_dft, axis=-1, norm="forward", workers=thread_count())
     return out, gain
 
 
@@ -166,7 +167,7 @@ def delay_doppler_map(frame: Any, radar: RadarConfig, processing: ProcessingConf
                  f"a delay-Doppler map with n_dft={processing.n_dft}, k_dft={processing.k_dft}",
                  fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
     spectrum, gain = windowed_range_spectrum(check_cube(arr[None], radar, name="frame[None]"), radar, processing)
-    z = scipy.fft.ifft(spectrum[0], n=processing.k_dft, axis=0, norm="forward", workers=-1)
+    z = scipy.fft.ifft(spectrum[0], n=processing.k_dft, axis=0, norm="forward", workers=thread_count())
     power = np.abs(z) ** 2 / gain**2
     return DelayDopplerMap(
         power=np.fft.fftshift(power, axes=0),

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Literal
 
@@ -10,6 +9,7 @@ import numpy as np
 
 from dsp import RadarConfig
 from dsp.sweep import BeamSweep
+from dsp.threads import thread_count
 
 from .paths import PathFrames, PathSet
 from .phase import exact_fractional_cycles, wrapped_tone
@@ -120,7 +120,7 @@ def beat_cube(
 
 def _run_beams(beam: Callable[[int], None], num_beams: int, workers: int | None) -> None:
     """Call ``beam(m)`` for every beam, on up to ``workers`` threads (numpy releases the GIL)."""
-    workers = min(2, os.cpu_count() or 1) if workers is None else int(workers)
+    workers = thread_count() if workers is None else int(workers)
     if workers <= 1 or num_beams < 2:
         for m in range(num_beams):
             beam(m)
@@ -253,7 +253,7 @@ def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator, *,
         child stream ``rng.spawn(M)[m]``, so beams are drawn concurrently (2-3x faster on two
         cores); the same distribution, other numbers, the same for any number of workers.
     workers : int, optional
-        Threads of the ``"fast"`` stream (default up to 2).
+        Threads of the ``"fast"`` stream (default ``dsp.threads.thread_count()``).
 
     Notes
     -----

@@ -92,9 +92,18 @@ def _prepared(params: dict[str, Any]) -> Any:
     return prep
 
 
-def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:
-    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable)."""
+def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int,
+              threads: int | None = 1) -> dict[str, Any]:
+    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable).
+
+    ``threads``: the DSP's thread budget (``dsp.limit_threads``): 1 in worker processes and Dask
+    tasks, where the workers are the parallelism; ``None`` (every core) in a one-worker study.
+    """
+    import contextlib
+
     import numpy as np
+
+    from dsp import limit_threads
 
     marker = os.environ.get(DIE_ONCE)
     if marker and point == 0 and start == 0 and not os.path.exists(marker):  # the retry test's dying worker
@@ -103,9 +112,10 @@ def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_s
 
     from .kernel import run_once
 
-    prep = _prepared(params)
-    buffer = np.empty_like(prep.cube)
-    rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
+    with limit_threads(threads) if threads is not None else contextlib.nullcontext():
+        prep = _prepared(params)
+        buffer = np.empty_like(prep.cube)
+        rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds}
 
 
@@ -169,7 +179,7 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
             _run_dask(spec, batches, dask, take, say)
         elif workers == 1:
             for b in batches:
-                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed), b)
+                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed, threads=None), b)
         else:
             _run_pool(spec, batches, workers, take, say)
         # bounds of points whose runs were all done before this start (needed by the summary)

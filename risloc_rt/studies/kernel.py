@@ -161,7 +161,7 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
     cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer)
     loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,
                             loopback_delay=prep.loopback_delay, estimator=p["estimator"], pattern=prep.pattern,
-                            pfa=p["pfa"])
+                            pfa=p["pfa"], scan=False)  # the refined estimator's numbers do not use the grid
     seconds = time.perf_counter() - start
     detected = bool(loc.detected)
     nan = float("nan")
