@@ -65,6 +65,17 @@ def _sweep(args: argparse.Namespace) -> int:
                                      name=args.out.name or "sweep")
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    result = _on_cluster(args, lambda dask: run_study(spec, args.out, workers=args.workers, dask=dask,
+                                                      quiet=args.quiet, force=args.force))
+    if isinstance(result, int):
+        return result
+    if not args.quiet:
+        _print_summary(result)
+    return 0
+
+
+def _on_cluster(args: argparse.Namespace, call):
+    """``call(dask)`` with a Dask client for ``--dask`` (None without), closed afterwards; guarded."""
     dask = args.dask
     if dask is not None:
         from ..studies.engine import connect_dask
@@ -73,16 +84,10 @@ def _sweep(args: argparse.Namespace) -> int:
         if isinstance(dask, int):
             return dask
     try:
-        result = _guarded(lambda: run_study(spec, args.out, workers=args.workers, dask=dask, quiet=args.quiet,
-                                            force=args.force), args.out)
+        return _guarded(lambda: call(dask), args.out)
     finally:
         if dask is not None:
             dask.close()
-    if isinstance(result, int):
-        return result
-    if not args.quiet:
-        _print_summary(result)
-    return 0
 
 
 def _print_summary(result) -> None:
@@ -112,13 +117,20 @@ def _map(args: argparse.Namespace) -> int:
                                tx_power_dbm=args.tx_power_dbm, margin=args.margin)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    result = _guarded(lambda: run_map(settings, args.out, workers=args.workers, quiet=args.quiet,
-                                      force=args.force), args.out)
+    result = _on_cluster(args, lambda dask: run_map(settings, args.out, workers=args.workers, dask=dask,
+                                                    quiet=args.quiet, force=args.force))
     if isinstance(result, int):
         return result
     if not args.quiet:
         print(result.describe())
     return 0
+
+
+def _parallel_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--workers", type=_workers, help="local worker processes (default: all cores)")
+    parser.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://10.0.0.5:8786")
+    parser.add_argument("--dask-timeout", type=float, default=10.0, metavar="S",
+                        help="seconds to wait for the Dask scheduler (default 10)")
 
 
 def add_parser(sub) -> None:
@@ -138,10 +150,7 @@ def add_parser(sub) -> None:
     sw.add_argument("--runs", type=_runs, help="Monte Carlo runs per point (default: the study file's, else 100)")
     sw.add_argument("--seed", type=int, help="study seed (default: the study file's, else 0)")
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="study folder (created; reopened to continue)")
-    sw.add_argument("--workers", type=_workers, help="local worker processes (default: all cores)")
-    sw.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://10.0.0.5:8786")
-    sw.add_argument("--dask-timeout", type=float, default=10.0, metavar="S",
-                    help="seconds to wait for the Dask scheduler (default 10)")
+    _parallel_options(sw)
     sw.add_argument("--force", action="store_true", help="use a folder that holds another study (its log is kept)")
     sw.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     sw.set_defaults(func=_sweep)
@@ -159,7 +168,7 @@ def add_parser(sub) -> None:
     mp.add_argument("--depth", type=int, default=3, help="ray-tracing depth (default 3)")
     mp.add_argument("--samples", type=int, default=100_000, help="rays per source (default 1e5)")
     mp.add_argument("--out", type=Path, required=True, metavar="DIR")
-    mp.add_argument("--workers", type=_workers)
+    _parallel_options(mp)
     mp.add_argument("--force", action="store_true")
     mp.add_argument("--quiet", action="store_true")
     mp.set_defaults(func=_map)

@@ -10,6 +10,7 @@ dropped silently: the summary is only written when every run of every point is i
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -18,7 +19,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from .spec import StudySpec
 from .store import RunLog
@@ -80,30 +81,45 @@ _CACHE: dict[str, Any] = {}
 
 
 def _prepared(params: dict[str, Any]) -> Any:
+    """The point's shared cube and bound: a sweep point, or a floor-map cell (``"map_cell"`` in params)."""
     import json
-
-    from .kernel import prepare_point
 
     key = json.dumps(params, sort_keys=True)
     prep = _CACHE.get(key)
     if prep is None:
         _CACHE.clear()  # one point per worker at a time: a Table I cube is 75 MB
-        prep = _CACHE[key] = prepare_point(params)
+        if "map_cell" in params:
+            from .floor_map import prepare_cell
+
+            prep = prepare_cell(params)
+        else:
+            from .kernel import prepare_point
+
+            prep = prepare_point(params)
+        _CACHE[key] = prep
     return prep
 
 
-def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int,
-              threads: int | None = 1) -> dict[str, Any]:
-    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable).
-
-    ``threads``: the DSP's thread budget (``dsp.limit_threads``): 1 in worker processes and Dask
-    tasks, where the workers are the parallelism; ``None`` (every core) in a one-worker study.
-    """
-    import contextlib
-
-    import numpy as np
+@contextlib.contextmanager
+def _one_thread() -> Iterator[None]:
+    """One DSP thread and one BLAS thread for the enclosed work (see :func:`run_batch`)."""
+    from threadpoolctl import threadpool_limits
 
     from dsp import limit_threads
+
+    with limit_threads(1), threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:
+    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable).
+
+    Always on one thread — the DSP's (``dsp.limit_threads``) and BLAS's (threadpoolctl) — in a
+    worker process, a Dask task or this process alike: the workers are the parallelism, and a
+    multi-threaded BLAS sums long products in another order (last-digit differences, e.g. in the
+    refined AoD), so this is what makes a study's numbers the same for any number of workers.
+    """
+    import numpy as np
 
     marker = os.environ.get(DIE_ONCE)
     if marker and point == 0 and start == 0 and not os.path.exists(marker):  # the retry test's dying worker
@@ -112,11 +128,12 @@ def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_s
 
     from .kernel import run_once
 
-    with limit_threads(threads) if threads is not None else contextlib.nullcontext():
+    with _one_thread():
         prep = _prepared(params)
         buffer = np.empty_like(prep.cube)
         rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
-    return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds}
+    return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
+            "warnings": list(prep.params.get("warnings", ()))}
 
 
 def _init_worker(parent: int) -> None:
@@ -146,8 +163,9 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
             notice: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run every missing run of ``spec`` and append it to ``log``.
 
-    Returns ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "retried": [messages],
-    "wall_seconds": s, "new_runs": n}``.
+    ``spec`` is a :class:`StudySpec` or anything with its ``name``, ``runs``, ``seed``, ``key`` and
+    ``points()`` (a floor map's cells). Returns ``{"crb": {point: {...}}, "prepare_seconds":
+    {point: s}, "warnings": {point: [...]}, "retried": [messages], "wall_seconds": s, "new_runs": n}``.
     """
     from tqdm import tqdm
 
@@ -155,7 +173,7 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
     batches = plan_batches(spec, log.done(), workers=workers)
     total = spec.runs * len(spec.points())
     done_before = sum(1 for (p, r) in log.done() if r < spec.runs)
-    info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "retried": [], "new_runs": 0}
+    info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "warnings": {}, "retried": [], "new_runs": 0}
     start = time.perf_counter()
     bar = tqdm(total=total, initial=done_before, unit="run", desc=spec.name, disable=quiet, smoothing=0.05,
                dynamic_ncols=True, file=sys.stderr)
@@ -164,6 +182,7 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
         log.append(result["rows"])
         info["crb"][batch.point] = result["crb"]
         info["prepare_seconds"][batch.point] = result["prepare_seconds"]
+        info["warnings"][batch.point] = result.get("warnings", [])
         info["new_runs"] += len(result["rows"])
         bar.update(len(result["rows"]))
 
@@ -179,14 +198,16 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
             _run_dask(spec, batches, dask, take, say)
         elif workers == 1:
             for b in batches:
-                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed, threads=None), b)
+                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed), b)
         else:
             _run_pool(spec, batches, workers, take, say)
         # bounds of points whose runs were all done before this start (needed by the summary)
         for p, params in enumerate(spec.points()):
             if p not in info["crb"]:
-                prep = _prepared(params)
+                with _one_thread():
+                    prep = _prepared(params)
                 info["crb"][p], info["prepare_seconds"][p] = prep.crb, prep.seconds
+                info["warnings"][p] = list(prep.params.get("warnings", ()))
     finally:
         bar.close()
     info["wall_seconds"] = time.perf_counter() - start

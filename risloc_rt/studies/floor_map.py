@@ -4,8 +4,9 @@ Radar positions on a square grid over the hall's footprint at one height (``marg
 walls, outside objects, within the RIS's sweep fan); each cell is traced (``hall_paths`` with the
 trace cache: a rerun traces nothing), its noiseless cube synthesised once, and ``runs`` noise
 realizations localized (``kernel.run_once``, the noise of run r of cell c from
-``SeedSequence(seed, spawn_key=(c, r))``). Runs are appended to ``runs.jsonl`` as in a sweep, so a
-killed map continues. Outputs: ``map.json`` (one entry per cell), ``map.parquet`` and ``map.png``.
+``SeedSequence(seed, spawn_key=(c, r))``). The cells run on the sweeps' engine (worker processes or
+Dask, retried when a worker dies) and the runs are appended to ``runs.jsonl`` as in a sweep, so a
+killed map continues and the numbers do not depend on the number of workers. Outputs: ``map.json`` (one entry per cell), ``map.parquet`` and ``map.png``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ import hashlib
 import io
 import json
 import math
-import sys
 import time
 import warnings
 from collections import Counter
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from .._files import atomic_write_bytes
-from .kernel import PreparedPoint, point_bound, run_once
+from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells"]
@@ -102,7 +102,20 @@ def grid_cells(settings: MapSettings) -> tuple[Any, np.ndarray, np.ndarray]:
     return spec, pts[keep], keep
 
 
-def _prepare(settings: MapSettings, ue: np.ndarray) -> PreparedPoint:
+def _cell_settings(settings: MapSettings) -> dict[str, Any]:
+    """What a cell's cube depends on (not ``runs``, ``seed`` or ``estimator``: those are per run)."""
+    d = asdict(settings)
+    for name in ("runs", "seed"):
+        d.pop(name)
+    return d
+
+
+def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
+    """Trace one cell (through the trace cache), synthesise its noiseless cube once, and its bound.
+
+    ``params``: ``{"map_cell": index, "ue": [x, y, z], "settings": {...}}`` as :class:`_MapPlan`
+    makes them (plain data: a worker process or a Dask worker rebuilds the cell from them).
+    """
     from dsp import RadarConfig
 
     from ..hall import hall_paths, hall_scenario
@@ -110,6 +123,8 @@ def _prepare(settings: MapSettings, ue: np.ndarray) -> PreparedPoint:
     from ..model import simulate
 
     start = time.perf_counter()
+    settings = MapSettings(**params["settings"])
+    ue = np.asarray(params["ue"], dtype=float)
     radar = RadarConfig() if settings.tx_power_dbm is None else RadarConfig(tx_power_dbm=settings.tx_power_dbm)
     hs = hall_scenario(settings.scene, ue_position=ue, radar=radar,
                        trace=TraceSettings(max_depth=settings.depth, samples_per_src=settings.samples))
@@ -120,11 +135,39 @@ def _prepare(settings: MapSettings, ue: np.ndarray) -> PreparedPoint:
     pattern = cap.ris.beam_pattern()
     crb = point_bound(cap.cube, radar=cap.radar, sweep=cap.sweep, pattern=pattern, pose=cap.ris.pose,
                       truth=cap.truth, loopback_delay=cap.ris.loopback_delay)
-    params = {"estimator": settings.estimator, "pfa": 1e-3,
-              "warnings": sorted({str(w.message).split(":")[0] for w in caught})}
-    return PreparedPoint(params=params, cube=cap.cube, radar=cap.radar, sweep=cap.sweep, processing=cap.processing,
-                         pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay, pattern=pattern, truth=cap.truth,
-                         crb=crb, seconds=time.perf_counter() - start)
+    run_params = {"estimator": settings.estimator, "pfa": 1e-3,
+                  "warnings": sorted({str(w.message).split(":")[0] for w in caught})}
+    return PreparedPoint(params=run_params, cube=cap.cube, radar=cap.radar, sweep=cap.sweep,
+                         processing=cap.processing, pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay,
+                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start)
+
+
+@dataclass(frozen=True)
+class _MapPlan:
+    """A floor map as the study engine sees it: one point per cell, ``runs`` runs each."""
+
+    settings: MapSettings
+    cells: tuple[tuple[float, float, float], ...]
+
+    @property
+    def name(self) -> str:
+        return f"map {self.settings.scene}"
+
+    @property
+    def runs(self) -> int:
+        return self.settings.runs
+
+    @property
+    def seed(self) -> int:
+        return self.settings.seed
+
+    @property
+    def key(self) -> str:
+        return self.settings.key
+
+    def points(self) -> list[dict[str, Any]]:
+        common = _cell_settings(self.settings)
+        return [{"map_cell": c, "ue": list(ue), "settings": common} for c, ue in enumerate(self.cells)]
 
 
 @dataclass(frozen=True)
@@ -143,11 +186,19 @@ class MapResult:
                 f"{self.folder}/map.json, map.parquet, map.png")
 
 
-def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = None, quiet: bool = False,
-            force: bool = False) -> MapResult:
-    """Run (or continue) a floor map in folder ``out`` (one process: the tracer is the costly part)."""
-    from tqdm import tqdm
+def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = None, dask: Any = None,
+            quiet: bool = False, force: bool = False) -> MapResult:
+    """Run (or continue) a floor map in folder ``out``.
 
+    The cells are the points of a study (:mod:`risloc_rt.studies.engine`): batches of runs on
+    ``workers`` processes (default: all cores; each traces its cells through the shared trace cache)
+    or on a Dask cluster (``dask``: an address or a ``distributed.Client``), resumable run by run.
+    """
+    from .engine import default_workers, execute
+
+    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
+        raise ValueError(f"--workers {workers} must be >= 1")
+    workers = int(workers) if workers is not None else default_workers()
     folder = Path(out)
     manifest = folder / "map-study.json"
     if manifest.exists():
@@ -157,34 +208,30 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     elif folder.is_dir() and any(folder.iterdir()) and not force:
         raise StudyFolderError(f"{str(folder)!r} is not empty and holds no floor map; use a new --out folder")
     spec, cells, _ = grid_cells(settings)
+    plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells))
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings)}).encode(), sync=True)
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
-    bar = tqdm(total=len(cells) * settings.runs, initial=sum(1 for (_, r) in log.done() if r < settings.runs),
-               unit="run", desc=f"map {settings.scene}", disable=quiet, file=sys.stderr, dynamic_ncols=True)
-    out_cells = []
     try:
+        info = execute(plan, log, workers=workers, dask=dask, quiet=quiet)
+        out_cells = []
         for c, ue in enumerate(cells):
-            prep = _prepare(settings, ue)
-            missing = [r for r in range(settings.runs) if (c, r) not in log.rows]
-            buf = np.empty_like(prep.cube)
-            for r in missing:
-                log.append([run_once(prep, study_seed=settings.seed, point=c, run=r, buffer=buf)])
-                bar.update(1)
             rows = [log.rows[(c, r)] for r in range(settings.runs)]
-            err = np.array([x["position_error"] for x in rows if x["detected"] and x["position_error"] is not None], float)
-            flags = Counter(f for x in rows for f in (x.get("flags") or "").split(",") if f and f != "elevation-assumed")
+            err = np.array([x["position_error"] for x in rows if x["detected"] and x["position_error"] is not None],
+                           float)
+            flags = Counter(f for x in rows for f in (x.get("flags") or "").split(",")
+                            if f and f != "elevation-assumed")
+            crb = info["crb"][c]
             out_cells.append({
                 "x": float(ue[0]), "y": float(ue[1]), "z": float(ue[2]), "runs": len(rows),
                 "detection_probability": sum(bool(x["detected"]) for x in rows) / len(rows),
                 "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
-                "peb": prep.crb["position"], "peak_snr_db": prep.crb["peak_snr_db"],
+                "peb": crb["position"], "peak_snr_db": crb["peak_snr_db"],
                 "dominant_flag": flags.most_common(1)[0][0] if flags else "none", "flags": dict(flags),
-                "trace_warnings": prep.params["warnings"],
+                "trace_warnings": info["warnings"].get(c, []),
             })
     finally:
-        bar.close()
         log.close()
     wall = time.perf_counter() - start
     atomic_write_bytes(folder / "map.json", json.dumps({"settings": asdict(settings), "cells": out_cells},

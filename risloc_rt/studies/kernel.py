@@ -3,9 +3,10 @@
 Every run of a point shares the same paths and therefore the same noiseless beat cube, so
 :func:`prepare_point` synthesises it once; :func:`run_once` adds the run's receiver noise
 (``SeedSequence(study_seed, spawn_key=(point, run))``) and runs the public DSP,
-``dsp.self_localize``, exactly as ``risloc locate`` does on a simulated capture. Bit for bit the
-numbers equal ``simulate(..., rng) -> process_capture``'s for the noise of that stream, because
-``risloc_rt.model.add_noise`` is what ``simulate`` calls.
+``dsp.self_localize``, exactly as ``risloc locate`` does on a simulated capture: the numbers equal
+``simulate(..., rng) -> process_capture``'s for the noise of that stream, because
+``risloc_rt.model.add_noise`` is what ``simulate`` calls — bit for bit when both run on one BLAS
+thread, as every study run does (``engine.run_batch``); a multi-threaded BLAS changes last digits.
 """
 
 from __future__ import annotations

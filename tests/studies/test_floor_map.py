@@ -76,3 +76,16 @@ def test_a_tiny_map_detects_everywhere_and_meets_its_bound(tiny_hall, tmp_path):
     again = run_map(MapSettings(scene=str(tiny_hall), spacing=3.0, runs=1, depth=1, samples=10_000), tmp_path / "m",
                     quiet=True)
     assert again.cells == res.cells  # resumed from the log: nothing recomputed differently
+
+
+@pytest.mark.slow
+def test_a_map_on_two_worker_processes_equals_the_one_process_map(tiny_hall, tmp_path):
+    from risloc_rt.studies.floor_map import MapSettings, run_map
+
+    settings = MapSettings(scene=str(tiny_hall), spacing=3.0, runs=2, depth=1, samples=10_000, tx_power_dbm=-25.0)
+    one = run_map(settings, tmp_path / "one", workers=1, quiet=True)
+    two = run_map(settings, tmp_path / "two", workers=2, quiet=True)
+    assert len(one.cells) >= 2
+    assert two.cells == one.cells  # same noise streams (cell, run) whatever process ran them
+    rows = [json.loads(line) for line in (tmp_path / "two" / "runs.jsonl").read_text().splitlines()]
+    assert sorted((r["point"], r["run"]) for r in rows) == [(c, r) for c in range(len(one.cells)) for r in range(2)]
