@@ -81,3 +81,12 @@ def test_map_bad_input_is_one_line_exit_2(capsys, tmp_path, args, match):
     status = main(["study", "map", *args, "--out", str(tmp_path / "m"), "--quiet"])
     err = capsys.readouterr().err
     assert status == 2 and match in err and err.count("\n") == 1, err
+
+
+def test_map_with_an_unreachable_scheduler_is_one_line_exit_2(capsys, tmp_path):
+    status = main(["study", "map", "paper_hall", "--runs", "1", "--out", str(tmp_path / "m"), "--quiet",
+                   "--dask", "tcp://127.0.0.1:9", "--dask-timeout", "0.5"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert "cannot reach the Dask scheduler" in err and err.count("\n") == 1 and err.startswith("risloc study map: error:")
+    assert not (tmp_path / "m").exists()  # nothing written before the cluster answered
