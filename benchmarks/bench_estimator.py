@@ -11,7 +11,15 @@ the refinement even below the threshold, so that the RMSE is not conditioned on 
 refined estimator, and its CRB at the true parameters. The paper's method (zoom grid search,
 best beam) runs on the first ``--paper`` realizations of each SNR point.
 
+Per SNR and estimator, RMSE/CRB is printed over all realizations and over the detected ones, each
+with a 95 % bootstrap confidence interval (realizations resampled, the ratio of the RMS error to
+the RMS bound recomputed), and bias/σ. ``--compare`` also runs the profiled-phase criterion
+(``likelihood="profile"``, the refined estimator before the marginal likelihood) on the same
+cubes; ``--start truth`` starts the refinement at the half-bin cell of the true tone instead of
+the detector's (a genie: no acquisition error; the detector still runs for the detected flag).
+
     .venv/bin/python benchmarks/bench_estimator.py [--realizations 500] [--paper 20] [--seed 0]
+        [--compare] [--start detector|truth] [--snr 10 20 30 40]
 """
 
 from __future__ import annotations
@@ -50,7 +58,31 @@ def synth_cube(radar, sweep, pattern, distance, velocity, aod, peak_snr, rng, no
     return cube, tau, nu
 
 
-def run(realizations: int, paper: int, seed: int) -> None:
+def ratio_ci(err, crb, rng, boot=2000):
+    """RMSE/RMS(CRB) and its 95 % bootstrap interval (percentile, realizations resampled)."""
+    err, crb = np.asarray(err, dtype=float), np.asarray(crb, dtype=float)
+    ratio = float(np.sqrt(np.mean(err**2) / np.mean(crb**2)))
+    if err.size < 2:
+        return ratio, np.nan, np.nan
+    idx = rng.integers(0, err.size, (boot, err.size))
+    r = np.sqrt(np.mean(err[idx] ** 2, axis=1) / np.mean(crb[idx] ** 2, axis=1))
+    lo, hi = np.percentile(r, [2.5, 97.5])
+    return ratio, float(lo), float(hi)
+
+
+def genie_start(radar, tau, nu):
+    """(τ, ν) of the half-bin cell (2× zero padding, as the detector's) nearest the true tone."""
+    n, k = radar.num_samples, radar.num_chirps
+    fct = radar.carrier_frequency * radar.chirp_interval
+    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
+    f2 = nu * fct
+    f1, f2 = np.round(f1 * 2 * n) / (2 * n), np.round(f2 * 2 * k) / (2 * k)
+    nu0 = f2 / fct
+    return (f1 / radar.sample_period - radar.carrier_frequency * nu0) / radar.slope, nu0
+
+
+def run(realizations: int, paper: int, seed: int, compare: bool = False, start: str = "detector",
+        snrs=(10, 20, 30, 40)) -> None:
     radar = dsp.RadarConfig()
     processing = dsp.ProcessingConfig()
     sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))
@@ -58,18 +90,27 @@ def run(realizations: int, paper: int, seed: int) -> None:
     pose = dsp.RisPose.facing([0.0, 13.38, 0.0], [0.0, 0.0, 0.0])
     # the detector self_localize runs: pattern-matched beam windows on the half-bin grid
     acquisition = dict(pattern=pattern, sweep=sweep, oversample=2)
+    boot_rng = np.random.default_rng(12345)
     print(f"risloc-rt estimator benchmark: Table I sizes, relay 16x4 RIS, {realizations} realizations per SNR "
-          f"(paper method on {paper}), seed {seed}; {platform.processor() or platform.machine()}, numpy {np.__version__}")
-    print("SNR = post-integration SNR at the pattern peak, K N beta^2 / sigma^2; CRB of the whole sweep at the truth")
-    head = (f"{'SNR':>4} {'est':<7} {'n':>4} {'RMSE d [mm]':>11} {'CRB d [mm]':>10} {'RMSE/CRB':>8} {'bias/sd':>7} "
-            f"{'RMSE az [mdeg]':>14} {'CRB az':>8} {'RMSE/CRB':>8} {'bias/sd':>7} {'det':>5} {'ms':>7}")
+          f"(paper method on {paper}), seed {seed}, start {start}; "
+          f"{platform.processor() or platform.machine()}, numpy {np.__version__}")
+    print("SNR = post-integration SNR at the pattern peak, K N beta^2 / sigma^2; CRB of the whole sweep at the truth;")
+    print("RMSE/CRB = RMS error / RMS bound [95 % bootstrap CI]; 'refined' = refine_estimate (marginal likelihood), "
+          "'profile' = the same with likelihood='profile'")
+    head = (f"{'SNR':>4} {'est':<8} {'set':<4} {'n':>4} {'RMSE d [mm]':>11} {'CRB d [mm]':>10} {'RMSE/CRB d [95% CI]':>22} "
+            f"{'bias/sd':>7} {'RMSE az [mdeg]':>14} {'CRB az':>8} {'RMSE/CRB az [95% CI]':>22} {'bias/sd':>7} "
+            f"{'det':>5} {'ms':>7}")
     print(head)
     print("-" * len(head))
+    names = ["refined"] + (["profile"] if compare else []) + ["paper"]
     summary = []
-    for snr_db, ss in zip((10, 20, 30, 40), np.random.SeedSequence(seed).spawn(4)):
+    seqs = dict(zip((10, 20, 30, 40), np.random.SeedSequence(seed).spawn(4)))
+    for snr_db in snrs:
+        ss = seqs[snr_db]
         rho = 10 ** (snr_db / 10)
-        err = {"refined": [], "paper": []}
-        crb_d, crb_az, times, det_ok = [], [], {"refined": [], "paper": [], "detect": []}, []
+        err = {name: [] for name in names}
+        crb_d, crb_az, det_ok = [], [], []
+        times = {name: [] for name in names + ["detect"]}
         for i, child in enumerate(ss.spawn(realizations)):
             rng = np.random.default_rng(child)
             distance = rng.uniform(3.0, 18.0)
@@ -84,47 +125,68 @@ def run(realizations: int, paper: int, seed: int) -> None:
             t1 = time.perf_counter()
             times["detect"].append(t1 - t0)
             det_ok.append(det.detected)
-            init = det if det.detected else dsp.detect(cube, radar, pfa=1 - 1e-12, **acquisition)
-            if not np.isfinite(init.delay):  # nothing beam-dependent at all: count as a miss at the grid
-                init = dsp.Detection(False, 0, 0, 0, delay=tau, delay_rate=nu)
-            t0 = time.perf_counter()
-            est = dsp.refine_estimate(cube, sweep=sweep, radar=radar, pattern=pattern,
-                                      initial_delay=init.delay, initial_delay_rate=init.delay_rate)
-            times["refined"].append(time.perf_counter() - t0)
-            err["refined"].append(((est.delay - tau) * C / 2, est.aod.aod[0] - aod[0]))
+            if start == "truth":
+                tau0, nu0 = genie_start(radar, tau, nu)
+            else:
+                init = det if det.detected else dsp.detect(cube, radar, pfa=1 - 1e-12, **acquisition)
+                if not np.isfinite(init.delay):  # nothing beam-dependent at all: count as a miss at the grid
+                    init = dsp.Detection(False, 0, 0, 0, delay=tau, delay_rate=nu)
+                tau0, nu0 = init.delay, init.delay_rate
+            for name, likelihood in (("refined", "marginal"), ("profile", "profile")):
+                if name not in err:
+                    continue
+                t0 = time.perf_counter()
+                est = dsp.refine_estimate(cube, sweep=sweep, radar=radar, pattern=pattern,
+                                          initial_delay=tau0, initial_delay_rate=nu0, likelihood=likelihood)
+                times[name].append(time.perf_counter() - t0)
+                err[name].append(((est.delay - tau) * C / 2, est.aod.aod[0] - aod[0]))
             if i < paper:
                 t0 = time.perf_counter()
                 loc = dsp.localize(dsp.scan_beams(cube, sweep, radar, processing), radar=radar, pose=pose,
                                    loopback_delay=TAU_RB)
                 times["paper"].append(time.perf_counter() - t0)
                 err["paper"].append(((loc.delay - tau) * C / 2, loc.aod[0] - aod[0]))
-        rc_d = float(np.sqrt(np.mean(np.square(crb_d))))
-        rc_az = float(np.sqrt(np.mean(np.square(crb_az))))
-        for name in ("refined", "paper"):
+        crb = np.array([crb_d, crb_az]).T
+        ok = np.array(det_ok)
+        for name in names:
             e = np.array(err[name])
             if not e.size:
                 continue
-            rmse = np.sqrt(np.mean(e**2, axis=0))
-            bias = e.mean(axis=0)
-            sd = e.std(axis=0, ddof=1)
             ms = 1e3 * float(np.median(times[name]))
-            print(f"{snr_db:>4} {name:<7} {len(e):>4} {rmse[0] * 1e3:>11.4f} {rc_d * 1e3:>10.4f} {rmse[0] / rc_d:>8.3f} "
-                  f"{bias[0] / sd[0]:>+7.3f} {np.rad2deg(rmse[1]) * 1e3:>14.2f} {np.rad2deg(rc_az) * 1e3:>8.2f} "
-                  f"{rmse[1] / rc_az:>8.3f} {bias[1] / sd[1]:>+7.3f} {np.mean(det_ok):>5.2f} {ms:>7.1f}")
-            summary.append((snr_db, name, rmse, rc_d, rc_az, ms))
-        e = np.array(err["refined"])[:, 0]
-        ok = np.array(det_ok)
-        out = np.abs(e) > 0.05
-        inl = ok & ~out
-        extra = f", over the detected ones without them {np.sqrt(np.mean(e[inl] ** 2)) / rc_d:.3f}" if inl.any() else ""
-        print(f"{'':>4} refined outliers (|distance error| > 5 cm): {int(out.sum())}, of them detected "
-              f"{int((out & ok).sum())}; distance RMSE/CRB without them {np.sqrt(np.mean(e[~out] ** 2)) / rc_d:.3f}"
-              + extra)
+            for subset in ("all", "det"):
+                mask = np.ones(len(e), bool) if subset == "all" else ok[:len(e)]
+                if not mask.any():
+                    continue
+                es, cs = e[mask], crb[:len(e)][mask]
+                rc = np.sqrt(np.mean(cs**2, axis=0))
+                rmse = np.sqrt(np.mean(es**2, axis=0))
+                bias = es.mean(axis=0)
+                sd = es.std(axis=0, ddof=1) if len(es) > 1 else np.full(2, np.nan)
+                cells = []
+                for j in (0, 1):
+                    r, lo, hi = ratio_ci(es[:, j], cs[:, j], boot_rng)
+                    cells.append(f"{r:.3f} [{lo:.3f}, {hi:.3f}]")
+                print(f"{snr_db:>4} {name:<8} {subset:<4} {len(es):>4} {rmse[0] * 1e3:>11.4f} {rc[0] * 1e3:>10.4f} "
+                      f"{cells[0]:>22} {bias[0] / sd[0]:>+7.3f} {np.rad2deg(rmse[1]) * 1e3:>14.2f} "
+                      f"{np.rad2deg(rc[1]) * 1e3:>8.2f} {cells[1]:>22} {bias[1] / sd[1]:>+7.3f} "
+                      f"{np.mean(ok[:len(e)]):>5.2f} {ms:>7.1f}")
+                if subset == "all":
+                    summary.append((snr_db, name, rmse, rc[0], rc[1], ms))
+        for name in [n for n in names if n != "paper"]:
+            e = np.array(err[name])[:, 0]
+            out = np.abs(e) > 0.05
+            inl = ok & ~out
+            extra = (f", over the detected ones without them {np.sqrt(np.mean(e[inl] ** 2)) / np.sqrt(np.mean(crb[inl, 0] ** 2)):.3f}"
+                     if inl.any() else "")
+            rest = (f"{np.sqrt(np.mean(e[~out] ** 2)) / np.sqrt(np.mean(crb[~out, 0] ** 2)):.3f}"
+                    if (~out).any() else "-")
+            print(f"{'':>4} {name} outliers (|distance error| > 5 cm): {int(out.sum())}, of them detected "
+                  f"{int((out & ok).sum())}; distance RMSE/CRB without them {rest}" + extra)
         print(f"{'':>4} detect  median {1e3 * np.median(times['detect']):.1f} ms per cube")
     print()
     print("ratios refined / paper (same realizations' SNR point): RMSE distance, RMSE AoD, time")
     by = {(s, n): (r, ms) for s, n, r, _, _, ms in summary}
-    for snr_db in (10, 20, 30, 40):
+    for snr_db in snrs:
         if (snr_db, "paper") in by:
             (rr, tr), (rp, tp) = by[(snr_db, "refined")], by[(snr_db, "paper")]
             print(f"  {snr_db:>2} dB: distance {rr[0] / rp[0]:.3f}, AoD {rr[1] / rp[1]:.3f}, time {tr / tp:.3f} "
@@ -136,8 +198,14 @@ def main() -> None:
     ap.add_argument("--realizations", type=int, default=500)
     ap.add_argument("--paper", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--compare", action="store_true",
+                    help="also run likelihood='profile' (the criterion before the marginal likelihood) on the same cubes")
+    ap.add_argument("--start", choices=("detector", "truth"), default="detector",
+                    help="start the refinement at the detector's cell or (genie) at the true tone's half-bin cell")
+    ap.add_argument("--snr", type=int, nargs="+", choices=(10, 20, 30, 40), default=(10, 20, 30, 40),
+                    help="SNR points [dB] (each keeps its own seed stream)")
     args = ap.parse_args()
-    run(args.realizations, args.paper, args.seed)
+    run(args.realizations, args.paper, args.seed, compare=args.compare, start=args.start, snrs=tuple(args.snr))
 
 
 if __name__ == "__main__":

@@ -7,6 +7,17 @@ sweep, then with Brent's method around the best grid point (a 2-D sweep: a (u, w
 Nelder–Mead). It uses how the power falls off on both sides of the best beam, so it interpolates
 between beams instead of picking one; the other local maxima within reach are kept as candidates
 (the ``grating-lobe`` flag reads them).
+
+With the noise variance s² of the complex values behind r_m known (``noise_variance``), the phases
+can be **marginalised** instead of profiled (uniform prior, the carrier phase of each frame is
+random): the likelihood of (θ, b) is then
+
+    Σ_m log I₀(2 b |A_m(θ)| r_m / s²) − b² Σ_m A_m(θ)² / s²,
+
+b = K N β the tone's magnitude at the pattern peak, profiled out by Newton's method (one root).
+log I₀(x) is square-law, x²/4, for a beam near the noise floor and linear, x − ½ log 2πx, for a
+strong one: the beams at low SNR, whose magnitudes are mostly the Rayleigh noise floor, no longer
+weigh as if they were signal. For large x it tends to the profiled likelihood.
 """
 
 from __future__ import annotations
@@ -16,12 +27,13 @@ from typing import Any
 
 import numpy as np
 import scipy.optimize
+import scipy.special
 
 from ._validate import as_finite_array, fields_equal, finite
 from .pattern import BeamPattern
 from .sweep import BeamSweep
 
-__all__ = ["AodFit", "fit_aod"]
+__all__ = ["AodFit", "fit_aod", "bessel_ratio", "log_i0"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +63,71 @@ class AodFit:
 
     __hash__ = None  # type: ignore[assignment]
 
+def bessel_ratio(x: Any) -> np.ndarray:
+    """g(x) = I₁(x)/I₀(x) for x >= 0: d/dx log I₀(x), from 0 (x/2 near 0) to 1 (1 − 1/(2x))."""
+    x = np.minimum(np.asarray(x, dtype=float), 1e300)
+    return scipy.special.i1e(x) / scipy.special.i0e(x)
+
+
+def bessel_ratio_slope(x: Any, g: Any = None) -> np.ndarray:
+    """g'(x) = 1 − g/x − g² (½ at 0; its asymptotic series for x > 100, where that cancels).
+
+    ``g``: g(x) if already computed.
+    """
+    x = np.asarray(x, dtype=float)
+    g = bessel_ratio(x) if g is None else np.asarray(g, dtype=float)
+    out = 1.0 - g / np.maximum(x, 1e-300) - g * g
+    small = x < 1e-8
+    if small.any():
+        out = np.where(small, 0.5, out)
+    big = x > 100.0
+    if big.any():
+        y = 1.0 / np.where(big, x, 1.0)
+        out = np.where(big, y * y * (0.5 + y * (0.25 + 0.375 * y)), out)
+    return out
+
+
+def log_i0(x: Any) -> np.ndarray:
+    """log I₀(x) for x >= 0, without overflow."""
+    x = np.minimum(np.asarray(x, dtype=float), 1e300)
+    return np.log(scipy.special.i0e(x)) + x
+
+
+def _marginal_amplitude(amp: np.ndarray, r: np.ndarray, s2: float, iterations: int = 30) -> np.ndarray:
+    """b̂ maximising Σ log I₀(2 b a r/s²) − b² Σa²/s² over the last axis (``amp`` [..., M]).
+
+    F(b) = Σ a r g(2 b a r/s²) − b Σ a² is concave with F(0) = 0; Newton's method from the
+    profiled b₀ = Σ a r/Σ a² (F(b₀) <= 0, as g <= 1) decreases monotonically to the positive
+    root, or to 0 when there is none (no tone above the noise floor). Stops when every step is
+    below 10⁻¹² of b₀.
+    """
+    a = np.abs(amp)
+    ar = a * r
+    aa = (a * a).sum(axis=-1)
+    safe = np.where(aa > 0, aa, 1.0)
+    b = ar.sum(axis=-1) / safe
+    tol = 1e-12 * np.maximum(b, 1e-300)
+    ar2 = ar * ar * (2 / s2)
+    for _ in range(iterations):
+        x = 2 * b[..., None] * ar / s2
+        g = bessel_ratio(x)
+        f = (ar * g).sum(axis=-1) - b * aa
+        df = (ar2 * bessel_ratio_slope(x, g)).sum(axis=-1) - aa
+        step = np.where(df < 0, f / np.where(df < 0, df, -1.0), 0.0)
+        b = np.maximum(b - step, 0.0)
+        if np.all(np.abs(step) <= tol):
+            break
+    return np.where(aa > 0, b, 0.0)
+
+
+def _marginal_objective(amp: np.ndarray, r: np.ndarray, s2: float) -> tuple[np.ndarray, np.ndarray]:
+    """(max_b of the marginal log-likelihood, b̂) over the last axis."""
+    a = np.abs(amp)
+    b = _marginal_amplitude(a, r, s2)
+    val = log_i0(2 * b[..., None] * a * r / s2).sum(axis=-1) - b * b * (a * a).sum(axis=-1) / s2
+    return val, b
+
+
 def _objective(amp: np.ndarray, r: np.ndarray) -> np.ndarray:
     """(Σ|A| r)² / ΣA² over the last axis."""
     a = np.abs(amp)
@@ -59,7 +136,8 @@ def _objective(amp: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.where(den > 0, num * num / np.where(den > 0, den, 1.0), 0.0)
 
 
-def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevation: float | None = None) -> AodFit:
+def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevation: float | None = None,
+            noise_variance: float | None = None) -> AodFit:
     """Fit the RIS beam pattern to per-beam magnitudes (maximum likelihood, phases unknown).
 
     Parameters
@@ -71,12 +149,24 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
         With its wavelength set.
     elevation : float, optional
         Elevation held fixed for a 1-D sweep [rad]; default the sweep's (common) elevation.
+    noise_variance : float, optional
+        s² = E|w|² of the complex noise of each value whose magnitude r_m is [unit of r²], e.g.
+        K N σ² for the DTFT of a beam. Given: the phases are marginalised (module docstring);
+        None: profiled, ``(Σ|A| r)²/ΣA²``. The candidates are the profiled objective's in both
+        cases (their levels in dB are power ratios).
 
     Returns
     -------
     AodFit
     """
     r = as_finite_array(magnitudes, "magnitudes", shape=(sweep.num_beams,))
+    s2 = None if noise_variance is None else float(noise_variance)
+    if s2 is not None and not (np.isfinite(s2) and s2 > 0):
+        raise ValueError(f"noise_variance must be finite and > 0, got {noise_variance!r}")
+
+    def objective(amp: np.ndarray) -> np.ndarray:
+        return _objective(amp, r) if s2 is None else _marginal_objective(amp, r, s2)[0]
+
     beams = sweep.angles
     el = float(np.mean(beams[:, 1])) if elevation is None else finite(elevation, "elevation", "rad")
     w = np.sin(el)
@@ -87,14 +177,16 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
     hi = min(cos_el, u_beams.max() + pattern.null_width)
     du = pattern.null_width / 8.0
     grid = np.linspace(lo, hi, max(3, int(np.ceil((hi - lo) / du)) + 1))
-    g = _objective(pattern.amplitude_u(grid, beams, w=w), r)
-    i = int(np.argmax(g))
+    amp_grid = pattern.amplitude_u(grid, beams, w=w)
+    g = _objective(amp_grid, r)  # profiled: the candidates' levels
+    obj = g if s2 is None else objective(amp_grid)
+    i = int(np.argmax(obj))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     res = scipy.optimize.minimize_scalar(
-        lambda uu: -float(_objective(pattern.amplitude_u(np.array([uu]), beams, w=w), r)[0]),
+        lambda uu: -float(objective(pattern.amplitude_u(np.array([uu]), beams, w=w))[0]),
         bounds=(a, b), method="bounded", options={"xatol": 1e-9 * max(pattern.null_width, 1e-3)},
     )
-    u_hat = float(res.x) if -res.fun >= g[i] else float(grid[i])
+    u_hat = float(res.x) if -res.fun >= obj[i] else float(grid[i])
     az = float(np.arcsin(np.clip(u_hat / cos_el, -1.0, 1.0)))
     aod = np.array([az, el])
     if not one_d:
@@ -107,11 +199,11 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
         def amp_uw(uu: float, ww: float) -> np.ndarray:
             return pattern.amplitude_u(np.array([uu]), beams, w=ww)
 
-        g2 = np.array([_objective(pattern.amplitude_u(grid, beams, w=ww), r) for ww in wg])  # [W, U]
+        g2 = np.array([objective(pattern.amplitude_u(grid, beams, w=ww)) for ww in wg])  # [W, U]
         iw, iu = np.unravel_index(int(np.argmax(g2)), g2.shape)
         x0 = np.array([grid[iu], wg[iw]])
         simplex = x0 + np.array([[0.0, 0.0], [du, 0.0], [0.0, w_null / 8]])
-        res2 = scipy.optimize.minimize(lambda x: -float(_objective(amp_uw(x[0], x[1]), r)[0]), x0,
+        res2 = scipy.optimize.minimize(lambda x: -float(objective(amp_uw(x[0], x[1]))[0]), x0,
                                        method="Nelder-Mead",
                                        options={"initial_simplex": simplex, "xatol": 1e-10, "fatol": 0.0,
                                                 "maxiter": 2000})
@@ -120,7 +212,10 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
         aod = np.array([float(np.arcsin(np.clip(uu / np.cos(el2), -1, 1))), el2])
         u_hat = float(uu)
     amp_hat = np.abs(pattern.amplitude(aod, beams))
-    beta = float((amp_hat * r).sum() / (amp_hat @ amp_hat)) if amp_hat @ amp_hat > 0 else 0.0
+    if s2 is None:
+        beta = float((amp_hat * r).sum() / (amp_hat @ amp_hat)) if amp_hat @ amp_hat > 0 else 0.0
+    else:
+        beta = float(_marginal_amplitude(amp_hat, r, s2))
     # Other local maxima of the objective, separated from the best by more than a null width.
     # Only inside the swept span: beyond it the objective rests on a few sidelobes.
     peaks = np.flatnonzero((g[1:-1] >= g[:-2]) & (g[1:-1] > g[2:])) + 1

@@ -17,6 +17,19 @@ Z_m the exact (un-windowed, un-gridded) 2-D DTFT of beam m at the fast/slow-time
 
 The fit uses how the power falls off on both sides of the best beam, so it interpolates between
 beams instead of picking one.
+
+``likelihood="marginal"`` (default) marginalises each beam's phase (uniform prior) instead of
+profiling it: with b = K N β and s² = K N σ² the noise variance of Z_m, the log-likelihood is
+
+    Σ_m log I₀(2 b |A_m(θ)| |Z_m(f₁, f₂)| / s²) − b² Σ_m A_m(θ)² / s²,
+
+square-law in |Z_m| for beams near the noise floor, linear (the profiled criterion) for strong
+ones. Step 1 is then Newton's method on Σ_m log I₀(x_m), x_m = c_m |Z_m|, c_m = 2 b a_m / s²:
+the gradient is that of Σ_m c_m g(x_m) |Z_m| with g = I₁/I₀ held fixed (per-beam weights
+a_m g(x_m)), the Hessian adds Σ_m c_m² g'(x_m) ∇|Z_m| ∇|Z_m|ᵀ; b̂ and θ̂ come from the marginal
+pattern fit (:func:`dsp.fit_aod` with ``noise_variance``). The first fit and the 5 × 5 zoom, from
+a start up to ½ bin off the tone, still profile. σ² is estimated from the data
+(:meth:`_Evaluator.noise_power`) unless given; with no noise at all it falls back to profiling.
 """
 
 from __future__ import annotations
@@ -25,9 +38,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.special
 
 from ._validate import fields_equal, finite
-from .aod_fit import AodFit, fit_aod
+from .aod_fit import AodFit, bessel_ratio, bessel_ratio_slope, fit_aod, log_i0
 from .dtft_subspace import SubspaceDtft
 from .pattern import BeamPattern
 from .radar import RadarConfig
@@ -131,6 +145,29 @@ class _Evaluator:
             return None
         return self.proj.moments[self.far].mean(axis=0)
 
+    def noise_power(self, f1: float, f2: float) -> float:
+        """σ̂² per sample [W] from the moments' energy outside the tone at (f₁, f₂).
+
+        Each beam's moments hold r₁ r₂ coefficients of CN(0, σ²) noise (orthonormal bases) plus
+        the tone, which lies along the one direction a(f₁) ⊗ b(f₂) of norm √(K N): the residual
+        ‖H_m‖² − |Z_m|²/(K N) is σ²·Gamma(r₁r₂ − 1). The median over the beams far from the main
+        lobe (static template removed, variance factor 1 − 1/M_far), or over all beams without a
+        template, divided by the median of Gamma(r₁r₂ − 1), is robust to the few beams holding
+        more than noise.
+        """
+        _, k, n = self.cube.shape
+        t = self._at(f1, f2)
+        h = t.moments
+        factor = 1.0
+        if self.far is not None:
+            h = h[self.far] - self.template()[None]
+            factor = 1.0 - 1.0 / int(self.far.sum())
+        a, b = t.coefficients(f1, f2)
+        z = np.einsum("mil,i,l->m", h, a[0], b[0])
+        resid = (np.abs(h) ** 2).sum(axis=(1, 2)) - np.abs(z) ** 2 / (k * n)
+        dof = h.shape[1] * h.shape[2] - 1
+        return float(np.median(resid) / scipy.special.gammaincinv(dof, 0.5) / factor)
+
     def magnitudes(self, f1: float, f2: float) -> np.ndarray:
         """|Z_m(f₁, f₂)| of every beam of the raw cube [M]."""
         return np.abs(self._at(f1, f2).evaluate(f1, f2))
@@ -140,8 +177,8 @@ class _Evaluator:
         t = self._at(f1, f2)
         return t.evaluate(f1, f2, beams=beams, order=2, template=self.template())
 
-    def zoom(self, f1: float, f2: float, beams: np.ndarray, weights: np.ndarray, offsets: int = 5) -> tuple[float, float]:
-        """Best of an ``offsets`` × ``offsets`` grid over ±½ bin of Σ_m a_m |Z_m|."""
+    def zoom(self, f1: float, f2: float, beams: np.ndarray, weights: "_Criterion", offsets: int = 5) -> tuple[float, float]:
+        """Best of an ``offsets`` × ``offsets`` grid over ±½ bin of the criterion."""
         _, k, n = self.cube.shape
         if self.proj.centre != (f1, f2):
             self._build(f1, f2)  # the grid spans ±½ bin around (f₁, f₂)
@@ -153,12 +190,38 @@ class _Evaluator:
         tpl = self.template()
         if tpl is not None:
             h = h - tpl[None]
-        obj = np.einsum("m,mab->ab", weights, np.abs(np.einsum("mil,ai,bl->mab", h, a, b)))
+        obj = weights.value(np.abs(np.einsum("mil,ai,bl->mab", h, a, b)))
         i, j = np.unravel_index(int(np.argmax(obj)), obj.shape)
         return f1 + o1[i], f2 + o2[j]
 
 
-def _newton(ev: _Evaluator, beams: np.ndarray, weights: np.ndarray, f1: float, f2: float, n: int, k: int,
+class _Criterion:
+    """Σ_m φ_m(|Z_m|) over the selected beams: profiled φ = a_m |Z|, or marginal φ = log I₀(c_m |Z|).
+
+    ``weights(mag)`` gives (w₁, w₂) = (φ', φ''): the gradient of the criterion is Σ w₁ ∇|Z_m|, its
+    Hessian Σ w₁ ∇²|Z_m| + w₂ ∇|Z_m| ∇|Z_m|ᵀ.
+    """
+
+    def __init__(self, a: np.ndarray, c: np.ndarray | None = None) -> None:
+        self.a = a
+        self.c = c  # None: profiled
+
+    def value(self, mag: np.ndarray) -> np.ndarray:
+        """Criterion for magnitudes [M', ...] (summed over the first axis)."""
+        shape = (-1,) + (1,) * (mag.ndim - 1)
+        if self.c is None:
+            return (self.a.reshape(shape) * mag).sum(axis=0)
+        return log_i0(self.c.reshape(shape) * mag).sum(axis=0)
+
+    def weights(self, mag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.c is None:
+            return self.a, np.zeros_like(self.a)
+        x = self.c * mag
+        g = bessel_ratio(x)
+        return self.c * g, self.c**2 * bessel_ratio_slope(x, g)
+
+
+def _newton(ev: _Evaluator, beams: np.ndarray, crit: _Criterion, f1: float, f2: float, n: int, k: int,
             max_iter: int) -> tuple[float, float, int, bool]:
     step_tol = (STEP_TOLERANCE / n, STEP_TOLERANCE / k)
     value_prev = None
@@ -169,7 +232,7 @@ def _newton(ev: _Evaluator, beams: np.ndarray, weights: np.ndarray, f1: float, f
         z = ev.derivatives(f1, f2, beams)
         z0 = z[:, 0, 0]
         mag = np.maximum(np.abs(z0), 1e-300)
-        value = float(weights @ mag)
+        value = float(crit.value(mag))
         if value_prev is not None and value < value_prev * (1 - 1e-12) and last is not None:
             # Overshot: halve the previous step and retry.
             f1, f2 = f1 - last[0] / 2, f2 - last[1] / 2
@@ -184,10 +247,12 @@ def _newton(ev: _Evaluator, beams: np.ndarray, weights: np.ndarray, f1: float, f
         c = np.conj(z0)
         r1 = (c * d1).real
         r2 = (c * d2).real
-        grad = np.array([weights @ (r1 / mag), weights @ (r2 / mag)])
-        h11 = weights @ (((np.conj(d1) * d1).real + (c * d11).real) / mag - r1 * r1 / mag**3)
-        h22 = weights @ (((np.conj(d2) * d2).real + (c * d22).real) / mag - r2 * r2 / mag**3)
-        h12 = weights @ (((np.conj(d1) * d2).real + (c * d12).real) / mag - r1 * r2 / mag**3)
+        weights, w2 = crit.weights(mag)
+        g1, g2 = r1 / mag, r2 / mag  # ∇|Z_m|
+        grad = np.array([weights @ g1, weights @ g2])
+        h11 = weights @ (((np.conj(d1) * d1).real + (c * d11).real) / mag - r1 * r1 / mag**3) + w2 @ (g1 * g1)
+        h22 = weights @ (((np.conj(d2) * d2).real + (c * d22).real) / mag - r2 * r2 / mag**3) + w2 @ (g2 * g2)
+        h12 = weights @ (((np.conj(d1) * d2).real + (c * d12).real) / mag - r1 * r2 / mag**3) + w2 @ (g1 * g2)
         hess = np.array([[h11, h12], [h12, h22]])
         if np.all(np.linalg.eigvalsh(hess) < 0):
             step = -np.linalg.solve(hess, grad)
@@ -215,6 +280,8 @@ def refine_estimate(
     max_iter: int = 8,
     passes: int = 2,
     remove_static: bool = True,
+    likelihood: str = "marginal",
+    noise_power: float | None = None,
 ) -> RefinedEstimate:
     """Refine delay, delay rate and AoD off the DFT grid, combining every beam.
 
@@ -244,6 +311,14 @@ def refine_estimate(
         RIS peak through the un-windowed DTFT's sidelobes. The template holds the RIS tone only
         at the same frequency (its far sidelobes), so the frequency stays unbiased; its noise
         (variance σ²/M_far) costs ~1/M_far in variance. The AoD fit uses the raw cube.
+    likelihood : {"marginal", "profile"}, default "marginal"
+        How each beam's unknown phase is removed (module docstring): marginalised (uniform
+        prior; weighs the beams near the noise floor by their SNR, which the profiled criterion
+        does not: the AoD no longer locks onto noise beams at low SNR, see
+        ``docs/estimation.md``) or profiled, ``Σ_m a_m |Z_m|`` (the criterion before).
+    noise_power : float, optional
+        σ² per sample [W], e.g. ``Detection.noise_power``; default estimated from the cube
+        around the tone. Only the marginal likelihood uses it.
 
     Returns
     -------
@@ -265,34 +340,74 @@ def refine_estimate(
     f1 = (tau0 * radar.slope + radar.carrier_frequency * nu0) * radar.sample_period
     f2 = nu0 * fct
 
+    if likelihood not in ("marginal", "profile"):
+        raise ValueError(f"likelihood must be 'marginal' or 'profile', got {likelihood!r}")
+    marginal = likelihood == "marginal"
+    kn = k * n
+    sigma2 = None
+    if marginal and noise_power is not None:
+        sigma2 = finite(noise_power, "noise_power", "W")
+        if sigma2 <= 0:
+            raise ValueError(f"noise_power must be > 0 W, got {noise_power!r}")
+
     ev = _Evaluator(arr, f1, f2)
-    # Raw cube for the fit: the template would carry the RIS's own far sidelobes (random phases)
-    # into every beam and bias the pattern fit by a fixed fraction of β, whatever the SNR.
-    fit = fit_aod(ev.magnitudes(f1, f2), sweep, pat, elevation=elevation)
+
+    def noise() -> float | None:
+        """σ² per sample, or None (no noise to speak of: the marginal likelihood is the profiled one)."""
+        if not marginal:
+            return None
+        if sigma2 is not None:
+            return sigma2
+        est = ev.noise_power(f1, f2)
+        scale = float((np.abs(ev.proj.moments) ** 2).sum(axis=(1, 2)).max())
+        return est if est > 1e-12 * scale else None
+
+    def fit_at(mags: np.ndarray, s2: float | None) -> AodFit:
+        # Raw cube for the fit: the template would carry the RIS's own far sidelobes (random
+        # phases) into every beam and bias the pattern fit by a fixed fraction of β, whatever the SNR.
+        return fit_aod(mags, sweep, pat, elevation=elevation, noise_variance=None if s2 is None else kn * s2)
+
+    def criterion(fit: AodFit, s2: float | None) -> tuple[np.ndarray, _Criterion]:
+        weights = np.abs(pat.amplitude(fit.aod, sweep.angles))
+        sel = np.flatnonzero(weights >= min_weight * weights.max())
+        if s2 is None:
+            return sel, _Criterion(weights[sel])
+        # Noise variance of the template-removed Z_m: K N σ² (1 ± 1/M_far).
+        var = np.full(sel.size, float(kn * s2))
+        if ev.far is not None:
+            m_far = int(ev.far.sum())
+            var *= np.where(ev.far[sel], 1.0 - 1.0 / m_far, 1.0 + 1.0 / m_far)
+        return sel, _Criterion(weights[sel], 2.0 * fit.amplitude * weights[sel] / var)
+
+    # The start may be ½ bin off the tone (up to 3.9 dB of scalloping per axis): the first fit
+    # and the zoom profile the phases; the marginal likelihood takes over from the zoomed cell.
+    fit = fit_at(ev.magnitudes(f1, f2), None)
     if remove_static:
         far = np.abs(pat.amplitude(fit.aod, sweep.angles)) < 0.1
         if far.sum() >= 4:
             ev.far = far
     # Zoom: 5 × 5 points over ±½ bin (the start may be a cell of the un-padded grid).
-    weights = np.abs(pat.amplitude(fit.aod, sweep.angles))
-    sel = np.flatnonzero(weights >= min_weight * weights.max())
-    f1, f2 = ev.zoom(f1, f2, sel, weights[sel])
+    sel, crit = criterion(fit, None)
+    f1, f2 = ev.zoom(f1, f2, sel, crit)
+    s2 = None
 
     iterations = 0
     converged = False
     r = ev.magnitudes(f1, f2)
+    if marginal:  # σ² and β (in c_m) at the zoomed frequencies, within ⅛ bin of the tone
+        s2 = noise()
+        fit = fit_at(r, s2)
     for _ in range(max(1, int(passes))):
-        weights = np.abs(pat.amplitude(fit.aod, sweep.angles))
-        sel = np.flatnonzero(weights >= min_weight * weights.max())
-        f1, f2, it, converged = _newton(ev, sel, weights[sel], f1, f2, n, k, max_iter)
+        sel, crit = criterion(fit, s2)
+        f1, f2, it, converged = _newton(ev, sel, crit, f1, f2, n, k, max_iter)
         iterations += it
         r = ev.magnitudes(f1, f2)
-        fit = fit_aod(r, sweep, pat, elevation=elevation)
+        s2 = noise()
+        fit = fit_at(r, s2)
     nu = f2 / fct
     # f₁ is defined modulo 1: keep the delay in [0, 1/(S T_s)).
     f1 = f1 % 1.0
     tau = f1 / s_ts - radar.carrier_frequency * nu / radar.slope
-    kn = k * n
     return RefinedEstimate(
         delay=float(tau), delay_rate=float(nu), beat_frequency=(float(f1), float(f2)), aod=fit,
         beam_magnitude=r / kn, amplitude=fit.amplitude / kn, iterations=iterations, converged=converged,
