@@ -10,7 +10,7 @@ identical, plus the largest relative difference of the peak and P_ave values.
 Synthesis: a Table I capture of the default hall's kept paths (``simulate``), with the standard
 noise stream and with the fast one (float32 per-beam streams, threaded), median of ``--repeat``.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2] [--low-power 0,10]
 """
 
 from __future__ import annotations
@@ -38,9 +38,12 @@ def _paper_path(cube, capture, search):
     return loc, time.perf_counter() - t0
 
 
-def _cases():
+def _cases(low_powers=()):
     for case in PAPER_CASES:
         yield f"paper {case}", paper_scenario(case), None
+    for dbm in low_powers:  # weaker RIS returns: most beams hold noise only and go to the dense search
+        sc = paper_scenario("off-broadside")
+        yield f"paper off-bs {dbm:g} dBm", replace(sc, radar=replace(sc.radar, tx_power_dbm=dbm)), None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AliasWarning)
         for index in (0, 1):
@@ -48,10 +51,11 @@ def _cases():
             yield f"paper_hall radar {index}", hs.base, hall_paths(hs).paths
 
 
-def bench_dsp(realizations: int, full: int, seed: int) -> None:
+def bench_dsp(realizations: int, full: int, seed: int, low_powers=()) -> None:
     print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
           f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}")
-    for (name, scenario, paths), ss in zip(_cases(), np.random.SeedSequence(seed).spawn(4)):
+    cases = list(_cases(low_powers))
+    for (name, scenario, paths), ss in zip(cases, np.random.SeedSequence(seed).spawn(len(cases))):
         t_zoom, t_full, beam, bins, est, diff = [], [], 0, 0, 0, 0.0
         for r, child in enumerate(ss.spawn(realizations)):
             cap = simulate(scenario, rng=np.random.default_rng(child), paths=paths)
@@ -159,10 +163,13 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--random-beams", type=int, default=0, help="also compare zoom and full on N random beams")
     parser.add_argument("--adversarial", type=int, default=0, help="also run N batches of 40 adversarial small beams per window")
+    parser.add_argument("--low-power", default="", metavar="DBM,...",
+                        help="also the off-broadside paper case at these transmit powers, e.g. 0,10")
     args = parser.parse_args()
     print(f"risloc-rt fast-path benchmark; {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
-    bench_dsp(args.realizations, min(args.full, args.realizations), args.seed)
+    lows = [float(v) for v in args.low_power.split(",") if v.strip()]
+    bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows)
     if args.random_beams:
         bench_random_beams(args.random_beams, args.seed)
     if args.adversarial:

@@ -100,20 +100,45 @@ def zoom_block(spectrum: np.ndarray, processing: ProcessingConfig) -> tuple[int,
 
     Returns (q, column index into the block, unnormalised |z|², the Doppler kernel row of q [K]).
     The zoom of :func:`dsp.beamscan.scan_beams`: a coarse ``zoom_oversampling``·K transform, the
-    coarse bins within ``zoom_margin_db`` of its maximum, the exact K_DFT-grid DFT (phases
-    reduced modulo K_DFT in integers) on the fine bins within one coarse bin of them.
+    coarse cells (Doppler bin, column) within ``zoom_margin_db`` of its maximum, and in each of
+    their columns the exact K_DFT-grid DFT (phases reduced modulo K_DFT in integers) on the fine
+    bins within one coarse bin of them.
+
+    Why per cell: a column's slow-time DFT is an exponential sum of type σ = π(K-1) (per cycle of
+    the Doppler axis), so near its maximum M it stays above M·cos(σ·|Δ|) (and above
+    M·cos(σ|Δ| + α) near a value M·cos α); the coarse bin nearest the column's best fine bin is at
+    most half a coarse bin away and so within 20·log10(1/cos(π/(2·oversampling))) dB (0.69 dB at
+    4×) of the column's maximum, and the global maximum's column is within that of the coarse
+    maximum. With ``zoom_margin_db`` above that, the fine bins near the candidate cells hold the
+    grid maximum; the other columns of a candidate row need not be evaluated (they cost most
+    of a noise-only beam before).
     """
     k = spectrum.shape[0]
     k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
     coarse = scipy.fft.ifft(spectrum, n=k_coarse, axis=0, norm="forward")  # [K_c, P]
-    prof = (coarse.real**2 + coarse.imag**2).max(axis=1)  # [K_c]
-    candidates = np.flatnonzero(prof >= prof.max() * 10.0 ** (-processing.zoom_margin_db / 10.0))
-    fine = _fine_bins_near(candidates, k_coarse, processing.k_dft)
-    kernel = _dft_table(processing.k_dft, k, processing.k_dft)[fine]  # [Q, K]
-    z = kernel @ spectrum  # [Q, P]
-    power = z.real**2 + z.imag**2
-    qi, pi = np.unravel_index(int(power.argmax()), power.shape)
-    return int(fine[qi]), int(pi), float(power[qi, pi]), kernel[qi]
+    cpow = coarse.real**2 + coarse.imag**2
+    rows, cols = np.nonzero(cpow >= cpow.max() * 10.0 ** (-processing.zoom_margin_db / 10.0))
+    return _fine_maximum(spectrum, rows, cols, k_coarse, processing)
+
+
+def _fine_maximum(columns: np.ndarray, rows: np.ndarray, cols: np.ndarray, k_coarse: int,
+                  processing: ProcessingConfig) -> tuple[int, int, float, np.ndarray]:
+    """The K_DFT-grid maximum near the candidate coarse cells (``rows``, ``cols``) of ``columns [K, P]``.
+
+    Returns (q, column index, unnormalised |z|², kernel row of q [K]); ties go as in the full
+    search (smaller q, then smaller column).
+    """
+    table = _dft_table(processing.k_dft, columns.shape[0], processing.k_dft)
+    best_q, best_p, best_v = -1, -1, -np.inf
+    for c in np.unique(cols):  # ascending columns
+        fine = _fine_bins_near(rows[cols == c], k_coarse, processing.k_dft)  # ascending, unique
+        z = table[fine] @ columns[:, c]  # [Q]
+        power = z.real**2 + z.imag**2
+        i = int(power.argmax())  # the first (smallest q) of equal values
+        q, v = int(fine[i]), float(power[i])
+        if v > best_v or (v == best_v and q < best_q):  # p ascends here: an equal value keeps the smaller p
+            best_q, best_p, best_v = q, int(c), v
+    return best_q, best_p, best_v, table[best_q]
 
 
 def screened_scan(
@@ -188,7 +213,7 @@ def screened_scan(
             fine[:first] = -np.inf
             above = np.flatnonzero(fine >= value)
             if above.size > n_dft // 4:
-                q, p, value, krow = _dense_beam(y * np.outer(w_k, w_n), processing, first)
+                q, p, value, krow = _dense_beam(y, processing, first, w_k, w_n)
             else:
                 p = int(cols[pi])
                 extra = np.setdiff1d(above, cols, assume_unique=True)
@@ -232,11 +257,29 @@ class _ColumnBounds:
         self.done[todo] = True
 
 
-def _dense_beam(frame: np.ndarray, processing: ProcessingConfig, first: int) -> tuple[int, int, float, np.ndarray]:
-    """The grid maximum of one windowed beam [K, N] from its whole N_DFT-point range transform."""
-    spectrum = scipy.fft.ifft(frame, n=processing.n_dft, axis=-1, norm="forward")  # [K, N_DFT]
-    q, pi, value, krow = zoom_block(spectrum[:, first:], processing)
-    return q, first + pi, value, krow
+def _dense_beam(y: np.ndarray, processing: ProcessingConfig, first: int, w_k: np.ndarray,
+                w_n: np.ndarray) -> tuple[int, int, float, np.ndarray]:
+    """The grid maximum of one beam ``y [K, N]`` (not windowed) whose columns could not be screened.
+
+    The whole N_DFT × (oversampling·K) coarse plane in complex64 (the screen: it only picks
+    cells), its cells within ``zoom_margin_db`` of the maximum — widened by a float32 slack of
+    1e-5·√(K_c·N_DFT)·‖x‖, about 9× the transform's error bound — and the exact float64 K_DFT-grid
+    values near them (:func:`_fine_maximum` on :func:`_range_columns`), as :func:`zoom_block` but
+    without a float64 transform of the whole beam.
+    """
+    k, n = y.shape
+    frame = (y * np.outer(w_k, w_n)).astype(np.complex64)
+    k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
+    spec = scipy.fft.ifft(frame, n=processing.n_dft, axis=-1, norm="forward")[:, first:]  # [K, P] complex64
+    coarse = scipy.fft.ifft(spec, n=k_coarse, axis=0, norm="forward", overwrite_x=True)  # [K_c, P]
+    amp = np.abs(coarse)
+    slack = _F32_SLACK * np.sqrt(k_coarse * processing.n_dft) * float(np.linalg.norm(frame.astype(np.complex128)))
+    floor = (float(amp.max()) - slack) * 10.0 ** (-processing.zoom_margin_db / 20.0) - slack
+    rows, cols = np.nonzero(amp >= floor)
+    picked = np.unique(cols)
+    exact = _range_columns(y, first + picked, processing.n_dft, w_k, w_n)  # [K, C] float64
+    q, ci, value, krow = _fine_maximum(exact, rows, np.searchsorted(picked, cols), k_coarse, processing)
+    return q, first + int(picked[ci]), value, krow
 
 
 def _row_values(y: np.ndarray, krow: np.ndarray, columns: np.ndarray, n_dft: int, w_k: np.ndarray,

@@ -4,9 +4,11 @@ Every run of a point shares the same paths and therefore the same noiseless beat
 :func:`prepare_point` synthesises it once; :func:`run_once` adds the run's receiver noise
 (``SeedSequence(study_seed, spawn_key=(point, run))``) and runs the public DSP,
 ``dsp.self_localize``, exactly as ``risloc locate`` does on a simulated capture: the numbers equal
-``simulate(..., rng) -> process_capture``'s for the noise of that stream, because
-``risloc_rt.model.add_noise`` is what ``simulate`` calls — bit for bit when both run on one BLAS
-thread, as every study run does (``engine.run_batch``); a multi-threaded BLAS changes last digits.
+``simulate(..., rng, noise_stream="fast") -> process_capture``'s for the noise of that stream,
+because ``risloc_rt.model.add_noise`` is what ``simulate`` calls — bit for bit when both run on one
+BLAS thread, as every study run does (``engine.run_batch``); a multi-threaded BLAS changes last
+digits. The "fast" stream (float32 normals, one child stream per beam) has the distribution of the
+standard one and costs about half as much, which a run of a study feels (docs/studies.md).
 """
 
 from __future__ import annotations
@@ -145,7 +147,7 @@ def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
 
 def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
              buffer: np.ndarray | None = None) -> dict[str, Any]:
-    """One Monte Carlo run: the seeded noise on the point's cube, then ``dsp.self_localize``.
+    """One Monte Carlo run: the seeded noise (the "fast" stream) on the point's cube, then ``dsp.self_localize``.
 
     Returns one row of the run table: errors [m, rad], the estimate, its 1σ, detection, flags
     and the run's time [s] (noise + DSP, one core).
@@ -159,7 +161,7 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
         az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
         cap = simulate(_analytic({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
         clean, truth = cap.cube, cap.truth
-    cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer)
+    cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer, stream="fast")
     loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,
                             loopback_delay=prep.loopback_delay, estimator=p["estimator"], pattern=prep.pattern,
                             pfa=p["pfa"], scan=False)  # the refined estimator's numbers do not use the grid
