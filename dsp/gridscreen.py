@@ -275,8 +275,9 @@ def _dense_beam(y: np.ndarray, processing: ProcessingConfig, first: int, w_k: np
     amp = np.abs(coarse)
     slack = _F32_SLACK * np.sqrt(k_coarse * processing.n_dft) * float(np.linalg.norm(frame.astype(np.complex128)))
     floor = (float(amp.max()) - slack) * 10.0 ** (-processing.zoom_margin_db / 20.0) - slack
-    rows, cols = np.nonzero(amp >= floor)
-    picked = np.unique(cols)
+    picked = np.flatnonzero(amp.max(axis=0) >= floor)  # the candidate columns, ascending
+    rows, sub = np.nonzero(amp[:, picked] >= floor)
+    cols = picked[sub]
     exact = _range_columns(y, first + picked, processing.n_dft, w_k, w_n)  # [K, C] float64
     q, ci, value, krow = _fine_maximum(exact, rows, np.searchsorted(picked, cols), k_coarse, processing)
     return q, first + int(picked[ci]), value, krow
