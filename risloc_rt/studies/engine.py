@@ -14,6 +14,7 @@ import contextlib
 import math
 import os
 import sys
+import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -100,15 +101,37 @@ def _prepared(params: dict[str, Any]) -> Any:
     return prep
 
 
+_BLAS_LOCK = threading.Lock()
+_blas_users = 0
+_blas_limiter: Any = None
+
+
 @contextlib.contextmanager
 def _one_thread() -> Iterator[None]:
-    """One DSP thread and one BLAS thread for the enclosed work (see :func:`run_batch`)."""
+    """One DSP thread and one BLAS thread for the enclosed work (see :func:`run_batch`).
+
+    BLAS's thread count is process-wide: batches running at once on the threads of one Dask
+    worker share one limiter, set by the first to enter and restored by the last to leave (a
+    batch leaving early must not give the others back a multi-threaded BLAS).
+    """
+    global _blas_users, _blas_limiter
     from threadpoolctl import threadpool_limits
 
     from dsp import limit_threads
 
-    with limit_threads(1), threadpool_limits(limits=1, user_api="blas"):
-        yield
+    with _BLAS_LOCK:
+        if _blas_users == 0:
+            _blas_limiter = threadpool_limits(limits=1, user_api="blas")
+        _blas_users += 1
+    try:
+        with limit_threads(1):
+            yield
+    finally:
+        with _BLAS_LOCK:
+            _blas_users -= 1
+            if _blas_users == 0:
+                _blas_limiter.restore_original_limits()
+                _blas_limiter = None
 
 
 def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:

@@ -107,3 +107,44 @@ def test_a_dask_cluster_gives_the_local_result(small_spec, tmp_path):
     assert _table(tmp_path / "dask") == _table(tmp_path / "local")
     for a, b in zip(local.summary["points"], remote.summary["points"]):
         assert a["mae"] == b["mae"] and a["rmse"] == b["rmse"] and a["crb"] == b["crb"]
+
+
+def test_batches_sharing_a_process_keep_blas_single_threaded_until_the_last_leaves():
+    """Dask runs several batches on the threads of one worker; BLAS's thread count is process-wide,
+    so a batch that finishes first must not hand the others a multi-threaded BLAS back (their last
+    digits would then differ from a local run)."""
+    import threading
+
+    from threadpoolctl import threadpool_info
+
+    from risloc_rt.studies import engine
+
+    def blas() -> set[int]:
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    default = blas()
+    if max(default, default=1) < 2:
+        pytest.skip("BLAS runs on one thread here already (OPENBLAS_NUM_THREADS=1 or one core): nothing to protect")
+    long_entered, first_left = threading.Event(), threading.Event()
+    seen: dict[str, set[int]] = {}
+
+    def first_batch() -> None:  # enters first, leaves first: it set the limit, the other still runs
+        with engine._one_thread():
+            long_entered.wait(10)
+            seen["short"] = blas()
+        first_left.set()
+
+    def long_batch() -> None:
+        with engine._one_thread():
+            long_entered.set()
+            first_left.wait(10)
+            seen["long, after the short one left"] = blas()
+
+    a, b = threading.Thread(target=first_batch), threading.Thread(target=long_batch)
+    a.start()
+    time.sleep(0.05)
+    b.start()
+    a.join()
+    b.join()
+    assert seen == {"short": {1}, "long, after the short one left": {1}}
+    assert blas() == default  # restored when the last batch left
