@@ -242,10 +242,10 @@ def self_localize(
         )
     # Pattern-matched windows on a half-bin grid (dsp.detect): 2 dB less SNR needed than the
     # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
-    det = _detect_checked(arr, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5, pattern=pattern,
-                          sweep=sweep, oversample=2)
     if not isinstance(scan, bool):
         raise TypeError(f"scan={scan!r} must be True or False")
+    det = _detect_checked(arr, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5, pattern=pattern,
+                          sweep=sweep, oversample=2)
     grid = scan_beams(arr, sweep, radar, processing) if scan or estimator == "paper" else None
     if not det.detected:
         return _no_position(grid, det)

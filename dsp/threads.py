@@ -7,8 +7,10 @@ the cores::
     with dsp.limit_threads(1):
         dsp.self_localize(...)
 
-Results never depend on the thread count (the DSP's reductions are thread-independent); only the
-time does.
+These threads (FFT workers, chunks of beams) never change a result, only the time. BLAS's own
+thread count is not set here: a multi-threaded BLAS may sum long matrix products in another order
+and change last digits (1e-12 rad in the refined AoD was seen); the studies pin it to one thread
+with threadpoolctl (``risloc_rt.studies.engine``).
 """
 
 from __future__ import annotations
