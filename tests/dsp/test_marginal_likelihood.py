@@ -144,3 +144,15 @@ def test_refine_validates_the_likelihood_arguments(tone):
         refine(cube, 1e-8, 0.0, noise_power=0.0)
     with pytest.raises(ValueError, match="noise_variance"):
         dsp.fit_aod(np.ones(SWEEP.num_beams), SWEEP, RELAY, noise_variance=-1.0)
+
+
+def test_marginal_pattern_fit_recovers_a_noiseless_pattern_between_beams():
+    aod = np.array([np.deg2rad(1.5), 0.0])  # halfway between the beams at 0° and 3°
+    mags = 7.0 * np.abs(RELAY.amplitude(aod, SWEEP.angles))
+    # s² far below every magnitude: the marginal likelihood is the profiled one, maximal at the truth
+    fit = dsp.fit_aod(mags, SWEEP, RELAY, noise_variance=1e-12)
+    assert abs(fit.aod[0] - aod[0]) < 1e-7  # [rad]
+    assert fit.amplitude == pytest.approx(7.0, rel=1e-6)
+    # s² comparable with the magnitudes: b̂ shrinks towards the noise floor's share (b̂ < Σar/Σa²)
+    noisy = dsp.fit_aod(mags, SWEEP, RELAY, noise_variance=25.0)
+    assert noisy.amplitude < 7.0
