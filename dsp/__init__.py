@@ -8,7 +8,7 @@ delay-Doppler map is ``[K_DFT, N_DFT]``. SI units and radians throughout
 """
 
 from .beamscan import BeamScan, scan_beams
-from .crb import SweepBound, position_std, sweep_crb, tone_frequency_crb
+from .crb import SweepBound, position_std, rician_information, sweep_crb, tone_frequency_crb
 from .detection import Detection, check_beat_cube, detect
 from .flags import FLAG_CODES, Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
@@ -40,6 +40,7 @@ __all__ = [
     "fit_aod",
     "position_std",
     "refine_estimate",
+    "rician_information",
     "residual_test",
     "sweep_crb",
     "thread_count",

@@ -18,17 +18,79 @@ exactly at the UE would have (coherent gain of K·N samples, no window). Beam m 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 import numpy as np
+import scipy.special
 
 from ._validate import as_finite_array, fields_equal, positive, positive_int
 from .pattern import BeamPattern
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
 
-__all__ = ["SweepBound", "sweep_crb", "tone_frequency_crb", "position_std"]
+__all__ = ["SweepBound", "sweep_crb", "tone_frequency_crb", "position_std", "rician_information"]
+
+Phases = Literal["fixed", "random"]
+
+#: Grid of u = sqrt(ρ_m) (the beam's amplitude over the noise's) on which the random-phase
+#: information factors are tabulated; below it they are u², above it their limits 1 and 1/2.
+_U_GRID = np.geomspace(1e-3, 60.0, 400)
+
+
+@functools.lru_cache(maxsize=1)
+def _rician_tables() -> tuple[np.ndarray, np.ndarray]:
+    """G(u) = E[g(2ur)²] and V(u) = E[(g(2ur)·r - u)²] on ``_U_GRID``, g = I₁/I₀, r ~ |u + CN(0, 1)|.
+
+    Integrated over the Rice density p(r) = 2r e^{-(r-u)²} I₀ₑ(2ur) on r ∈ [max(0, u-9), u+9]
+    (the rest of the mass is below e^{-81}), 1201 points, Simpson's rule: error < 1e-7 (tested
+    against Monte Carlo); built once per process (≈0.1 s).
+    """
+    import scipy.integrate
+
+    u = _U_GRID[:, None]
+    t = np.linspace(-9.0, 9.0, 1201)[None, :]
+    r = np.maximum(u + t, 0.0)
+    x = 2.0 * u * r
+    pdf = 2.0 * r * np.exp(-((r - u) ** 2)) * scipy.special.i0e(x)
+    g = np.divide(scipy.special.i1e(x), scipy.special.i0e(x), out=np.zeros_like(x), where=x > 0)
+    big = scipy.integrate.simpson(pdf * g**2, x=r, axis=1), scipy.integrate.simpson(pdf * (g * r - u) ** 2, x=r, axis=1)
+    return big[0], big[1]
+
+
+def rician_information(snr: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Per-beam information factors of a tone whose phase is random (uniform) and unknown.
+
+    For a beam of post-integration SNR ρ_m, u = √ρ_m and magnitude r = |u + CN(0, 1)|:
+    ``G = E[g(2ur)²]`` scales the delay/Doppler information (1 when the phase is known to the
+    estimator, i.e. the per-beam-phase CRB), ``V = E[(g(2ur)·r - u)²]`` is the variance of the
+    amplitude score that carries the AoD information (1/2 with a learnable phase). g = I₁/I₀.
+
+    Parameters
+    ----------
+    snr : float or array
+        ρ_m >= 0 [linear].
+
+    Returns
+    -------
+    (G, V) : float arrays shaped like ``snr``
+        In [0, 1] and [0, 1/2]; G, V -> 1, 1/2 for ρ_m -> ∞ and both ~ ρ_m for ρ_m -> 0 (a beam
+        below the noise only adds information in square law).
+    """
+    rho = np.asarray(snr, dtype=float)
+    if np.any(~np.isfinite(rho)) or np.any(rho < 0):
+        raise ValueError("snr must be finite and >= 0 [linear]")
+    table_g, table_v = _rician_tables()
+    u = np.sqrt(rho)
+    lu, grid = np.log(np.maximum(u, 1e-300)), np.log(_U_GRID)
+    g = np.interp(lu, grid, table_g)
+    v = np.interp(lu, grid, table_v)
+    low, high = u < _U_GRID[0], u > _U_GRID[-1]
+    # beyond the grid (ρ_m > 3600, 35.6 dB) the large-u expansions 1 - 1/(2ρ) and 1/2 - 1/(8ρ)
+    g = np.where(low, rho, np.where(high, 1.0 - 0.5 / np.maximum(rho, 1.0), g))
+    v = np.where(low, rho, np.where(high, 0.5 - 0.125 / np.maximum(rho, 1.0), v))
+    return g, v
 
 
 def tone_frequency_crb(snr: float, num_samples: int) -> float:
@@ -69,7 +131,7 @@ class SweepBound:
     fisher_aod : float array [2, 2]
         Fisher information of (az, el) after removing β [1/rad²].
     total_snr : float
-        Σ_m ρ A_m², the sweep-integrated post-integration SNR [linear].
+        Σ_m ρ A_m², the sweep-integrated post-integration SNR [linear] (whatever ``phases``).
     """
 
     delay: float
@@ -93,6 +155,7 @@ def sweep_crb(
     aod: Any,
     peak_snr: float,
     beams: Any = None,
+    phases: Phases = "fixed",
 ) -> SweepBound:
     """CRB of delay, delay rate and AoD from the whole sweep.
 
@@ -109,6 +172,15 @@ def sweep_crb(
         ρ = K N β²/σ² [linear] (module docstring).
     beams : bool array [M], optional
         Use only these beams (e.g. to bound a single-beam estimator).
+    phases : {"fixed", "random"}, default "fixed"
+        The per-beam phases ψ_m as unknown constants (the textbook CRB: each beam's phase could
+        be learnt, which costs no information), or as random and uniform, averaged out of the
+        likelihood: beam m then carries its delay/Doppler information times G(ρA_m²) and its
+        amplitude information through V(ρA_m²) (:func:`rician_information`). "random" is what an
+        estimator that must work for every phase can reach (one that uses only |Z_m|, as
+        :func:`dsp.refine_estimate` does, has the same error for fixed and random phases): the
+        same as "fixed" for beams far above the noise, larger when many beams are near it —
+        Table I at 10 dB peak SNR: 1.09× in distance, 1.34× in AoD; 1.0× / 1.02× at 40 dB.
 
     Returns
     -------
@@ -119,6 +191,9 @@ def sweep_crb(
     ``J_f₁ = 2 (2π)² Σ_m ρ A_m² (N² - 1)/12``, ``J_f₂ = 2 (2π)² Σ_m ρ A_m² (K² - 1)/12``
     (per-beam phases removed, centred indices), then ``ν = -f₂/(f_c T_c)``,
     ``τ = -f₁/(S T_s) - f_c ν/S``. AoD: ``J_θ = 2ρ [Σ ∇A ∇Aᵀ - (Σ A∇A)(Σ A∇A)ᵀ / Σ A²]``.
+    With random phases each ρ A_m² in J_f becomes ρ A_m² G_m, and J_θ becomes
+    ``4ρ [Σ V ∇A ∇Aᵀ - (Σ V A∇A)(Σ V A∇A)ᵀ / Σ V A²]`` (the scores of (θ, β) from the Rician
+    magnitudes; V -> 1/2 gives the fixed-phase J_θ back).
     """
     pat = pattern.for_wavelength(radar.wavelength)
     th = as_finite_array(aod, "aod", shape=(2,))
@@ -128,18 +203,26 @@ def sweep_crb(
     if beams is not None:
         keep = np.asarray(beams, dtype=bool)
         a, g = a[keep], g[keep]
+    if phases not in ("fixed", "random"):
+        raise ValueError(f"phases={phases!r} must be 'fixed' (unknown constants) or 'random' (uniform, averaged out)")
     total = rho * float(a @ a)
+    if phases == "random":
+        g_m, v_m = rician_information(rho * a**2)
+        info = rho * float(a**2 @ g_m)  # Σ ρ A_m² G_m: the delay/Doppler information's SNR
+        w = 2.0 * v_m  # the AoD's per-beam weights, 1 for the fixed phases
+    else:
+        info, w = total, np.ones_like(a)
     n, k = radar.num_samples, radar.num_chirps
     two_pi2 = (2 * np.pi) ** 2
-    var_f1 = 1.0 / (2 * two_pi2 * total * (n * n - 1) / 12.0) if total > 0 else np.inf
-    var_f2 = 1.0 / (2 * two_pi2 * total * (k * k - 1) / 12.0) if (total > 0 and k > 1) else np.inf
+    var_f1 = 1.0 / (2 * two_pi2 * info * (n * n - 1) / 12.0) if info > 0 else np.inf
+    var_f2 = 1.0 / (2 * two_pi2 * info * (k * k - 1) / 12.0) if (info > 0 and k > 1) else np.inf
     fct = radar.carrier_frequency * radar.chirp_interval
     var_nu = var_f2 / fct**2
     var_tau = var_f1 / (radar.slope * radar.sample_period) ** 2 + (radar.carrier_frequency / radar.slope) ** 2 * var_nu
 
-    s_aa = float(a @ a)
-    s_ag = a @ g
-    fisher = 2 * rho * (g.T @ g - (np.outer(s_ag, s_ag) / s_aa if s_aa > 0 else 0.0))
+    s_aa = float((w * a) @ a)
+    s_ag = (w * a) @ g
+    fisher = 2 * rho * ((w[:, None] * g).T @ g - (np.outer(s_ag, s_ag) / s_aa if s_aa > 0 else 0.0))
     aod_std = np.full(2, np.nan)
     one_d = np.ptp(sweep.angles[:, 1]) < 1e-12
     if not one_d:

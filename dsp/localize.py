@@ -294,14 +294,15 @@ def self_localize(
         direction = pose.to_world(direction_from_angles(aod))
         position = pose.position + distance * direction
 
-    # Uncertainty: the CRB at the measured SNR.
+    # Uncertainty: the CRB at the measured SNR, per-beam phases random (what a phase-blind
+    # estimator can reach: 1.09x / 1.34x the fixed-phase CRB in distance / AoD at 10 dB).
     noise = det.noise_power
     peak_snr = arr.shape[1] * arr.shape[2] * beta**2 / noise if noise > 0 else np.inf
     rho = float(min(max(peak_snr, 1e-12), 1e300))
     if estimator == "paper":
         bound = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho,
-                          beams=np.arange(m) == beam_index)
-        bound_all = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho)
+                          beams=np.arange(m) == beam_index, phases="random")
+        bound_all = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho, phases="random")
         grid_tau = radar.max_delay / processing.n_dft
         step_az = float(np.median(np.abs(np.diff(sweep.angles[:, 0])))) if m > 1 else 0.0
         sd_dist = float(np.hypot(bound.distance, grid_tau * SPEED_OF_LIGHT / 2 / np.sqrt(12)))
@@ -311,7 +312,7 @@ def self_localize(
         sd_el = bound_all.aod[1]
         kind = "crb+grid"
     else:
-        bound = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho)
+        bound = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho, phases="random")
         sd_dist, sd_vel, sd_az, sd_el = bound.distance, bound.velocity, float(bound.aod[0]), bound.aod[1]
         kind = "crb"
     if one_d and height_solved:

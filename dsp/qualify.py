@@ -45,7 +45,9 @@ class Uncertainty:
         The measured post-integration SNR at the pattern peak the bound was evaluated at [dB].
     kind : str
         ``"crb"`` (refined estimator: the bound itself) or ``"crb+grid"`` (paper estimator: the
-        single-beam bound plus the grid quantisation, step²/12, of delay and AoD).
+        single-beam bound plus the grid quantisation, step²/12, of delay and AoD). The bound is
+        :func:`dsp.sweep_crb` with ``phases="random"``: what an estimator blind to the per-beam
+        phases can reach (above the fixed-phase CRB when many beams are near the noise).
     """
 
     distance: float
