@@ -13,9 +13,9 @@ best beam) runs on the first ``--paper`` realizations of each SNR point.
 
 Per SNR and estimator, RMSE/CRB is printed over all realizations and over the detected ones, each
 with a 95 % bootstrap confidence interval (realizations resampled, the ratio of the RMS error to
-the RMS bound recomputed), and bias/σ. ``--compare`` also runs the profiled-phase criterion
-(``likelihood="profile"``, the refined estimator before the marginal likelihood) on the same
-cubes; ``--start truth`` starts the refinement at the half-bin cell of the true tone instead of
+the RMS bound recomputed), and bias/σ, and the refined RMSE over the random-phase bound
+(``dsp.sweep_crb(phases="random")``, the 1σ ``Localization.std`` reports). ``--compare`` also runs
+the marginal-likelihood criterion (``likelihood="marginal"``) on the same cubes; ``--start truth`` starts the refinement at the half-bin cell of the true tone instead of
 the detector's (a genie: no acquisition error; the detector still runs for the detected flag).
 Each SNR point also prints the bound with the phases random instead of unknown constants
 (``random_phase_bound_ratio``): the whole-sweep CRB assumes every beam's phase could be learnt,
@@ -132,21 +132,21 @@ def run(realizations: int, paper: int, seed: int, compare: bool = False, start: 
           f"(paper method on {paper}), seed {seed}, start {start}; "
           f"{platform.processor() or platform.machine()}, numpy {np.__version__}")
     print("SNR = post-integration SNR at the pattern peak, K N beta^2 / sigma^2; CRB of the whole sweep at the truth;")
-    print("RMSE/CRB = RMS error / RMS bound [95 % bootstrap CI]; 'refined' = refine_estimate (marginal likelihood), "
-          "'profile' = the same with likelihood='profile'")
+    print("RMSE/CRB = RMS error / RMS bound [95 % bootstrap CI]; 'refined' = refine_estimate (default: profiled phases), "
+          "'marginal' = the same with likelihood='marginal'")
     head = (f"{'SNR':>4} {'est':<8} {'set':<4} {'n':>4} {'RMSE d [mm]':>11} {'CRB d [mm]':>10} {'RMSE/CRB d [95% CI]':>22} "
             f"{'bias/sd':>7} {'RMSE az [mdeg]':>14} {'CRB az':>8} {'RMSE/CRB az [95% CI]':>22} {'bias/sd':>7} "
             f"{'det':>5} {'ms':>7}")
     print(head)
     print("-" * len(head))
-    names = ["refined"] + (["profile"] if compare else []) + ["paper"]
+    names = ["refined"] + (["marginal"] if compare else []) + ["paper"]
     summary = []
     seqs = dict(zip((10, 20, 30, 40), np.random.SeedSequence(seed).spawn(4)))
     for snr_db in snrs:
         ss = seqs[snr_db]
         rho = 10 ** (snr_db / 10)
         err = {name: [] for name in names}
-        crb_d, crb_az, det_ok = [], [], []
+        crb_d, crb_az, det_ok, rp_bound = [], [], [], []
         times = {name: [] for name in names + ["detect"]}
         for i, child in enumerate(ss.spawn(realizations)):
             rng = np.random.default_rng(child)
@@ -157,6 +157,8 @@ def run(realizations: int, paper: int, seed: int, compare: bool = False, start: 
             bound = dsp.sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho)
             crb_d.append(bound.distance)
             crb_az.append(bound.aod[0])
+            rb = dsp.sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho, phases="random")
+            rp_bound.append((rb.distance, rb.aod[0]))  # what Localization.std reports (at the truth)
             t0 = time.perf_counter()
             det = dsp.detect(cube, radar, **acquisition)
             t1 = time.perf_counter()
@@ -169,7 +171,7 @@ def run(realizations: int, paper: int, seed: int, compare: bool = False, start: 
                 if not np.isfinite(init.delay):  # nothing beam-dependent at all: count as a miss at the grid
                     init = dsp.Detection(False, 0, 0, 0, delay=tau, delay_rate=nu)
                 tau0, nu0 = init.delay, init.delay_rate
-            for name, likelihood in (("refined", "marginal"), ("profile", "profile")):
+            for name, likelihood in (("refined", "profile"), ("marginal", "marginal")):
                 if name not in err:
                     continue
                 t0 = time.perf_counter()
@@ -219,16 +221,25 @@ def run(realizations: int, paper: int, seed: int, compare: bool = False, start: 
                     if (~out).any() else "-")
             print(f"{'':>4} {name} outliers (|distance error| > 5 cm): {int(out.sum())}, of them detected "
                   f"{int((out & ok).sum())}; distance RMSE/CRB without them {rest}" + extra)
-        if "profile" in err:
-            e_r, e_p = np.square(err["refined"]), np.square(err["profile"])  # [n, 2], same cubes
+        if "marginal" in err:
+            e_r, e_p = np.square(err["marginal"]), np.square(err["refined"])  # [n, 2], same cubes
             for subset, mask in (("all", np.ones(len(e_r), bool)), ("detected", ok)):
                 if mask.sum() < 2:
                     continue
                 d = e_r[mask] - e_p[mask]
                 rel = d.mean(axis=0) / e_p[mask].mean(axis=0)
                 half = 1.96 * d.std(axis=0, ddof=1) / np.sqrt(mask.sum()) / e_p[mask].mean(axis=0)
-                print(f"{'':>4} refined vs profile, paired MSE change over {subset}: distance {rel[0]:+.3f} +- "
+                print(f"{'':>4} marginal vs profiled (refined), paired MSE change over {subset}: distance {rel[0]:+.3f} +- "
                       f"{half[0]:.3f}, AoD {rel[1]:+.3f} +- {half[1]:.3f} (95 %)")
+        rb_arr = np.array(rp_bound)
+        for subset, mask in (("all", np.ones(len(rb_arr), bool)), ("detected", ok)):
+            e = np.array(err["refined"])[mask]
+            if len(e) < 2:
+                continue
+            cells = [ratio_ci(e[:, j], rb_arr[mask, j], boot_rng) for j in (0, 1)]
+            print(f"{'':>4} refined RMSE / random-phase bound (dsp.sweep_crb(phases='random'), the reported 1 sigma), "
+                  f"{subset} ({len(e)}): distance {cells[0][0]:.3f} [{cells[0][1]:.3f}, {cells[0][2]:.3f}], "
+                  f"AoD {cells[1][0]:.3f} [{cells[1][1]:.3f}, {cells[1][2]:.3f}]")
         print(f"{'':>4} detect  median {1e3 * np.median(times['detect']):.1f} ms per cube")
         rp = random_phase_bound_ratio(sweep, pattern, rho, np.random.default_rng(seed + snr_db))
         print(f"{'':>4} bound with random phases / CRB (RMS over AoDs in +-30 deg): distance {rp[0]:.3f}, "
@@ -249,7 +260,7 @@ def main() -> None:
     ap.add_argument("--paper", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--compare", action="store_true",
-                    help="also run likelihood='profile' (the criterion before the marginal likelihood) on the same cubes")
+                    help="also run likelihood='marginal' (the phases averaged out instead of profiled) on the same cubes")
     ap.add_argument("--start", choices=("detector", "truth"), default="detector",
                     help="start the refinement at the detector's cell or (genie) at the true tone's half-bin cell")
     ap.add_argument("--snr", type=int, nargs="+", choices=(10, 20, 30, 40), default=(10, 20, 30, 40),
