@@ -44,7 +44,8 @@ class PreparedPoint:
     truth : risloc_rt.model.Truth
     crb : dict
         1σ bounds at the true parameters: ``distance`` [m], ``angle`` (azimuth) [rad],
-        ``position`` (PEB) [m], and the post-integration ``peak_snr_db`` [dB].
+        ``position`` (PEB) [m], ``velocity`` [m/s], the same with ``_random_phase`` (the bound
+        with the per-beam phases random), and the post-integration ``peak_snr_db`` [dB].
     seconds : float
         Time to prepare it (synthesis, tracing, bound) [s].
     """
@@ -89,6 +90,10 @@ def point_bound(cube_without_clutter: np.ndarray, *, radar: RadarConfig, sweep: 
                 pose: dsp.RisPose, truth: Any, loopback_delay: float) -> dict[str, float]:
     """The whole-sweep CRB (``dsp.sweep_crb``) at the true parameters and the true SNR.
 
+    Keys ``distance``, ``angle``, ``position``, ``velocity`` (the fixed-phase CRB, the figures'
+    dashed line), the same with ``_random_phase`` (the bound with the per-beam phases random,
+    what ``Localization.std`` reports and a phase-blind estimator can reach) and ``peak_snr_db``.
+
     The true post-integration SNR ρ = K N β²/σ² comes from the noiseless cube of the RIS return
     alone: β = Σ|A_m| |Z_m| / (K N Σ A_m²) with Z_m the beams' DTFTs at the true (τ, ν), the
     estimate ``dsp.self_localize`` uses on noisy data. Position: ``dsp.position_std`` of
@@ -102,14 +107,18 @@ def point_bound(cube_without_clutter: np.ndarray, *, radar: RadarConfig, sweep: 
     k, n = radar.num_chirps, radar.num_samples
     beta = float(amp @ mags / (amp @ amp)) / (k * n)
     rho = k * n * beta**2 / radar.noise_power
-    bound = dsp.sweep_crb(radar=radar, sweep=sweep, pattern=pat, aod=truth.aod, peak_snr=max(rho, 1e-300))
-
     def locate(x: np.ndarray) -> np.ndarray:
         return pose.position + x[0] * pose.to_world(dsp.direction_from_angles(x[1:3]))
 
-    pos = dsp.position_std(locate, [truth.distance, *truth.aod], [bound.distance, *bound.aod])
-    return {"distance": bound.distance, "angle": float(bound.aod[0]), "position": float(np.linalg.norm(pos)),
-            "velocity": bound.velocity, "peak_snr_db": float(10 * np.log10(max(rho, 1e-300)))}
+    out: dict[str, float] = {}
+    for phases, suffix in (("fixed", ""), ("random", "_random_phase")):
+        bound = dsp.sweep_crb(radar=radar, sweep=sweep, pattern=pat, aod=truth.aod, peak_snr=max(rho, 1e-300),
+                              phases=phases)
+        pos = dsp.position_std(locate, [truth.distance, *truth.aod], [bound.distance, *bound.aod])
+        out.update({f"distance{suffix}": bound.distance, f"angle{suffix}": float(bound.aod[0]),
+                    f"position{suffix}": float(np.linalg.norm(pos)), f"velocity{suffix}": bound.velocity})
+    out["peak_snr_db"] = float(10 * np.log10(max(rho, 1e-300)))
+    return out
 
 
 def prepare_point(params: dict[str, Any]) -> PreparedPoint:

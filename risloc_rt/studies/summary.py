@@ -75,8 +75,14 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             mae[name] = float(np.mean(np.abs(e))) if e.size else math.nan
             rmse[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
             mae_ci[name], rmse_ci[name] = _intervals(e, rng)
-        crb = {k: float(v) for k, v in info["crb"][p].items()}
-        ratio = {k: (rmse[k] / crb[k] if crb.get(k, 0) > 0 and math.isfinite(rmse[k]) else math.nan) for k in _QUANTITIES}
+        bounds = {k: float(v) for k, v in info["crb"][p].items()}
+        crb = {k: v for k, v in bounds.items() if not k.endswith("_random_phase")}
+        random_phase = {k[: -len("_random_phase")]: v for k, v in bounds.items() if k.endswith("_random_phase")}
+
+        def over(b: dict[str, float]) -> dict[str, float]:
+            return {k: (rmse[k] / b[k] if b.get(k, 0) > 0 and math.isfinite(rmse[k]) else math.nan) for k in _QUANTITIES}
+
+        ratio = over(crb)
         flags = Counter(code for r in rs for code in (r.get("flags") or "").split(",") if code)
         seconds = float(np.mean([r["seconds"] for r in rs]))
         prepare = float(info["prepare_seconds"].get(p, 0.0))
@@ -90,6 +96,8 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             "rmse": rmse, "rmse_ci95": rmse_ci,
             "crb": crb,
             "rmse_over_crb": ratio,
+            "bound_random_phase": random_phase,  # the per-beam phases random: dsp.sweep_crb(phases="random")
+            "rmse_over_bound_random_phase": over(random_phase) if random_phase else {},
             "mean_snr_db": float(np.nanmean([r["snr_db"] for r in rs])) if rs else math.nan,
             "flags": dict(sorted(flags.items())),
             "seconds_per_run": seconds + prepare / len(rs),

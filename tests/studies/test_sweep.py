@@ -71,6 +71,10 @@ def test_outputs_one_parquet_row_per_run_summary_and_figure(small_spec, tmp_path
         assert p["runs"] == 3 and set(p["mae"]) == set(p["rmse"]) == {"distance", "angle", "position"}
         assert 0 <= p["detection_probability"] <= 1 and p["seconds_per_run"] > 0
         assert p["crb"]["position"] > 0
+        for q in ("distance", "angle", "position"):  # phases random: never below the CRB, the ratio follows
+            assert p["bound_random_phase"][q] >= p["crb"][q] * (1 - 1e-12)
+            assert p["rmse_over_bound_random_phase"][q] == pytest.approx(
+                p["rmse"][q] / p["bound_random_phase"][q], rel=1e-12)
     # 10 dB more power: the bound falls by sqrt(10)
     assert s["points"][0]["crb"]["distance"] / s["points"][1]["crb"]["distance"] == pytest.approx(np.sqrt(10), rel=1e-6)
     assert res.figure.stat().st_size > 10_000
