@@ -82,15 +82,20 @@ def test_aod_fisher_information_matches_a_direct_derivative_of_the_likelihood_te
     assert b.aod[0] == pytest.approx(1 / np.sqrt(j), rel=1e-6)
 
 
+def _draw(ris_cube, rng, rho):
+    """One off-grid truth (3-15 m, ±1 m/s, ±12°) and its noisy cube: (τ [s], ν, aod [rad, rad], cube)."""
+    distance, velocity = rng.uniform(3, 15), rng.uniform(-1, 1)
+    aod = np.array([np.deg2rad(rng.uniform(-12, 12)), 0.0])
+    tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
+    return tau, nu, aod, ris_cube(rng, tau=tau, nu=nu, aod=aod, peak_snr=rho)
+
+
 def test_refined_estimator_reaches_the_bound_in_monte_carlo(ris_cube):
     rng = np.random.default_rng(2024)
     trials, rho = 300, 10 ** 2.5  # 25 dB at the pattern peak
     err, crb_d, crb_az = [], [], []
     for _ in range(trials):
-        distance, velocity = rng.uniform(3, 15), rng.uniform(-1, 1)
-        aod = np.array([np.deg2rad(rng.uniform(-12, 12)), 0.0])
-        tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
-        cube = ris_cube(rng, tau=tau, nu=nu, aod=aod, peak_snr=rho)
+        tau, nu, aod, cube = _draw(ris_cube, rng, rho)
         det = dsp.detect(cube, RADAR)
         assert det.detected
         est = dsp.refine_estimate(cube, sweep=SWEEP, radar=RADAR, pattern=PATTERN,
@@ -165,10 +170,7 @@ def test_refined_aod_reaches_the_random_phase_bound_at_low_snr(ris_cube):
     trials, rho = 300, 10**1.3
     err, fixed, rand = [], [], []
     for _ in range(trials):
-        distance, velocity = rng.uniform(3, 15), rng.uniform(-1, 1)
-        aod = np.array([np.deg2rad(rng.uniform(-12, 12)), 0.0])
-        tau, nu = 2 * distance / C + 1.78e-9, 2 * velocity / C
-        cube = ris_cube(rng, tau=tau, nu=nu, aod=aod, peak_snr=rho)
+        tau, nu, aod, cube = _draw(ris_cube, rng, rho)
         est = dsp.refine_estimate(cube, sweep=SWEEP, radar=RADAR, pattern=PATTERN, initial_delay=tau,
                                   initial_delay_rate=nu)
         err.append(est.aod.aod[0] - aod[0])
