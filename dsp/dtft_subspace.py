@@ -5,14 +5,13 @@ e^{j2π(f₁ n + f₂ k)}`` (centred indices) and its derivatives many times, al
 DFT bin of the detected cell. Re-reading the cube for each evaluation (a 75 MB pass at Table I
 sizes) dominated its cost. Within ±½ bin of a centre c, the vectors ``e_δ[n] = e^{j2π δ n}``
 span a subspace of very low dimension (their time-bandwidth product is 1): with U [N, r] its
-orthonormal basis (left singular vectors of e_δ on a fine δ grid, the discrete prolate
-spheroidal idea), ``e_δ = U Uᴴ e_δ`` to a relative error below ``tolerance``, so
+orthonormal basis (the first discrete prolate spheroidal sequences of that band, real), ``e_δ = U Uᴴ e_δ`` to a relative error below ``tolerance``, so
 
     Z_m(c + δ) = Σ_i Σ_l H[m, i, l] a_i(δ₁) b_l(δ₂),
     H[m, i, l] = Σ_k Σ_n y[m,k,n] e^{j2π(c₁ n + c₂ k)} U₁[n, i] U₂[k, l],
     a(δ₁) = U₁ᴴ e_δ₁,   b(δ₂) = U₂ᴴ e_δ₂,
 
-one matrix product over the cube, then sums over r² numbers per beam. r = 10 per axis for the
+one matrix product over the cube, then sums over r² numbers per beam. r = 11 per axis for the
 default tolerance 1e-10 (N = 600 and K = 128 alike); derivatives in f use
 ``a⁽ʳ⁾(δ) = U₁ᴴ ((j2πn)^r ∘ e_δ)``. The error is tested against the direct sum.
 """
@@ -38,16 +37,35 @@ def _phasor(f: float, idx: np.ndarray) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def band_basis(size: int, tolerance: float = DEFAULT_TOLERANCE) -> np.ndarray:
-    """Orthonormal basis [size, r] of e^{j2πδn}, |δ| <= ½/size, n centred; read-only.
+    """Orthonormal basis [size, r] of e^{j2πδn}, |δ| <= ½/size, n centred; read-only, real.
 
-    r is the number of singular values above ``tolerance`` times the largest, on a grid of 257
-    values of δ over the bin.
+    The first r discrete prolate spheroidal sequences of half-bandwidth W = ½/size
+    (``scipy.signal.windows.dpss``, NW = ½): the orthonormal sequences most concentrated in the
+    band, so they span e_δ for |δ| <= W best. r is the smallest count that projects every e_δ of
+    a 257-point grid over the bin with a relative error below ``tolerance`` (11 for 1e-10).
+
+    They come from a symmetric tridiagonal eigenproblem (no matrix-matrix BLAS), so the basis is
+    the same to the last bit whatever BLAS's thread count: an SVD basis was not, and a study's
+    cached basis then depended on what the process had run before.
     """
+    import scipy.signal
+
+    size = int(size)
+    if size < 2:
+        return np.ones((size, size))
     idx = np.arange(size) - (size - 1) / 2.0
     deltas = np.linspace(-0.5, 0.5, 257) / size
-    u, s, _ = np.linalg.svd(np.exp(2j * np.pi * np.outer(idx, deltas)), full_matrices=False)
-    r = int(np.count_nonzero(s > tolerance * s[0]))
-    basis = np.ascontiguousarray(u[:, :r])
+    e = np.exp(2j * np.pi * np.outer(idx, deltas))  # [size, 257], each column of norm sqrt(size)
+    count = min(size, 24)
+    tapers = np.asarray(scipy.signal.windows.dpss(size, 0.5, Kmax=count, norm=2), dtype=float)  # [count, size]
+    coeffs = np.einsum("kn,nd->kd", tapers, e)  # einsum without BLAS: deterministic [count, 257]
+    r = count
+    for r_try in range(1, count + 1):
+        resid = e - np.einsum("kn,kd->nd", tapers[:r_try], coeffs[:r_try])
+        if np.sqrt((np.abs(resid) ** 2).sum(axis=0)).max() <= tolerance * np.sqrt(size):
+            r = r_try
+            break
+    basis = np.ascontiguousarray(tapers[:r].T)
     basis.setflags(write=False)
     return basis
 
