@@ -16,7 +16,8 @@ from .localize import Localization, NoPositionError, localize, self_localize
 from .pattern import BeamPattern
 from .qualify import Uncertainty, elevation_for_height
 from .aod_fit import AodFit, fit_aod
-from .refine import RefinedEstimate, beam_dtft, refine_estimate, residual_test
+from .refine import RefinedEstimate, refine_estimate
+from .residual import beam_dtft, residual_test
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map

@@ -26,7 +26,8 @@ from .processing import ProcessingConfig
 from .qualify import Uncertainty, elevation_for_height, is_one_dimensional, sweep_flags
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .aod_fit import fit_aod
-from .refine import beam_dtft, refine_estimate, residual_test
+from .refine import refine_estimate
+from .residual import beam_dtft, residual_test
 from .sweep import BeamSweep
 
 __all__ = ["Localization", "NoPositionError", "localize", "self_localize"]

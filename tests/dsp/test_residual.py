@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 import dsp
-from dsp.refine import residual_test
+from dsp.residual import residual_test
 
 RADAR = dsp.RadarConfig(num_samples=128, num_chirps=16)
 M = 9
