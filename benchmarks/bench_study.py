@@ -60,7 +60,7 @@ def _exact_floor(prep, runs: int) -> dict[str, float]:
     faster statistic, estimator or grid search can remove [s, medians].
     """
     rng = np.random.default_rng(0)
-    m, k, n = prep.cube.shape
+    _, k, n = prep.cube.shape
     cube64 = prep.cube.astype(np.complex64)
     t_normals, t_fft = [], []
     for _ in range(runs):

@@ -310,7 +310,7 @@ def refine_estimate(
         (the panel's structural reflection, static clutter, leakage) then no longer leaks into the
         RIS peak through the un-windowed DTFT's sidelobes. The template holds the RIS tone only
         at the same frequency (its far sidelobes), so the frequency stays unbiased; its noise
-        (variance σ²/M_far, common to every beam) raises the delay's variance by
+        (variance σ²/M_far, common to every beam) raises the delay's variance by about
         |Σ_m a_m e^{jφ_m}|² / (M_far Σ_m a_m²): ~1/M_far with random per-beam phases, 12 % at
         Table I whose beams' phases are 0 or π (``docs/estimation.md``, Limits). The AoD fit uses
         the raw cube.
