@@ -19,7 +19,7 @@ import numpy as np
 import scipy.stats
 
 from .radar import RadarConfig
-from .refine import _bases
+from .dtft_subspace import dtft_phasors
 
 __all__ = ["DelayDrift", "delay_drift"]
 
@@ -77,11 +77,11 @@ def delay_drift(cube: np.ndarray, radar: RadarConfig, *, delay: float, delay_rat
     times = radar.beam_times(m)[beams]
     f1 = (delay * radar.slope + radar.carrier_frequency * delay_rate) * radar.sample_period
     f2 = delay_rate * radar.carrier_frequency * radar.chirp_interval
-    ek = _bases(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]           # [K]
+    ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]           # [K]
     z = np.einsum("bkn,k->bn", arr[beams], ek)                              # [B, N]
     step = span_cells * radar.delay_resolution * radar.slope * radar.sample_period
     offsets = np.linspace(-step, step, points)                              # [J] cycles/sample
-    basis = _bases(f1, np.arange(n) - (n - 1) / 2.0, offsets)               # [J, N]
+    basis = dtft_phasors(f1, np.arange(n) - (n - 1) / 2.0, offsets)               # [J, N]
     power = np.abs(z @ basis.T) ** 2                                        # [B, J]
     j = np.clip(np.argmax(power, axis=1), 1, points - 2)
     rows = np.arange(beams.size)

@@ -23,16 +23,63 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SubspaceDtft", "band_basis", "DEFAULT_TOLERANCE"]
+__all__ = ["SubspaceDtft", "band_basis", "dtft_phasors", "contract_samples", "DEFAULT_TOLERANCE"]
 
 #: Relative error of e_δ's projection on the basis (singular-value cut-off).
 DEFAULT_TOLERANCE = 1e-10
 
+_ZERO = np.zeros(1)
 
-def _phasor(f: float, idx: np.ndarray) -> np.ndarray:
-    """exp(j2π f idx), phase reduced modulo 1 cycle first (exact for large f·idx) [len(idx)]."""
-    ph = f * idx
+
+def dtft_phasors(f: float, idx: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """exp(j2π (f + offsets) idx), phases reduced modulo 1 cycle first (exact for large f·idx).
+
+    Parameters
+    ----------
+    f : float
+        Frequency [cycles/sample].
+    idx : float array [L]
+        Sample indices (centred or not) [samples].
+    offsets : float array [J]
+        Frequency offsets added to ``f`` [cycles/sample].
+
+    Returns
+    -------
+    complex array [J, L]
+    """
+    ph = np.outer(f + offsets, idx)
     return np.exp(2j * np.pi * (ph - np.round(ph)))
+
+
+def contract_samples(cube: np.ndarray, basis: np.ndarray, beams: np.ndarray | None = None) -> np.ndarray:
+    """``cube[beams] @ basis``: the fast-time samples of the selected beams against P vectors.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        Beat samples [√W].
+    basis : complex array [N, P]
+    beams : int array [M'], optional
+        Increasing beam indices (default all).
+
+    Returns
+    -------
+    complex array [M', K, P]
+
+    One 2-D product per contiguous run of beams (a view of the cube, no copy): a single BLAS
+    call is far faster than numpy's stacked matmul when other processes share the cores.
+    """
+    m, k, n = cube.shape
+    p = basis.shape[1]
+    basis = np.ascontiguousarray(basis)
+    if beams is None:
+        return (cube.reshape(m * k, n) @ basis).reshape(m, k, p)
+    out = np.empty((beams.size, k, p), dtype=complex)
+    runs = np.split(np.arange(beams.size), np.flatnonzero(np.diff(beams) != 1) + 1)
+    for run in runs:
+        lo, hi = beams[run[0]], beams[run[-1]] + 1
+        out[run[0]:run[-1] + 1] = (cube[lo:hi].reshape((hi - lo) * k, n) @ basis).reshape(hi - lo, k, p)
+    return out
 
 
 @functools.lru_cache(maxsize=16)
@@ -98,8 +145,8 @@ class SubspaceDtft:
         self._k_idx = np.arange(k) - (k - 1) / 2.0
         self._u1 = band_basis(n, tolerance)
         self._u2 = band_basis(k, tolerance)
-        b1 = _phasor(f1, self._n_idx)[:, None] * self._u1  # [N, r₁]
-        b2 = _phasor(f2, self._k_idx)[:, None] * self._u2  # [K, r₂]
+        b1 = dtft_phasors(f1, self._n_idx, _ZERO)[0][:, None] * self._u1  # [N, r₁]
+        b2 = dtft_phasors(f2, self._k_idx, _ZERO)[0][:, None] * self._u2  # [K, r₂]
         g = (cube.reshape(m * k, n) @ b1).reshape(m, k, b1.shape[1])  # the one pass over the cube
         self.moments = np.einsum("mki,kl->mil", g, b2)
 

@@ -95,28 +95,6 @@ class RefinedEstimate:
 
     __hash__ = None  # type: ignore[assignment]
 
-def _bases(f: float, idx: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """exp(j2π (f + offsets) idx) [len(offsets), len(idx)]."""
-    ph = np.outer(f + offsets, idx)
-    return np.exp(2j * np.pi * (ph - np.round(ph)))
-
-
-def _contract(cube: np.ndarray, basis: np.ndarray, beams: np.ndarray | None = None) -> np.ndarray:
-    """``cube[beams] @ basis`` [M', K, P] without copying the selected beams first."""
-    m, k, n = cube.shape
-    p = basis.shape[1]
-    basis = np.ascontiguousarray(basis)
-    # One 2-D product per contiguous run of beams (a view, no copy): a single BLAS call is
-    # far faster than numpy's stacked matmul when other processes share the cores.
-    if beams is None:
-        return (cube.reshape(m * k, n) @ basis).reshape(m, k, p)
-    out = np.empty((beams.size, k, p), dtype=complex)
-    runs = np.split(np.arange(beams.size), np.flatnonzero(np.diff(beams) != 1) + 1)
-    for run in runs:
-        lo, hi = beams[run[0]], beams[run[-1]] + 1
-        out[run[0]:run[-1] + 1] = (cube[lo:hi].reshape((hi - lo) * k, n) @ basis).reshape(hi - lo, k, p)
-    return out
-
 
 class _Evaluator:
     """Z_m and its derivatives near the current estimate, from subspace projections (:mod:`dsp.dtft_subspace`).

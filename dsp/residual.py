@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .radar import RadarConfig
-from .refine import _bases, _contract
+from .dtft_subspace import contract_samples, dtft_phasors
 
 __all__ = ["beam_dtft", "residual_test"]
 
@@ -26,8 +26,8 @@ def beam_dtft(cube: Any, radar: RadarConfig, delay: float, delay_rate: float) ->
     m, k, n = arr.shape
     f1 = (delay * radar.slope + radar.carrier_frequency * delay_rate) * radar.sample_period
     f2 = delay_rate * radar.carrier_frequency * radar.chirp_interval
-    en = _bases(f1, np.arange(n) - (n - 1) / 2.0, np.zeros(1))[0]
-    ek = _bases(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]
+    en = dtft_phasors(f1, np.arange(n) - (n - 1) / 2.0, np.zeros(1))[0]
+    ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]
     return np.abs((arr.reshape(m * k, n) @ en).reshape(m, k) @ ek), float(f1), float(f2)
 
 
@@ -84,9 +84,9 @@ def residual_test(
     offs2 = np.array([-0.5, 0.0, 0.5]) / k
     wn = scipy.signal.get_window("hann", n, fftbins=False)
     wk = scipy.signal.get_window("hann", k, fftbins=False)
-    bn = _bases(f1, n_idx, offs1).T * wn[:, None]  # [N, 3]
-    bk = _bases(f2, k_idx, offs2) * wk[None, :]  # [3, K]
-    g = _contract(arr, bn, sel)  # [M', K, 3]
+    bn = dtft_phasors(f1, n_idx, offs1).T * wn[:, None]  # [N, 3]
+    bk = dtft_phasors(f2, k_idx, offs2) * wk[None, :]  # [3, K]
+    g = contract_samples(arr, bn, sel)  # [M', K, 3]
     if far.sum() >= 4:
         g = g - (arr.mean(axis=0, where=far[:, None, None]) @ bn)[None]
     z = np.einsum("bk,mka->mab", bk, g)  # [M', 3, 3]
