@@ -29,7 +29,7 @@ import numpy as np
 import scipy.optimize
 import scipy.special
 
-from ._validate import as_finite_array, fields_equal, finite
+from .validation import as_finite_array, fields_equal, finite
 from .pattern import BeamPattern
 from .sweep import BeamSweep
 

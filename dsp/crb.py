@@ -25,7 +25,7 @@ from typing import Any, Callable, Literal
 import numpy as np
 import scipy.special
 
-from ._validate import as_finite_array, fields_equal, positive, positive_int
+from .validation import as_finite_array, fields_equal, positive, positive_int
 from .pattern import BeamPattern
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep

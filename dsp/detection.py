@@ -31,7 +31,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from ._validate import as_finite_array, fields_equal, non_negative, require_complex_samples
+from .validation import as_finite_array, fields_equal, non_negative, require_complex_samples
 from .pattern import BeamPattern
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep

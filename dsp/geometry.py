@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_finite_array
+from .validation import as_finite_array
 
 __all__ = ["RisPose", "direction_from_angles", "angles_from_direction"]
 

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ._validate import finite, non_negative, positive
+from .validation import finite, non_negative, positive
 from .beamscan import BeamScan, scan_beams
 from .crb import position_std, sweep_crb
 from .drift import delay_drift

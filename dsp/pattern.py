@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_finite_array, positive, positive_int
+from .validation import as_finite_array, positive, positive_int
 from .geometry import direction_from_angles
 from .radar import SPEED_OF_LIGHT
 

@@ -8,7 +8,7 @@ from typing import Any, Literal
 import numpy as np
 import scipy.signal
 
-from ._validate import dataclass_from_dict, non_negative, positive, positive_int
+from .validation import dataclass_from_dict, non_negative, positive, positive_int
 
 __all__ = ["ProcessingConfig", "window_vector"]
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from ._validate import fields_equal
+from .validation import fields_equal
 from .detection import Detection
 from .drift import DelayDrift
 from .flags import Flag

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import scipy.constants
 
-from ._validate import dataclass_from_dict, finite, positive, positive_int
+from .validation import dataclass_from_dict, finite, positive, positive_int
 
 __all__ = ["RadarConfig", "SPEED_OF_LIGHT", "db_to_linear", "linear_to_db"]
 

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import scipy.special
 
-from ._validate import fields_equal, finite
+from .validation import fields_equal, finite
 from .aod_fit import AodFit, bessel_ratio, bessel_ratio_slope, fit_aod, log_i0
 from .dtft_subspace import SubspaceDtft
 from .pattern import BeamPattern

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.fft
 import scipy.ndimage
 
-from ._validate import as_finite_array, finite, require_complex_samples
+from .validation import as_finite_array, finite, require_complex_samples
 from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig
@@ -35,7 +35,7 @@ CHUNK_BYTES = 32 * 2**20
 def check_cube(cube: Any, radar: RadarConfig, *, name: str = "cube") -> np.ndarray:
     """Validate a beat cube ``[M, K, N]`` against the radar and return it as complex128.
 
-    Real, integer and boolean arrays are refused (:func:`dsp._validate.require_complex_samples`).
+    Real, integer and boolean arrays are refused (:func:`dsp.validation.require_complex_samples`).
     """
     require_complex_samples(cube, name)
     if isinstance(cube, np.ndarray) and cube.dtype == np.complex128 and cube.ndim == 3 and cube.size \

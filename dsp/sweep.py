@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_finite_array, finite, positive
+from .validation import as_finite_array, finite, positive
 
 __all__ = ["BeamSweep"]
 

@@ -23,7 +23,7 @@ from typing import Any, Mapping
 import numpy as np
 import trimesh
 
-from dsp._validate import as_finite_array
+from dsp.validation import as_finite_array
 
 from ._parse import SpecError
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from dsp import db_to_linear
-from dsp._validate import as_finite_array, finite, non_negative
+from dsp.validation import as_finite_array, finite, non_negative
 
 __all__ = ["RadarAntenna"]
 

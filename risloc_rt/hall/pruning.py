@@ -9,7 +9,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dsp import SPEED_OF_LIGHT, ProcessingConfig, RadarConfig, window_vector
-from dsp._validate import finite, non_negative, positive_int
+from dsp.validation import finite, non_negative, positive_int
 from dsp.sweep import BeamSweep
 
 from ..model.paths import PathSet

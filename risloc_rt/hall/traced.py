@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from dsp._validate import as_finite_array
+from dsp.validation import as_finite_array
 
 __all__ = ["TracedPaths", "INTERACTION_NAMES"]
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from dsp import BeamSweep, ProcessingConfig, RadarConfig
-from dsp._validate import as_finite_array
+from dsp.validation import as_finite_array
 from dsp.budget import BudgetError, check_memory, dsp_memory
 
 from .._files import atomic_open

@@ -17,7 +17,9 @@ from typing import Iterator, Literal, Sequence
 
 import numpy as np
 
-from .errors import MeasuredFormatError, check_int
+from dsp.validation import integer
+
+from .errors import MeasuredFormatError
 from .files import capture_files, iter_file_bytes
 from .layout import Convention, RawLayout, decode_frames
 from .packets import (HEADER_BYTES, DroppedPackets, PacketIssue, detect_payload_size, iter_packet_stream,
@@ -179,7 +181,7 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     with open(files[0], "rb") as fh:
         head = fh.read(3 * (HEADER_BYTES + 1462) + HEADER_BYTES)
     if payload_size is not None:
-        payload_size = check_int(payload_size, "payload_size", minimum=2, maximum=1462)
+        payload_size = integer(payload_size, "payload_size", minimum=2, maximum=1462, error=MeasuredFormatError)
     detected = detect_payload_size(head) if form != "raw" and payload_size is None else payload_size
     if form == "packets" and detected is None:
         raise MeasuredFormatError(f"{files[0]}: the first bytes are not a DCA1000 packet header; "
@@ -249,10 +251,10 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
     FrameBlock
         ``cube`` complex64 ``[f, K, V, N]``. The truncated final frame, if any, is never yielded.
     """
-    fpb = check_int(frames_per_block, "frames_per_block", minimum=1)
+    fpb = integer(frames_per_block, "frames_per_block", minimum=1, error=MeasuredFormatError)
     layout, fb = info.layout, info.layout.frame_bytes
-    last = info.num_frames if max_frames is None else min(info.num_frames, check_int(max_frames, "max_frames",
-                                                                                        minimum=0))
+    last = info.num_frames if max_frames is None else min(info.num_frames, integer(max_frames, "max_frames",
+                                                                                        minimum=0, error=MeasuredFormatError))
     buf = np.empty(fpb * fb, np.uint8)
     fill, frame0 = 0, 0
     damaged: set[int] = set()

@@ -20,7 +20,9 @@ from typing import Literal
 import numpy as np
 
 from .._files import atomic_write_bytes
-from .errors import MeasuredFormatError, check_float, check_int
+from dsp.validation import finite, integer, non_negative, positive
+
+from .errors import MeasuredFormatError
 from .files import SplitWriter
 from .layout import Convention, RawLayout, encode_frames
 from .packets import MAX_PAYLOAD, PacketRecorder
@@ -57,11 +59,11 @@ class AdcImpairments:
     noise_rms: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "full_scale", check_float(self.full_scale, "full_scale", "cube units", positive=True))
+        object.__setattr__(self, "full_scale", positive(self.full_scale, "full_scale", "cube units", error=MeasuredFormatError))
         object.__setattr__(self, "dc_offset", complex(self.dc_offset))
-        check_float(self.iq_gain_imbalance_db, "iq_gain_imbalance_db", "dB")
-        check_float(self.iq_phase_imbalance, "iq_phase_imbalance", "rad")
-        check_float(self.noise_rms, "noise_rms", "cube units", non_negative=True)
+        finite(self.iq_gain_imbalance_db, "iq_gain_imbalance_db", "dB", error=MeasuredFormatError)
+        finite(self.iq_phase_imbalance, "iq_phase_imbalance", "rad", error=MeasuredFormatError)
+        non_negative(self.noise_rms, "noise_rms", "cube units", error=MeasuredFormatError)
 
     @property
     def iq_gain_ratio(self) -> float:
@@ -108,17 +110,17 @@ class Recording:
     def __post_init__(self) -> None:
         if self.form not in ("raw", "packets"):
             raise MeasuredFormatError(f"form={self.form!r} must be 'raw' or 'packets'")
-        object.__setattr__(self, "drop_packets", tuple(check_int(s, "drop_packets[]", minimum=1)
+        object.__setattr__(self, "drop_packets", tuple(integer(s, "drop_packets[]", minimum=1, error=MeasuredFormatError)
                                                        for s in self.drop_packets))
-        p = check_float(self.drop_probability, "drop_probability", "1", non_negative=True)
+        p = non_negative(self.drop_probability, "drop_probability", "1", error=MeasuredFormatError)
         if p >= 1:
             raise MeasuredFormatError(f"drop_probability={p} must be < 1")
         if self.form == "raw" and (self.drop_packets or p):
             raise MeasuredFormatError("lost packets need form='packets': a raw-mode file has no sequence numbers "
                                       "to detect them")
-        check_int(self.truncate_bytes, "truncate_bytes", minimum=0)
+        integer(self.truncate_bytes, "truncate_bytes", minimum=0, error=MeasuredFormatError)
         if self.max_file_size is not None:
-            check_int(self.max_file_size, "max_file_size", minimum=2)
+            integer(self.max_file_size, "max_file_size", minimum=2, error=MeasuredFormatError)
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,9 @@ from ..model.ris import RisConfig
 from ..model.scenario import Scenario, analytic_paths
 from .emulate_capture import (SCHEDULE_NAME, EmulatedExperiment, check_folder, dca1000_radar, schedule_fields,
                               sweep_schedule_of, write_frames)
-from .errors import MeasuredFormatError, check_float
+from dsp.validation import non_negative
+
+from .errors import MeasuredFormatError
 from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
 from .sweep_schedule import write_sweep_schedule
 
@@ -86,7 +88,7 @@ class RecordingPlan:
     schedule_first_frame: str = "auto"
 
     def __post_init__(self) -> None:
-        check_float(self.lead_frames, "lead_frames", "frames", non_negative=True)
+        non_negative(self.lead_frames, "lead_frames", "frames", error=MeasuredFormatError)
         if not -0.5 < self.clock_drift < 0.5:
             raise MeasuredFormatError(f"clock_drift={self.clock_drift} must lie in (-0.5, 0.5)")
         if self.schedule_first_frame not in ("auto", "true"):

@@ -1,10 +1,11 @@
-"""The one error type of :mod:`risloc_rt.measured`, and the small input checks that raise it."""
+"""The one error type of :mod:`risloc_rt.measured` and the text-file reader that raises it.
+
+Input checks are :mod:`dsp.validation`'s, called with ``error=MeasuredFormatError``.
+"""
 
 from __future__ import annotations
 
-import operator
 from pathlib import Path
-from typing import Any
 
 __all__ = ["MeasuredFormatError", "read_text_file"]
 
@@ -15,37 +16,6 @@ class MeasuredFormatError(ValueError):
     The message is one line: what is wrong (file, line, field, expected and actual values) and
     how to fix it.
     """
-
-
-def check_int(value: Any, name: str, *, minimum: int | None = None, maximum: int | None = None) -> int:
-    """``value`` as an int in [minimum, maximum]; bools and non-integers raise."""
-    if isinstance(value, bool):
-        raise MeasuredFormatError(f"{name}={value!r} must be an integer, not a bool")
-    try:
-        out = operator.index(value)
-    except TypeError:
-        raise MeasuredFormatError(f"{name}={value!r} must be an integer") from None
-    if minimum is not None and out < minimum:
-        raise MeasuredFormatError(f"{name}={out} must be >= {minimum}")
-    if maximum is not None and out > maximum:
-        raise MeasuredFormatError(f"{name}={out} must be <= {maximum}")
-    return int(out)
-
-
-def check_float(value: Any, name: str, unit: str, *, positive: bool = False,
-                non_negative: bool = False) -> float:
-    """``value`` as a finite float, optionally > 0 or >= 0."""
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise MeasuredFormatError(f"{name}={value!r} must be a number [{unit}]") from None
-    if out != out or out in (float("inf"), float("-inf")):
-        raise MeasuredFormatError(f"{name}={out} must be finite [{unit}]")
-    if positive and out <= 0:
-        raise MeasuredFormatError(f"{name}={out:g} {unit} must be > 0")
-    if non_negative and out < 0:
-        raise MeasuredFormatError(f"{name}={out:g} {unit} must be >= 0")
-    return out
 
 
 def read_text_file(path: Path, what: str, missing: str) -> str:

@@ -21,7 +21,9 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import MeasuredFormatError, check_int
+from dsp.validation import integer
+
+from .errors import MeasuredFormatError
 from .ti_config import ADC_FORMATS, AdcFormat, TiChirpConfig
 
 __all__ = ["Convention", "RawLayout", "decode_frames", "encode_frames"]
@@ -61,7 +63,7 @@ class RawLayout:
 
     def __post_init__(self) -> None:
         for name in ("num_samples", "num_rx", "chirps_per_loop", "num_loops"):
-            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=1))
+            object.__setattr__(self, name, integer(getattr(self, name), name, minimum=1, error=MeasuredFormatError))
         if self.adc_format not in ADC_FORMATS:
             raise MeasuredFormatError(f"adc_format={self.adc_format!r} must be one of {ADC_FORMATS}")
         if self.lanes not in (2, 4):

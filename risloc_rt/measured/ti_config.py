@@ -11,7 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Literal
 
-from .errors import MeasuredFormatError, check_float, check_int
+from dsp.validation import finite, integer, non_negative, positive
+
+from .errors import MeasuredFormatError
 
 if TYPE_CHECKING:                       # dsp is imported where it is used, so parsing works without it
     import dsp
@@ -67,10 +69,10 @@ class TiChirp:
     adc_start_time_offset: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "tx_mask", check_int(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF))
+        object.__setattr__(self, "tx_mask", integer(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF, error=MeasuredFormatError))
         for name, unit in (("start_frequency_offset", "Hz"), ("slope_offset", "Hz/s"),
                            ("idle_time_offset", "s"), ("adc_start_time_offset", "s")):
-            object.__setattr__(self, name, check_float(getattr(self, name), name, unit))
+            object.__setattr__(self, name, finite(getattr(self, name), name, unit, error=MeasuredFormatError))
 
     @property
     def varies(self) -> bool:
@@ -146,20 +148,19 @@ class TiChirpConfig:
 
     def __post_init__(self) -> None:
         set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
-        set_("start_frequency", check_float(self.start_frequency, "start_frequency", "Hz", positive=True))
-        set_("slope", check_float(self.slope, "slope", "Hz/s", positive=True))
-        set_("idle_time", check_float(self.idle_time, "idle_time", "s", non_negative=True))
-        set_("adc_start_time", check_float(self.adc_start_time, "adc_start_time", "s", non_negative=True))
-        set_("ramp_end_time", check_float(self.ramp_end_time, "ramp_end_time", "s", positive=True))
-        set_("tx_start_time", check_float(self.tx_start_time, "tx_start_time", "s"))
-        set_("num_samples", check_int(self.num_samples, "num_samples", minimum=1))
-        set_("sample_rate", check_float(self.sample_rate, "sample_rate", "Hz", positive=True))
-        set_("rx_mask", check_int(self.rx_mask, "rx_mask", minimum=1, maximum=0xFF))
-        set_("tx_mask", check_int(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF))
-        set_("num_loops", check_int(self.num_loops, "num_loops", minimum=1))
-        set_("num_frames", check_int(self.num_frames, "num_frames", minimum=0))
-        set_("frame_periodicity", check_float(self.frame_periodicity, "frame_periodicity", "s",
-                                              non_negative=True))
+        set_("start_frequency", positive(self.start_frequency, "start_frequency", "Hz", error=MeasuredFormatError))
+        set_("slope", positive(self.slope, "slope", "Hz/s", error=MeasuredFormatError))
+        set_("idle_time", non_negative(self.idle_time, "idle_time", "s", error=MeasuredFormatError))
+        set_("adc_start_time", non_negative(self.adc_start_time, "adc_start_time", "s", error=MeasuredFormatError))
+        set_("ramp_end_time", positive(self.ramp_end_time, "ramp_end_time", "s", error=MeasuredFormatError))
+        set_("tx_start_time", finite(self.tx_start_time, "tx_start_time", "s", error=MeasuredFormatError))
+        set_("num_samples", integer(self.num_samples, "num_samples", minimum=1, error=MeasuredFormatError))
+        set_("sample_rate", positive(self.sample_rate, "sample_rate", "Hz", error=MeasuredFormatError))
+        set_("rx_mask", integer(self.rx_mask, "rx_mask", minimum=1, maximum=0xFF, error=MeasuredFormatError))
+        set_("tx_mask", integer(self.tx_mask, "tx_mask", minimum=0, maximum=0xFF, error=MeasuredFormatError))
+        set_("num_loops", integer(self.num_loops, "num_loops", minimum=1, error=MeasuredFormatError))
+        set_("num_frames", integer(self.num_frames, "num_frames", minimum=0, error=MeasuredFormatError))
+        set_("frame_periodicity", non_negative(self.frame_periodicity, "frame_periodicity", "s", error=MeasuredFormatError))
         set_("chirps", tuple(self.chirps))
         if not self.chirps or not all(isinstance(c, TiChirp) for c in self.chirps):
             raise MeasuredFormatError("chirps must be a non-empty tuple of TiChirp (one per chirp of the loop)")
@@ -174,7 +175,7 @@ class TiChirpConfig:
             raise MeasuredFormatError(f"adc_format={self.adc_format!r} must be one of {ADC_FORMATS}")
         set_("iq_swap", bool(self.iq_swap))
         if self.rx_gain_db is not None:
-            set_("rx_gain_db", check_float(self.rx_gain_db, "rx_gain_db", "dB"))
+            set_("rx_gain_db", finite(self.rx_gain_db, "rx_gain_db", "dB", error=MeasuredFormatError))
 
     # ------------------------------------------------------------------ counts
     @property

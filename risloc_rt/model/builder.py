@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose, direction_from_angles
-from dsp._validate import as_finite_array, positive
+from dsp.validation import as_finite_array, positive
 
 from .ris import RisConfig, RisMode
 from .scenario import PAPER_DISTANCE, PAPER_RCS, PointTarget, Scenario

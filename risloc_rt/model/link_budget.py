@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from dsp import RadarConfig
-from dsp._validate import as_finite_array
+from dsp.validation import as_finite_array
 
 from .phase import exact_fractional_cycles
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from dsp import RisPose
-from dsp._validate import as_finite_array, positive
+from dsp.validation import as_finite_array, positive
 
 __all__ = ["Plate", "plate_scattering", "plate_rcs"]
 

@@ -8,7 +8,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dsp import BeamPattern, RisPose, db_to_linear, direction_from_angles
-from dsp._validate import as_finite_array, dataclass_from_dict, finite, non_negative, positive, positive_int
+from dsp.validation import as_finite_array, dataclass_from_dict, finite, non_negative, positive, positive_int
 from dsp.sweep import BeamSweep
 
 __all__ = ["RisConfig", "RisMode", "ris_response"]

@@ -8,7 +8,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, RisPose
-from dsp._validate import as_finite_array, non_negative
+from dsp.validation import as_finite_array, non_negative
 
 from .link_budget import carrier_phase, point_target_gain, ris_loopback_gain
 from .paths import PathSet
@@ -105,7 +105,7 @@ class Truth:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "Truth":
         """Inverse of :meth:`to_dict`; files without ``reference_time`` (older) read it as None."""
-        from dsp._validate import dataclass_from_dict
+        from dsp.validation import dataclass_from_dict
 
         if isinstance(data, dict):
             data = {"reference_time": None, **data}

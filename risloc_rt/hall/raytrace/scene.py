@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from dsp._validate import positive
+from dsp.validation import positive
 
 from ...authoring.scene_folder import SceneError, scene_content_hash
 

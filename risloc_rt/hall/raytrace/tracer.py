@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dsp import SPEED_OF_LIGHT
-from dsp._validate import as_finite_array, positive
+from dsp.validation import as_finite_array, positive
 
 from ..traced import TracedPaths
 from .result import TraceResult, TraceSettings

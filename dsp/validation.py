@@ -1,7 +1,9 @@
-"""Input checks shared by the public functions of :mod:`dsp` (and reused by ``risloc_rt``).
+"""Input checks: the one validation idiom of :mod:`dsp` and every ``risloc_rt`` package.
 
 Every check raises :class:`ValueError` (or :class:`TypeError`) whose message names the
-argument, says what was found and what is expected.
+argument, says what was found and what is expected; the scalar checks take ``error=`` for a
+package's own error type (``risloc_rt.measured`` passes ``MeasuredFormatError``), so the text
+and the rule are the same everywhere.
 """
 
 from __future__ import annotations
@@ -78,49 +80,66 @@ def as_finite_array(
     return arr
 
 
-def positive(value: Any, name: str, unit: str) -> float:
-    """Return ``value`` as a float, requiring a finite number > 0."""
+def _number(value: Any, name: str, unit: str, error: type[Exception] | None) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+        raise (error or TypeError)(f"{name}={value!r} must be a number [{unit}]") from None
+    if isinstance(value, bool):
+        raise (error or TypeError)(f"{name}={value!r} must be a number [{unit}], not a bool")
+    return v
+
+
+def positive(value: Any, name: str, unit: str, *, error: type[Exception] | None = None) -> float:
+    """``value`` as a float, requiring a finite number > 0 [``unit``].
+
+    Raises ``error`` (default: :class:`TypeError` for a non-number, :class:`ValueError` for a value
+    out of range); a package with its own error type (``MeasuredFormatError``) passes it here.
+    """
+    v = _number(value, name, unit, error)
     if not np.isfinite(v) or v <= 0:
-        raise ValueError(f"{name}={value!r} must be a finite number > 0 [{unit}]")
+        raise (error or ValueError)(f"{name}={value!r} must be a finite number > 0 [{unit}]")
     return v
 
 
-def non_negative(value: Any, name: str, unit: str) -> float:
-    """Return ``value`` as a float, requiring a finite number >= 0."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+def non_negative(value: Any, name: str, unit: str, *, error: type[Exception] | None = None) -> float:
+    """``value`` as a float, requiring a finite number >= 0 [``unit``]; errors as :func:`positive`."""
+    v = _number(value, name, unit, error)
     if not np.isfinite(v) or v < 0:
-        raise ValueError(f"{name}={value!r} must be a finite number >= 0 [{unit}]")
+        raise (error or ValueError)(f"{name}={value!r} must be a finite number >= 0 [{unit}]")
     return v
 
 
-def finite(value: Any, name: str, unit: str) -> float:
-    """Return ``value`` as a finite float."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name}={value!r} must be a number [{unit}]") from None
+def finite(value: Any, name: str, unit: str, *, error: type[Exception] | None = None) -> float:
+    """``value`` as a finite float [``unit``]; errors as :func:`positive`."""
+    v = _number(value, name, unit, error)
     if not np.isfinite(v):
-        raise ValueError(f"{name}={value!r} must be finite [{unit}]")
+        raise (error or ValueError)(f"{name}={value!r} must be finite [{unit}]")
     return v
 
 
-def positive_int(value: Any, name: str) -> int:
-    """Return ``value`` as an int >= 1 (rejecting bools and non-integral floats)."""
+def integer(value: Any, name: str, *, minimum: int | None = None, maximum: int | None = None,
+            error: type[Exception] | None = None) -> int:
+    """``value`` as an int in [``minimum``, ``maximum``].
+
+    Bools and non-integral numbers are refused; an integral float (``4.0``, as JSON may give)
+    is accepted. Errors as :func:`positive`.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if isinstance(value, (float, np.floating)) and float(value).is_integer():
             value = int(value)
         else:
-            raise TypeError(f"{name}={value!r} must be an integer >= 1")
-    if value < 1:
-        raise ValueError(f"{name}={value!r} must be an integer >= 1")
+            raise (error or TypeError)(f"{name}={value!r} must be an integer")
+    if minimum is not None and value < minimum:
+        raise (error or ValueError)(f"{name}={value!r} must be an integer >= {minimum}")
+    if maximum is not None and value > maximum:
+        raise (error or ValueError)(f"{name}={value!r} must be an integer <= {maximum}")
     return int(value)
+
+
+def positive_int(value: Any, name: str, *, error: type[Exception] | None = None) -> int:
+    """``value`` as an int >= 1 (:func:`integer` with ``minimum=1``)."""
+    return integer(value, name, minimum=1, error=error)
 
 
 def dataclass_from_dict(cls: type, data: Any, what: str, *, require_all: bool = False) -> Any:
