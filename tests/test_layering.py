@@ -22,12 +22,13 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: Subpackage -> floor. ``risloc_rt._version``, ``_files``, ``_lazy`` and the root package (lazy re-exports) sit below all.
+#: Subpackage -> floor. ``risloc_rt._version``, ``_files``, ``_lazy`` (floor -1), ``plotting`` (figures, on ``_files``) and the root package (lazy re-exports) sit below all.
 FLOORS = {
     "dsp": 0,
-    "risloc_rt._version": 0,
-    "risloc_rt._files": 0,
-    "risloc_rt._lazy": 0,
+    "risloc_rt._version": -1,
+    "risloc_rt._files": -1,
+    "risloc_rt._lazy": -1,
+    "risloc_rt.plotting": 0,
     "risloc_rt.model": 1,
     "risloc_rt.authoring": 2,
     "risloc_rt.hall": 3,

@@ -9,19 +9,10 @@ import numpy as np
 
 from dsp import SPEED_OF_LIGHT, DelayDopplerMap, Localization
 
-from .._files import atomic_open
 from ..model.scenario import Truth
+from ..plotting import new_figure, save_figure
 
-__all__ = ["plot_delay_doppler", "plot_sweep", "plot_range_profile"]
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+__all__ = ["plot_delay_doppler", "plot_sweep", "plot_range_profile", "plot_labelled_profile"]
 
 
 def _dbm(power_w: np.ndarray) -> np.ndarray:
@@ -37,11 +28,10 @@ def plot_delay_doppler(
     Left: the whole unambiguous range, velocity cropped to the span that holds the peaks (at
     least ±3 m/s). Right: a zoom of ±1 m and ±1 m/s around the strongest peak.
     """
-    plt = _pyplot()
     vel, dist = ddm.velocity, ddm.distance
     span = max(3.0, 1.5 * float(np.max(np.abs(vel[peaks[:, 0]]))) if len(peaks) else 3.0)
     top = float(_dbm(ddm.power.max()))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), dpi=110, gridspec_kw={"width_ratios": [3, 2]})
+    fig, axes = new_figure(nrows=1, ncols=2, figsize=(11, 4.5), dpi=110, gridspec_kw={"width_ratios": [3, 2]})
     r0, c0 = peaks[0] if len(peaks) else np.unravel_index(int(ddm.power.argmax()), ddm.power.shape)
     views = [(np.abs(vel) <= span, np.ones(dist.size, bool)),
              (np.abs(vel - vel[r0]) <= 1.0, np.abs(dist - dist[c0]) <= 1.0)]
@@ -64,16 +54,15 @@ def plot_delay_doppler(
     axes[0].set_title("whole map")
     axes[1].set_title("zoom on peak 1")
     fig.suptitle(title or "delay-Doppler map of the chosen beam")
-    return _save(fig, plt, path, tight=False)
+    return save_figure(fig, path, tight=False)
 
 
 def plot_sweep(loc: Localization, path: str | os.PathLike[str], *, truth: Truth | None = None, title: str = "") -> Path:
     """P_ave,m over the sweep's azimuth, estimate circled, true AoD marked."""
-    plt = _pyplot()
     scan = loc.scan
     az = np.rad2deg(scan.angles[:, 0])
     pave = _dbm(scan.average_power)
-    fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
+    fig, ax = new_figure(nrows=1, figsize=(8, 4), dpi=110)
     ax.plot(az, pave, ".-", color="C0", label="P_ave,m")
     if truth is not None:
         ax.axvline(np.rad2deg(truth.aod[0]), color="red", lw=6, alpha=0.3, label=f"true AoD {np.rad2deg(truth.aod[0]):+.2f}°")
@@ -84,7 +73,7 @@ def plot_sweep(loc: Localization, path: str | os.PathLike[str], *, truth: Truth 
     ax.set_title(title or "average power over the RIS sweep")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, plt, path)
+    return save_figure(fig, path)
 
 
 def plot_range_profile(
@@ -101,11 +90,10 @@ def plot_range_profile(
     Without a detection (NaN estimates) the profile is taken at the strongest beam's grid peak and
     no estimate is marked.
     """
-    plt = _pyplot()
     detected = bool(np.isfinite(loc.distance))
     nu = loc.delay_rate if detected else float(loc.scan.delay_rate[loc.beam_index])
     profile = _dbm(ddm.profile(nu))
-    fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
+    fig, ax = new_figure(nrows=1, figsize=(8, 4), dpi=110)
     ax.plot(ddm.distance, profile, color="C0", lw=1, label=f"profile at ν ≈ {nu * SPEED_OF_LIGHT / 2:+.2f} m/s (c/2·ν)")
     offset = loopback_delay * SPEED_OF_LIGHT / 2
     if truth is not None:
@@ -132,27 +120,13 @@ def plot_range_profile(
         zoom.axvline(x, color=color, ls="--", lw=1)
     zoom.tick_params(labelsize=7)
     zoom.set_title("±0.6 m", fontsize=7)
-    return _save(fig, plt, path)
-
-
-def _save(fig, plt, path: str | os.PathLike[str], *, tight: bool = True) -> Path:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if tight:
-        fig.tight_layout()
-    try:
-        with atomic_open(out) as fh:
-            fig.savefig(fh, format=out.suffix.lstrip(".") or "png")
-    finally:
-        plt.close(fig)
-    return out
+    return save_figure(fig, path)
 
 
 def plot_labelled_profile(profile, path: str | os.PathLike[str], *, title: str = "") -> Path:
     """A :class:`risloc_rt.path_table.LabelledProfile`: range profile with each peak named by its path."""
-    plt = _pyplot()
     db = _dbm(profile.power)
-    fig, ax = plt.subplots(figsize=(10, 5), dpi=110)
+    fig, ax = new_figure(nrows=1, figsize=(10, 5), dpi=110)
     ax.plot(profile.distance, db, color="C0", lw=1)
     for rank, p in enumerate(profile.peaks):
         ax.plot(profile.distance[p], db[p], "v", color="red", ms=6)
@@ -167,4 +141,4 @@ def plot_labelled_profile(profile, path: str | os.PathLike[str], *, title: str =
     ax.set_ylim(db.max() - 70, db.max() + 5)
     ax.grid(alpha=0.3)
     ax.set_title(title or f"range profile from the traced paths, beam az {np.rad2deg(profile.beam[0]):+.1f}°")
-    return _save(fig, plt, path)
+    return save_figure(fig, path)
