@@ -10,7 +10,7 @@ delay-Doppler map is ``[K_DFT, N_DFT]``. SI units and radians throughout
 from .beamscan import BeamScan, scan_beams
 from .crb import SweepBound, position_std, rician_information, sweep_crb, tone_frequency_crb
 from .detection import Detection, check_beat_cube, detect
-from .flags import FLAG_CODES, Flag
+from .flags import FLAG_CODES, INSPECTION_CODES, Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .localize import Localization, NoPositionError, localize, self_localize
 from .pattern import BeamPattern
@@ -29,6 +29,7 @@ __all__ = [
     "BeamPattern",
     "Detection",
     "FLAG_CODES",
+    "INSPECTION_CODES",
     "Flag",
     "NoPositionError",
     "RefinedEstimate",

@@ -1,4 +1,8 @@
-"""Named warnings attached to a localization (``docs/flags.md`` gives cause and remedy of each)."""
+"""Named warnings attached to a localization or a capture inspection (``docs/flags.md``: cause and remedy of each).
+
+One :class:`Flag` type serves both: a localization's flags (``dsp.Localization.flags``) and a raw
+capture's inspection (``risloc_rt.measured.inspect_capture``, codes in :data:`INSPECTION_CODES`).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Flag", "FLAG_CODES", "flag_codes"]
+__all__ = ["Flag", "FLAG_CODES", "INSPECTION_CODES", "flag_codes"]
 
 #: Every code a :class:`Flag` may carry, with a one-line meaning (``docs/flags.md``).
 FLAG_CODES: dict[str, str] = {
@@ -19,7 +23,21 @@ FLAG_CODES: dict[str, str] = {
     "unresolved-peaks": "two returns within one resolution cell: delay and AoD are biased",
     "before-ris-delay": "the delay is shorter than the RIS loop-back delay: negative distance",
     "elevation-assumed": "a 1-D sweep cannot see elevation: the position assumes the sweep plane",
+    # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
+    "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
+    "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",
+    "clipping": "ADC words at a rail: the receiver saturated",
+    "dc-offset": "the ADC samples have a DC offset above 1 % of full scale",
+    "iq-imbalance": "I and Q differ in gain or phase: images of strong targets appear mirrored in range",
+    "iq-order": "more power at negative beat frequencies: I and Q swapped or the lane order wrong",
+    "peak-at-dc": "the strongest return is at range bin 0-1: DC offset or Tx-Rx leakage",
+    "device-timing": "the radar configuration breaks a device timing rule",
 }
+
+#: The codes an inspection of a raw capture (not a localization) may carry.
+INSPECTION_CODES: frozenset[str] = frozenset({
+    "dropped-packets", "truncated-frame", "clipping", "dc-offset", "iq-imbalance", "iq-order", "peak-at-dc",
+    "device-timing"})
 
 
 @dataclass(frozen=True)

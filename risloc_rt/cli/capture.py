@@ -54,7 +54,7 @@ def _inspect(args: argparse.Namespace) -> int:
               f"{d['dc_offset']['i']:+.1f}{d['dc_offset']['q']:+.1f}j counts, I/Q imbalance "
               f"{d['iq_imbalance']['gain_db']:+.2f} dB / {d['iq_imbalance']['phase']:+.4f} rad")
         for flag in d["flags"]:
-            print(f"  flag {flag['name']}: {flag['message']}")
+            print(f"  flag {flag['code']}: {flag['message']}")
     if args.plot:
         plot_inspection(result, args.plot)
         print(f"wrote {args.plot}")

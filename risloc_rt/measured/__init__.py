@@ -29,7 +29,7 @@ from .emulate_capture import EmulatedExperiment, dca1000_radar, emulate_capture
 from .emulate_recording import EmulatedRecording, RecordingPlan, emulate_recording
 from .files import capture_files
 from .import_capture import default_processing, import_capture
-from .inspect import CaptureInspection, Flag, Peak, inspect_capture, load_config, plot_inspection
+from .inspect import CaptureInspection, Peak, inspect_capture, load_config, plot_inspection
 from .layout import RawLayout, decode_frames, encode_frames
 from .leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
@@ -45,7 +45,7 @@ __all__ = [
     "apply_range_gate", "chirp_states", "emulate_recording", "fit_alignment", "manual_alignment", "range_gate_basis",
     "ris_power_series", "subtract_background",
     "AdcImpairments", "CaptureInfo", "CaptureInspection", "DroppedPackets", "EmulatedCapture", "EmulatedExperiment",
-    "Flag", "SweepSchedule", "dca1000_radar", "default_processing", "emulate_capture", "format_sweep_schedule",
+    "SweepSchedule", "dca1000_radar", "default_processing", "emulate_capture", "format_sweep_schedule",
     "import_capture", "parse_sweep_schedule", "read_sweep_schedule", "write_sweep_schedule",
     "FrameBlock", "MeasuredFormatError", "PacketIssue", "ParsedSdkCfg", "ParsedStudioJson", "Peak",
     "QuantizedCube", "RawCapture", "RawLayout", "Recording", "TiChirp", "TiChirpConfig", "capture_files",

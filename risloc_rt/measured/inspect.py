@@ -17,6 +17,8 @@ import numpy as np
 import scipy.constants
 import scipy.signal
 
+from dsp.flags import Flag
+
 from .dca1000 import Form, iter_frames, open_raw
 from .errors import MeasuredFormatError
 from .layout import RawLayout
@@ -30,15 +32,7 @@ def _db(x):
         return 10.0 * np.log10(x)
 
 
-__all__ = ["CaptureInspection", "Flag", "Peak", "inspect_capture", "load_config", "plot_inspection"]
-
-
-@dataclass(frozen=True)
-class Flag:
-    """A named finding with its cause and remedy."""
-
-    name: str
-    message: str
+__all__ = ["CaptureInspection", "Peak", "inspect_capture", "load_config", "plot_inspection"]
 
 
 @dataclass(frozen=True)
@@ -140,7 +134,7 @@ class CaptureInspection:
             "iq_imbalance": {"gain_db": self.iq_gain_imbalance_db, "phase": self.iq_phase_imbalance},
             "positive_frequency_excess_db": (None if np.isnan(self.positive_frequency_excess_db)
                                              else self.positive_frequency_excess_db),
-            "flags": [{"name": f.name, "message": f.message} for f in self.flags],
+            "flags": [f.to_dict() for f in self.flags],
             "notes": list(self.notes),
         }
 
@@ -260,26 +254,26 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
     full = 2.0 ** (bits - 1)
     flags = []
     if dropped:
-        flags.append(Flag("dropped_packets", f"{dropped} packets lost; frames {damaged[:10]}"
+        flags.append(Flag("dropped-packets", f"{dropped} packets lost; frames {damaged[:10]}"
                           f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
     if info.truncated_bytes:
-        flags.append(Flag("truncated_frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
+        flags.append(Flag("truncated-frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
     if clipped:
         flags.append(Flag("clipping", f"{clipped} of {count * len(words)} ADC words at a rail: lower the Rx gain "
                           "(profileCfg rxGain) or move away from strong reflectors"))
     if abs(dc) > 0.01 * full:
-        flags.append(Flag("dc_offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
+        flags.append(Flag("dc-offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
     if abs(g_db) > 1.0 or abs(phase) > np.deg2rad(5):
-        flags.append(Flag("iq_imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
+        flags.append(Flag("iq-imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
                           "of strong targets appear mirrored in range"))
     if not np.isnan(excess) and excess < 0:
-        flags.append(Flag("iq_order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
+        flags.append(Flag("iq-order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
                           "probably swapped (iq_swap=True) or the lane interleave is wrong (lanes=)"))
     if p <= 1 and min_range_bin == 0:
-        flags.append(Flag("peak_at_dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
+        flags.append(Flag("peak-at-dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
                           "pass min_range_bin="))
     if cfg is not None:
-        flags += [Flag("device_timing", msg) for msg in cfg.device_issues()]
+        flags += [Flag("device-timing", msg) for msg in cfg.device_issues()]
     peak = Peak(range_bin=p, doppler_bin=q, snr_db=snr_db, range=rng_m, velocity=vel)
     return CaptureInspection(
         files=info.files, form=info.form, layout=layout, config=cfg, frames=info.num_frames,

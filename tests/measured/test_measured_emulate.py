@@ -50,7 +50,7 @@ def test_iq_imbalance_and_dc_offset_are_recovered_by_inspect(tmp_path, make_conf
     assert res.dc_offset.imag == pytest.approx(-0.01 * 2 ** 15, abs=30)
     assert res.iq_gain_imbalance_db == pytest.approx(1.5, abs=0.2)
     assert np.rad2deg(res.iq_phase_imbalance) == pytest.approx(6, abs=1)
-    assert {"dc_offset", "iq_imbalance"} <= {f.name for f in res.flags}
+    assert {"dc-offset", "iq-imbalance"} <= {f.code for f in res.flags}
 
 
 def test_noise_is_seeded_and_needs_a_generator(make_config, make_tone):
@@ -95,8 +95,8 @@ def test_inspect_flags_lost_packets_clipping_and_truncation(tmp_path, make_confi
     em = write_raw_capture(cube, cfg, tmp_path, recording=Recording(form="packets", drop_packets=(4,),
                                                                     truncate_bytes=10))
     res = inspect_capture(em.files[0], em.cfg_path)
-    names = {f.name for f in res.flags}
-    assert {"dropped_packets", "truncated_frame", "clipping"} <= names
+    names = {f.code for f in res.flags}
+    assert {"dropped-packets", "truncated-frame", "clipping"} <= names
     assert res.frames == 3 and res.dropped_packets == 1 and res.damaged_frames == (0,)
     assert res.clipped_fraction > 0.1 and res.peak.range_bin == 6
 

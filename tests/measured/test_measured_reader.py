@@ -41,7 +41,7 @@ def test_corner_reflector_wrong_decodings_move_the_peak():
     assert peak(cube) == 38 and peak(wrong) == 90
     assert inspect_capture(CORNER, CORNER_LAYOUT, iq_swap=True).peak.range_bin == 256 - 38   # mirrored
     swapped = inspect_capture(CORNER, CORNER_LAYOUT, iq_swap=True)
-    assert "iq_order" in [f.name for f in swapped.flags]
+    assert "iq-order" in [f.code for f in swapped.flags]
     assert inspect_capture(CORNER, CORNER_LAYOUT, lanes=4).peak.range_bin == 104
 
 
