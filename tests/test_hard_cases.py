@@ -57,16 +57,21 @@ def test_hard_grating_lobes_are_flagged(make_scenario):
 
 
 def test_hard_return_beyond_the_unambiguous_range(make_scenario, make_radar):
-    # 25.4 m folds back to 3.6 m, and the DSP alone cannot tell; the link budget can (the loop-back
-    # arrives 34 dB weaker than predicted at 3.6 m): risloc locate's process_capture flags it. On
-    # this small radar (K = 16, N = 128) the return is also too weak to detect: no position at all.
-    # The detected-and-flagged branch at Table I sizes is tests/model/test_power_check.py.
+    # 25.4 m folds back to 25.4 - R_max = 3.6 m, and the DSP alone cannot tell; the link budget can
+    # (the loop-back arrives 32 dB weaker than predicted at 3.6 m): risloc locate's process_capture
+    # flags it. On this small radar (K = 16, N = 128) the return is still detected (about 3 dB above
+    # the threshold), so the position is given, folded, and flagged 'aliased'. The same branch at
+    # Table I sizes is tests/model/test_power_check.py.
     from risloc_rt.io import process_capture
 
     cap = simulate(make_scenario(ue_position=(0.0, -12.0, 0.0)), rng=np.random.default_rng(0), seed=0)
-    assert cap.truth.distance > make_radar().max_range
+    r_max = make_radar().max_range
+    assert cap.truth.distance > r_max
     loc, _ = process_capture(cap)
-    assert "aliased" in loc.flag_codes or (not loc.detected and np.isnan(loc.distance))
+    assert loc.detected and loc.detection.detected
+    assert "aliased" in loc.flag_codes
+    # the estimate is the folded distance, within one range cell c/(2B)
+    assert abs(loc.distance - (cap.truth.distance - r_max)) < _range_cell(cap)
 
 
 def test_hard_zero_and_nan_cubes_are_errors(make_scenario):
