@@ -12,7 +12,7 @@ from .budget import check_memory, dsp_memory
 from .processing import ProcessingConfig
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .gridscreen import screened_scan
-from .spectrum import CHUNK_BYTES, _windows, check_cube, windowed_range_spectrum
+from .spectrum import CHUNK_BYTES, check_cube, dft_windows, windowed_range_spectrum
 from .sweep import BeamSweep
 from .threads import thread_count
 
@@ -123,7 +123,7 @@ def scan_beams(
         return np.flatnonzero(np.abs(delays - delays[p]) <= processing.delta * (1.0 + 1e-9))
 
     if processing.doppler_search == "zoom":
-        w_k, w_n, gain = _windows(radar, processing)
+        w_k, w_n, gain = dft_windows(radar, processing)
         q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns)
         return BeamScan(angles=sweep.angles, delay=delays[p_best], delay_rate=rates[q_best],
                         peak_power=peak / gain**2, average_power=average / gain**2,

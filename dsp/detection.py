@@ -38,7 +38,7 @@ from .sweep import BeamSweep
 from .sweep_window import SweepWindows, sweep_windows
 from .threads import thread_count
 
-__all__ = ["Detection", "detect", "check_beat_cube", "sweep_cfar_threshold"]
+__all__ = ["Detection", "detect", "detect_validated", "check_beat_cube", "sweep_cfar_threshold"]
 
 #: Default false-alarm probability per capture.
 DEFAULT_PFA = 1e-3
@@ -251,13 +251,26 @@ def detect(
     -------
     Detection
     """
-    return _detect_checked(check_beat_cube(cube, radar), radar, pfa=pfa, min_range=min_range,
-                           max_candidates=max_candidates, pattern=pattern, sweep=sweep, oversample=oversample)
+    return detect_validated(check_beat_cube(cube, radar), radar, pfa=pfa, min_range=min_range,
+                            max_candidates=max_candidates, pattern=pattern, sweep=sweep, oversample=oversample)
 
 
-def _detect_checked(arr: np.ndarray, radar: RadarConfig, *, pfa: float, min_range: float, max_candidates: int,
-                    pattern: BeamPattern | None, sweep: BeamSweep | None, oversample: int) -> Detection:
-    """:func:`detect` on a cube already through :func:`check_beat_cube` (no second pass over it)."""
+def detect_validated(arr: np.ndarray, radar: RadarConfig, *, pfa: float, min_range: float, max_candidates: int,
+                     pattern: BeamPattern | None, sweep: BeamSweep | None, oversample: int) -> Detection:
+    """:func:`detect` on a cube already through :func:`check_beat_cube` (no second pass over it).
+
+    Parameters
+    ----------
+    arr : complex128 array [M, K, N]
+        The cube as :func:`check_beat_cube` returns it [√W]; not checked again.
+    radar : RadarConfig
+    pfa, min_range, max_candidates, pattern, sweep, oversample
+        As :func:`detect` (``min_range`` in m), all given explicitly.
+
+    Returns
+    -------
+    Detection
+    """
     if not (isinstance(pfa, (float, int)) and 0 < pfa < 1):
         raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
     rmin = non_negative(min_range, "min_range", "m")

@@ -18,7 +18,7 @@ from .validation import finite, non_negative, positive
 from .beamscan import BeamScan, scan_beams
 from .crb import position_std, sweep_crb
 from .drift import delay_drift
-from .detection import DEFAULT_PFA, Detection, _detect_checked, check_beat_cube
+from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_validated
 from .flags import Flag
 from .geometry import RisPose, direction_from_angles
 from .pattern import BeamPattern
@@ -245,7 +245,7 @@ def self_localize(
     # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
     if not isinstance(scan, bool):
         raise TypeError(f"scan={scan!r} must be True or False")
-    det = _detect_checked(arr, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5, pattern=pattern,
+    det = detect_validated(arr, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5, pattern=pattern,
                           sweep=sweep, oversample=2)
     grid = scan_beams(arr, sweep, radar, processing) if scan or estimator == "paper" else None
     if not det.detected:

@@ -25,7 +25,7 @@ from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .threads import thread_count
 
-__all__ = ["DelayDopplerMap", "delay_doppler_map", "check_cube", "windowed_range_spectrum"]
+__all__ = ["DelayDopplerMap", "delay_doppler_map", "check_cube", "dft_windows", "windowed_range_spectrum"]
 
 #: Largest intermediate array (bytes) the vectorised transforms allocate at once. Small enough
 #: to stay in cache: larger chunks are up to 3x slower on a 2-core machine.
@@ -53,8 +53,30 @@ def check_cube(cube: Any, radar: RadarConfig, *, name: str = "cube") -> np.ndarr
     return arr
 
 
-def _windows(radar: RadarConfig, processing: ProcessingConfig) -> tuple[np.ndarray, np.ndarray, float]:
-    """Slow- and fast-time windows [K], [N] and the coherent gain Σw_K·Σw_N."""
+def dft_windows(radar: RadarConfig, processing: ProcessingConfig) -> tuple[np.ndarray, np.ndarray, float]:
+    """Slow- and fast-time windows of eq. (2DDFT) and their coherent gain.
+
+    Parameters
+    ----------
+    radar : RadarConfig
+        Gives the window lengths K (chirps) and N (samples).
+    processing : ProcessingConfig
+        Gives the window's name (``processing.window``).
+
+    Returns
+    -------
+    w_k : float array [K]
+        Slow-time window [unitless].
+    w_n : float array [N]
+        Fast-time window [unitless].
+    gain : float
+        The coherent gain Σw_K·Σw_N the 2-D transform is divided by [unitless].
+
+    Raises
+    ------
+    ValueError
+        When the window sums to zero or less.
+    """
     w_k = window_vector(processing.window, radar.num_chirps)
     w_n = window_vector(processing.window, radar.num_samples)
     gain = float(w_k.sum() * w_n.sum())
@@ -71,7 +93,7 @@ def windowed_range_spectrum(
     Returns the spectrum (still indexed by chirp, slow-time window applied) and the coherent
     gain to divide the final 2-D transform by.
     """
-    w_k, w_n, gain = _windows(radar, processing)
+    w_k, w_n, gain = dft_windows(radar, processing)
     out = np.empty(cube.shape[:2] + (processing.n_dft,), dtype=complex)
     step = max(1, CHUNK_BYTES // (16 * cube.shape[1] * processing.n_dft))
     for i in range(0, cube.shape[0], step):

@@ -56,7 +56,7 @@ from .build import build_scene, content_hash
 from .check_geometry import import_issues, mesh_issues, open_issues
 from .check_radio import RADAR_CLEARANCE, RIS_FREE_AHEAD, position_issues, range_issues, ris_issues
 from .geometry import load_geometry
-from .issues import RULES, CheckReport, Issue, _names
+from .issues import RULES, CheckReport, Issue, name_list
 from .materials import ITU_MATERIALS, LOAD_FREQUENCY, itu_valid, valid_at
 from .spec import HallSpec, load_spec
 
@@ -185,7 +185,7 @@ def _material_issues(xml: Path, frequency: float) -> list[Issue]:
         node = bsdf.find("string[@name='type']")
         itu = node.get("value", "") if node is not None else ""
         bid = bsdf.get("id", "")
-        objects = _names(users.get(bid, [])) or bid
+        objects = name_list(users.get(bid, [])) or bid
         valid = ", ".join(valid_at(frequency))
         if itu not in ITU_MATERIALS:
             out.append(Issue("error", "material.frequency", objects, f"material {bid!r} has unknown ITU type {itu!r}",

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import polygon
 from .geometry import HallGeometry
-from .issues import Issue, _fmt
+from .issues import Issue, format_point
 from .meshcheck import mesh_report
 from .objects import WallPanel
 from .spec import HallSpec
@@ -41,7 +41,7 @@ def mesh_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
         what = f"{kinds.get(name, 'object')} '{name}'"
         if len(rep.degenerate):
             i = int(rep.degenerate[0])
-            corners = ", ".join(_fmt(c) for c in np.asarray(mesh.vertices)[mesh.faces[i]])
+            corners = ", ".join(format_point(c) for c in np.asarray(mesh.vertices)[mesh.faces[i]])
             out.append(Issue(
                 "error", "mesh.degenerate", name,
                 f"{len(rep.degenerate)} of the {rep.num_faces} faces of {what} are degenerate (zero area, or all "
@@ -54,7 +54,7 @@ def mesh_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
             out.append(Issue(
                 "error", "mesh.non_manifold", name,
                 f"{what} has {len(rep.non_manifold)} non-manifold edge(s), shared by three or more faces, e.g. "
-                f"{_fmt(a)} – {_fmt(b)} m: its inside and outside are undefined",
+                f"{format_point(a)} – {format_point(b)} m: its inside and outside are undefined",
                 "split it into separate closed parts or delete the extra faces (Blender: Select > All by Trait > "
                 "Non Manifold), then re-export"))
         if rep.misoriented_edges:
@@ -115,7 +115,7 @@ def import_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
         if problems:
             out.append(Issue(
                 "error", "mesh.placement", m.name,
-                f"mesh '{m.name}' ({m.file.name}, bounds {_fmt(lo)} … {_fmt(hi)} m after the transform) "
+                f"mesh '{m.name}' ({m.file.name}, bounds {format_point(lo)} … {format_point(hi)} m after the transform) "
                 + " and ".join(problems),
                 f"fix translate / rotate_deg in meshes[{i}] (p' = Rz Ry Rx (scale·p) + translate); a file "
                 "exported y-up stands upright with rotate_deg = [90, 0, 0]"))
@@ -226,7 +226,7 @@ def open_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
     total = len(pts) * len(dirs)
     for surface, where in escapes.items():
         problems.setdefault(surface, []).append(
-            f"{len(where)} of {total} test rays from inside leave the scene through it, e.g. at {_fmt(where[0])} m")
+            f"{len(where)} of {total} test rays from inside leave the scene through it, e.g. at {format_point(where[0])} m")
     out = []
     for name, found in problems.items():
         if not found:

@@ -10,7 +10,7 @@ import trimesh
 from dsp import SPEED_OF_LIGHT, BeamSweep, RadarConfig
 
 from .geometry import HallGeometry
-from .issues import Issue, Level, _fmt, _names
+from .issues import Issue, Level, format_point, name_list
 from .spec import HallSpec
 
 __all__ = ["position_issues", "ris_issues", "range_issues", "RADAR_CLEARANCE", "RIS_FREE_AHEAD"]
@@ -34,14 +34,15 @@ def position_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
         if inside is not None:
             lo, hi = geo.meshes[inside].bounds
             out.append(Issue("error", "position.inside", what,
-                             f"the radar at {_fmt(p)} m is inside the closed object '{inside}' "
-                             f"(bounds {_fmt(lo)} … {_fmt(hi)} m)",
+                             f"the radar at {format_point(p)} m is inside the closed object '{inside}' "
+                             f"(bounds {format_point(lo)} … {format_point(hi)} m)",
                              f"move it out of '{inside}', at least {RADAR_CLEARANCE:g} m from its surface"))
             continue
         near, dist = geo.nearest_surface(p)
         if dist < RADAR_CLEARANCE:
             out.append(Issue("error", "position.clearance", what,
-                             f"the radar at {_fmt(p)} m is {dist:.3f} m from '{near}', closer than {RADAR_CLEARANCE:g} m: "
+                             f"the radar at {format_point(p)} m is {dist:.3f} m from '{near}', "
+                             f"closer than {RADAR_CLEARANCE:g} m: "
                              "the antenna would sit in the surface's slab, and sionna-rt drops path segments "
                              "shorter than 1 cm",
                              f"move it at least {RADAR_CLEARANCE - dist:.3f} m further from '{near}', into the hall"))
@@ -51,8 +52,8 @@ def position_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
         if inside is not None:
             lo, hi = geo.meshes[inside].bounds
             out.append(Issue("error", "position.inside", r.name,
-                             f"the RIS at {_fmt(p)} m is inside the closed object '{inside}' "
-                             f"(bounds {_fmt(lo)} … {_fmt(hi)} m)",
+                             f"the RIS at {format_point(p)} m is inside the closed object '{inside}' "
+                             f"(bounds {format_point(lo)} … {format_point(hi)} m)",
                              f"move it out of '{inside}'; it needs {_ris_clearance(r):.3f} m of free space around it"))
             continue
         near, dist = geo.nearest_surface(p)
@@ -60,7 +61,8 @@ def position_issues(spec: HallSpec, geo: HallGeometry) -> list[Issue]:
         if dist < need:
             out.append(Issue(
                 "error", "ris.clearance", r.name,
-                f"the RIS at {_fmt(p)} m is {dist:.3f} m from '{near}'; it needs {need:.3f} m ({RADAR_CLEARANCE:g} m "
+                f"the RIS at {format_point(p)} m is {dist:.3f} m from '{near}'; "
+                f"it needs {need:.3f} m ({RADAR_CLEARANCE:g} m "
                 f"plus the half-diagonal of its {r.panel.width:g} m × {r.panel.height:g} m panel): the panel must "
                 "stand free of every surface (the simulator models it as a free-standing plate, not part of the "
                 "scene), and sionna-rt drops path segments shorter than 1 cm, so a bounce this close to the "
@@ -114,13 +116,14 @@ def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: Bea
         hit, dist = geo.first_hit(p, pose.normal)
         if hit is None:
             out.append(Issue("error", "ris.facing_wall", r.name,
-                             f"the boresight of the RIS at {_fmt(p)} m leaves the scene without hitting a surface: it "
+                             f"the boresight of the RIS at {format_point(p)} m leaves the scene "
+                             "without hitting a surface: it "
                              "points out of the hall",
                              "turn it to face the radar (facing = [x, y, z] in its [[ris]] table)"))
         elif dist < RIS_FREE_AHEAD:
             out.append(Issue("error", "ris.facing_wall", r.name,
-                             f"the RIS at {_fmt(p)} m faces '{hit}' {dist:.3f} m in front of it (normal "
-                             f"{_fmt(pose.normal)}): it points at the {hit.split('_')[0]}, not into the room",
+                             f"the RIS at {format_point(p)} m faces '{hit}' {dist:.3f} m in front of it (normal "
+                             f"{format_point(pose.normal)}): it points at the {hit.split('_')[0]}, not into the room",
                              f"turn it to face the radar (facing = [x, y, z]), or move it so that at least "
                              f"{RIS_FREE_AHEAD:g} m is free in front of it"))
         # Each radar position as the RIS sees it.
@@ -144,12 +147,12 @@ def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: Bea
             idx = [f"radar.positions[{i}] ({ang:.0f}° off boresight)" for i, ang in behind]
             verb, them = ("is", "it") if len(idx) == 1 else ("are", "them")
             out.append(Issue(hard, "ris.radar_behind", r.name,
-                             f"{_names(idx)} {verb} behind the RIS plane: its beams cannot reach {them}",
+                             f"{name_list(idx)} {verb} behind the RIS plane: its beams cannot reach {them}",
                              "turn the RIS toward the radar (facing = [x, y, z]) or move the radar in front of it"))
         if far:
             idx = [f"radar.positions[{i}] ({d:.2f} m, apparent {ap:.2f} m)" for i, d, ap in far]
             out.append(Issue(hard, "ris.range", r.name,
-                             f"the loop-back of {_names(idx)} (distance + τ_RB·c/2) lies beyond the radar's "
+                             f"the loop-back of {name_list(idx)} (distance + τ_RB·c/2) lies beyond the radar's "
                              f"{radar.max_range:.2f} m unambiguous range: it folds back and the distance cannot be "
                              "measured",
                              f"keep every radar closer than {radar.max_range - r.loopback_delay * SPEED_OF_LIGHT / 2:.2f} m "
@@ -157,13 +160,13 @@ def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: Bea
         if outside:
             idx = [f"radar.positions[{i}] ({az:+.1f}°)" for i, az in outside]
             out.append(Issue("warning", "ris.sweep", r.name,
-                             f"{_names(idx)} {'is' if len(idx) == 1 else 'are'} seen outside the beam sweep "
+                             f"{name_list(idx)} {'is' if len(idx) == 1 else 'are'} seen outside the beam sweep "
                              f"({lo_deg:+.1f}° … {hi_deg:+.1f}°): the AoD estimate stops at the sweep's edge",
                              "turn the RIS toward the radar or widen the sweep"))
         if blocked:
             idx = [f"radar.positions[{i}] (by '{n}' {dd:.2f} m from the radar)" for i, n, dd in blocked]
             out.append(Issue("warning", "ris.los", r.name,
-                             f"the line of sight to {_names(idx)} is blocked: the localization relies on the "
+                             f"the line of sight to {name_list(idx)} is blocked: the localization relies on the "
                              "direct RIS loop-back, which then arrives via a reflection (wrong AoD and distance)",
                              "move the radar, the RIS or the obstacle"))
         out += _grating_issue(spec, r, radars, a, b, lo_deg, hi_deg)
@@ -202,7 +205,7 @@ def _grating_issue(spec: HallSpec, r, radars: np.ndarray, a: float, b: float, lo
         "warning", "ris.grating_lobe", r.name,
         f"{r.mode} RIS with {r.spacing * 1e3:.3g} mm spacing ({r.spacing / lam:.3g} λ): directions in the hall "
         f"get a grating lobe inside the {lo_deg:+.0f}° … {hi_deg:+.0f}° sweep, so their AoD is ambiguous "
-        f"({safe_text})" + (f"; affected: {_names(affected)}" if affected else ""),
+        f"({safe_text})" + (f"; affected: {name_list(affected)}" if affected else ""),
         ("use mode = \"relay\" (no grating lobe at λ/2), " if r.mode == "reflective" else "")
         + f"a spacing below {max_spacing * 1e3:.3g} mm, a narrower sweep, or keep the radars near broadside")]
 
@@ -230,7 +233,7 @@ def range_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig) -> list[
             i0, d0 = far[0]
             out.append(Issue(
                 "warning", "range.walls", name,
-                f"{name} is beyond the radar's {limit:.2f} m unambiguous range c/(2·S·T_s) from {_names(idx)}: its "
+                f"{name} is beyond the radar's {limit:.2f} m unambiguous range c/(2·S·T_s) from {name_list(idx)}: its "
                 f"echo folds back (from {d0:.2f} m to an apparent {d0 - limit:.2f} m for positions[{i0}]) unless "
                 "the IF filter removes it",
                 f"expected in a large hall ('risloc trace' reports how strong the folded echo is); to avoid it keep "

@@ -9,7 +9,7 @@ import numpy as np
 
 from .spec import HallSpec
 
-__all__ = ["Issue", "CheckReport", "RULES", "Level"]
+__all__ = ["Issue", "CheckReport", "RULES", "Level", "format_point", "name_list"]
 
 Level = Literal["error", "warning"]
 
@@ -119,9 +119,34 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def _fmt(p: np.ndarray) -> str:
+def format_point(p: np.ndarray) -> str:
+    """A point or vector for an issue's message: ``"[1.00, -2.50, 0.00]"`` (two decimals, no ``-0.00``).
+
+    Parameters
+    ----------
+    p : float array-like [n]
+        Coordinates, in the unit the message states (positions in m).
+
+    Returns
+    -------
+    str
+    """
     return "[" + ", ".join(f"{v + 0.0:.2f}" for v in np.asarray(p, dtype=float)) + "]"
 
 
-def _names(items: list[str], limit: int = 4) -> str:
+def name_list(items: list[str], limit: int = 4) -> str:
+    """The first ``limit`` names, comma-separated, then ``"and N more"``: ``"a, b, c, d and 2 more"``.
+
+    Parameters
+    ----------
+    items : list of str
+        The names (radar positions, objects), in the order to list them.
+    limit : int, default 4
+        How many to name before counting the rest.
+
+    Returns
+    -------
+    str
+        ``""`` for no items.
+    """
     return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")

@@ -85,7 +85,7 @@ class RisSpec:
         return RisPose(position=np.array(self.position), normal=np.array(self.normal), up=np.array(self.up))
 
     def to_config(self) -> "RisConfig":
-        """The simulator's :class:`risloc_rt.ris.RisConfig`, relay Rx beam toward ``relay_rx_toward``
+        """The simulator's :class:`risloc_rt.model.ris.RisConfig`, relay Rx beam toward ``relay_rx_toward``
         (broadside when ``None``; :func:`risloc_rt.hall.hall_scenario` then points it at the radar)."""
         from ..model.ris import RisConfig
 

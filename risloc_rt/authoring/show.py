@@ -79,7 +79,7 @@ def _resolve(scene: HallSpec | str | Path) -> HallSpec:
 
 
 def path_polylines(traced: Any) -> list[np.ndarray]:
-    """One polyline [K, 3] [m] per path of a :class:`~risloc_rt.traced.TracedPaths`: transmitter,
+    """One polyline [K, 3] [m] per path of a :class:`~risloc_rt.hall.traced.TracedPaths`: transmitter,
     interaction points, receiver (its length is the path's unfolded length, ``c·delay``)."""
     out = []
     for i in range(len(traced)):
@@ -112,7 +112,7 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
         The PNG to write (folders are created).
     radar_index : int, optional
         Radar position to highlight (default: the one ``paths`` was traced from, if any).
-    paths : risloc_rt.hall.HallPaths or risloc_rt.raytrace.TraceResult, optional
+    paths : risloc_rt.hall.HallPaths or risloc_rt.hall.raytrace.TraceResult, optional
         Traced paths of one radar position, drawn as polylines: monostatic echoes in orange, radar →
         RIS legs in green.
     sweep : dsp.BeamSweep, optional

@@ -197,11 +197,11 @@ class HallSpec:
         return out
 
     def ris_configs(self) -> list["RisConfig"]:
-        """Every RIS as a :class:`risloc_rt.ris.RisConfig` (list, spec order)."""
+        """Every RIS as a :class:`risloc_rt.model.ris.RisConfig` (list, spec order)."""
         return [r.to_config() for r in self.ris]
 
     def ris_panels(self) -> list["Plate"]:
-        """Every RIS's plate as a :class:`risloc_rt.plate.Plate` (list, spec order).
+        """Every RIS's plate as a :class:`risloc_rt.model.plate.Plate` (list, spec order).
 
         Metal is a perfect conductor (Γ = -1); other materials get the normal-incidence Fresnel
         coefficient of a half-space, Γ = (1 - √ε_c)/(1 + √ε_c), ε_c = ε_r - jσ/(2π f ε_0).

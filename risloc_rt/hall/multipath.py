@@ -1,6 +1,6 @@
 """Traced paths -> the beat model's PathSet: hall echoes, the RIS loop-back and the panel's reflection.
 
-Pure numpy; the ray tracer hands over :class:`~risloc_rt.traced.TracedPaths`.
+Pure numpy; the ray tracer hands over :class:`~risloc_rt.hall.traced.TracedPaths`.
 
 All gains follow the paper's link budget with the traced one-way coefficients in place of the
 free-space ``λ/(4π d)``: a monostatic path gets ``sqrt(P G_trx g_t g_r) · a``, a RIS loop-back

@@ -1,6 +1,6 @@
 """Ray-traced hall scenarios: trace → paths (hall echoes, RIS loop-back, panel reflection) → pruning.
 
-The only ray-tracing call goes through :mod:`risloc_rt.raytrace` (sionna-rt); everything else
+The only ray-tracing call goes through :mod:`risloc_rt.hall.raytrace` (sionna-rt); everything else
 here is numpy.
 """
 
@@ -101,7 +101,7 @@ def hall_paths(scenario: HallScenario, *, cache: Any = None) -> HallPaths:
     Parameters
     ----------
     scenario : HallScenario
-    cache : risloc_rt.raytrace.TraceCache, optional
+    cache : risloc_rt.hall.raytrace.TraceCache, optional
         Reuse traces keyed on scene content, positions and solver settings.
     """
     from .raytrace.tracer import trace_scene

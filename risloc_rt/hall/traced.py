@@ -1,6 +1,6 @@
 """Ray-traced paths as plain numpy: the boundary between the ray tracer and the signal model.
 
-:mod:`risloc_rt.raytrace` (the only code that imports sionna-rt, mitsuba and drjit) fills these
+:mod:`risloc_rt.hall.raytrace` (the only code that imports sionna-rt, mitsuba and drjit) fills these
 containers; everything downstream (RIS leg pairs, the panel's physical-optics reflection,
 pruning, the beat cube) works on them with numpy only.
 """

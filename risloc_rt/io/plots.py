@@ -124,7 +124,7 @@ def plot_range_profile(
 
 
 def plot_labelled_profile(profile, path: str | os.PathLike[str], *, title: str = "") -> Path:
-    """A :class:`risloc_rt.path_table.LabelledProfile`: range profile with each peak named by its path."""
+    """A :class:`risloc_rt.hall.path_table.LabelledProfile`: range profile with each peak named by its path."""
     db = _dbm(profile.power)
     fig, ax = new_figure(nrows=1, figsize=(10, 5), dpi=110)
     ax.plot(profile.distance, db, color="C0", lw=1)

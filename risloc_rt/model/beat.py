@@ -57,7 +57,7 @@ def beat_cube(
     -------
     complex array [M, K, N]
         ``Y[m, k, n] = Σ_l γ_l r_{m,l} e^{-j2π(S τ_l + f_c ν_l) n T_s} e^{-j2π f_c ν_l k T_c}``
-        [√W], where r_{m,l} is :func:`risloc_rt.ris.ris_response` for RIS paths and 1 otherwise,
+        [√W], where r_{m,l} is :func:`risloc_rt.model.ris.ris_response` for RIS paths and 1 otherwise,
         T_c = ``radar.chirp_interval`` (T for back-to-back chirps), and γ, τ, ν, r those of
         frame m for a :class:`PathFrames`.
 

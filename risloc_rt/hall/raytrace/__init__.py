@@ -2,7 +2,7 @@
 
 It loads Mitsuba XML scenes (:func:`load_scene`), traces a radar pose with one sionna-rt
 ``PathSolver`` call (:func:`trace_scene`), caches traces on disk (:class:`TraceCache`) and hands
-the paths over as numpy (:class:`risloc_rt.traced.TracedPaths`).
+the paths over as numpy (:class:`risloc_rt.hall.traced.TracedPaths`).
 
 Importing this package imports none of the heavy dependencies: the names below are loaded on
 first use, and sionna-rt itself only inside the functions that need it, after

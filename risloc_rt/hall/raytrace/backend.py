@@ -146,7 +146,7 @@ def ensure_backend(prefer: Literal["auto", "llvm", "cuda"] = "auto") -> str:
     """Initialise Dr.Jit and Mitsuba for sionna-rt and return the Mitsuba variant in use.
 
     Call before anything imports ``drjit``, ``mitsuba`` or ``sionna.rt`` (the functions of
-    :mod:`risloc_rt.raytrace` do). Idempotent: the first call decides for the whole process.
+    :mod:`risloc_rt.hall.raytrace` do). Idempotent: the first call decides for the whole process.
 
     Parameters
     ----------
@@ -200,7 +200,7 @@ def ensure_backend(prefer: Literal["auto", "llvm", "cuda"] = "auto") -> str:
         if current not in (_CUDA_VARIANT, _LLVM_VARIANT):
             raise BackendError(
                 f"Mitsuba variant {current!r} is already set in this process; sionna-rt needs "
-                f"{_LLVM_VARIANT!r} or {_CUDA_VARIANT!r}. Call risloc_rt.raytrace.ensure_backend() "
+                f"{_LLVM_VARIANT!r} or {_CUDA_VARIANT!r}. Call risloc_rt.hall.raytrace.ensure_backend() "
                 "before importing mitsuba or sionna.rt."
             )
         variant = current

@@ -81,7 +81,7 @@ def trace_key(
     Parameters
     ----------
     scene_hash : str
-        :func:`risloc_rt.raytrace.scene_content_hash` of the scene.
+        :func:`risloc_rt.hall.raytrace.scene_content_hash` of the scene.
     radar_position : float array [3]
         [m].
     ris_positions : float array [R, 3]

@@ -1,6 +1,6 @@
 """Parameters and result of one ray trace: :class:`TraceSettings` and :class:`TraceResult`.
 
-Kept apart from :mod:`risloc_rt.raytrace.tracer` so that the cache can read and write results
+Kept apart from :mod:`risloc_rt.hall.raytrace.tracer` so that the cache can read and write results
 without importing the tracer (and neither imports sionna-rt at module level).
 """
 
@@ -128,9 +128,9 @@ class TraceResult:
         One per RIS point, in the order given: transmitter at the radar (moving), receiver at the
         RIS point (static): one-way radar → RIS paths.
     scene_hash : str
-        :func:`risloc_rt.raytrace.scene_content_hash` of the traced scene.
+        :func:`risloc_rt.hall.raytrace.scene_content_hash` of the traced scene.
     cache_hit : bool
-        True when the result was read from a :class:`risloc_rt.raytrace.TraceCache`.
+        True when the result was read from a :class:`risloc_rt.hall.raytrace.TraceCache`.
     timing : dict
         Wall-clock seconds of this call: ``hash``, ``cache_read``, ``load`` (0 when the scene was
         already loaded in this process; the first load in a process includes importing sionna-rt,

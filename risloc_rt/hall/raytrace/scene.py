@@ -34,7 +34,7 @@ class LoadedScene:
     ----------
     scene : sionna.rt.Scene
         The loaded scene (``merge_shapes=False``, so every shape is its own object). Mutable:
-        :func:`risloc_rt.raytrace.trace_scene` adds and removes radios on it.
+        :func:`risloc_rt.hall.raytrace.trace_scene` adds and removes radios on it.
     path : str
         Absolute path of the XML file.
     frequency : float

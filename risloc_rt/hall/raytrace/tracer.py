@@ -4,7 +4,7 @@ One ``PathSolver`` call per pose: the transmitter at the radar, and receivers at
 (round-trip, monostatic paths) and at every RIS point (one-way radar → RIS legs). sionna-rt's
 per-receiver tensors are cut down to the valid paths, converted to float64/complex128, mapped from
 the process-local object ids to names, sorted by delay, and returned as
-:class:`~risloc_rt.traced.TracedPaths`.
+:class:`~risloc_rt.hall.traced.TracedPaths`.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def solve_paths(
     Parameters
     ----------
     loaded : LoadedScene
-        From :func:`risloc_rt.raytrace.load_scene`.
+        From :func:`risloc_rt.hall.raytrace.load_scene`.
     radar_position : float array [3]
         World frame [m].
     ris_positions : float array [R, 3]
@@ -319,7 +319,7 @@ def trace_scene(
     SceneError
         The scene cannot be loaded, or a material is undefined at ``frequency``.
     BackendError
-        No usable Dr.Jit backend (see :func:`risloc_rt.raytrace.ensure_backend`).
+        No usable Dr.Jit backend (see :func:`risloc_rt.hall.raytrace.ensure_backend`).
     ValueError, TypeError
         Positions or velocity not finite ``[3]`` / ``[R, 3]``, a RIS point within 1 cm of the
         radar, a bad frequency or settings.
