@@ -5,7 +5,7 @@ Table I (M = 61 beams, K = 128 chirps, N = 600 samples) for the paper's analytic
 without ray tracing), with the radar at rest (every ν = 0) and moving (every path its own ν, as
 a frozen ``PathSet``, and per frame as a ``PathFrames``, ``docs/moving-radar.md``). It reports
 the best of ``--repeat`` timings of :func:`risloc_rt.model.beat.beat_cube` (fresh output, and
-into a reused ``out=``) and of the original ``beat_reference._beat_cube_reference``, their
+into a reused ``out=``) and of the original ``beat_reference.beat_cube_reference``, their
 ratio, and the largest difference between the two cubes relative to Σ_l |γ_l r_{m,l}|; then the
 receiver noise (``add_noise``, 2·M·K·N normals), which the new code only rearranges.
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from dsp import SPEED_OF_LIGHT
 from risloc_rt.model.beat import add_noise, beat_cube
-from risloc_rt.model.beat_reference import _beat_cube_reference
+from risloc_rt.model.beat_reference import beat_cube_reference
 from risloc_rt.model.motion import advance_paths
 from risloc_rt.model.paths import PathFrames, PathSet
 from risloc_rt.model.ris import ris_response
@@ -74,9 +74,9 @@ def run(repeat: int) -> None:
     print("-" * len(header))
     out = np.empty((sweep.num_beams, radar.num_chirps, radar.num_samples), complex)
     for name, paths in cases:
-        old = _beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
+        old = beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
         new = beat_cube(paths, radar=radar, sweep=sweep, ris=ris)
-        t_old = best(lambda: _beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris), repeat)
+        t_old = best(lambda: beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris), repeat)
         t_new = best(lambda: beat_cube(paths, radar=radar, sweep=sweep, ris=ris), repeat)
         t_out = best(lambda: beat_cube(paths, radar=radar, sweep=sweep, ris=ris, out=out), repeat)
         print(f"{name:<32} {len(paths):>3} {t_old:>8.3f} {t_new:>8.3f} {t_out:>13.3f} {t_old / t_new:>7.1f}x "

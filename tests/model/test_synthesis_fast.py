@@ -15,7 +15,7 @@ import pytest
 
 from dsp import SPEED_OF_LIGHT, BeamSweep
 from risloc_rt.model.beat import add_noise, beat_cube
-from risloc_rt.model.beat_reference import _beat_cube_reference
+from risloc_rt.model.beat_reference import beat_cube_reference
 from risloc_rt.model.motion import advance_paths
 from risloc_rt.model.paths import PathSet
 
@@ -52,7 +52,7 @@ def test_long_delays_still_equal_the_rational_reference(make_radar, make_ris):
     for max_range in (20.0, 3000.0):
         paths = _random_paths(rng, 24, 12, max_range=max_range)
         new = beat_cube(paths, radar=radar, sweep=sweep, ris=ris, workers=2)
-        old = _beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
+        old = beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
         scale = np.abs(paths.gain).sum() * ris.num_elements
         assert np.abs(new - old).max() < 1e-12 * scale
 

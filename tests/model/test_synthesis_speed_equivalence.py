@@ -22,7 +22,7 @@ import pytest
 
 from dsp import BeamSweep, RadarConfig
 from risloc_rt.model.beat import add_noise, beat_cube
-from risloc_rt.model.beat_reference import _beat_cube_reference, fraction_cycles
+from risloc_rt.model.beat_reference import beat_cube_reference, fraction_cycles
 from risloc_rt.model.paths import PathFrames, PathSet
 from risloc_rt.model.phase import exact_fractional_cycles
 from risloc_rt.model.ris import ris_response
@@ -107,7 +107,7 @@ def test_fast_cube_equals_the_reference_on_extreme_path_sets(seed, n, n_ris, sha
     sweep = BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 7.5]))
     ris = make_ris()
     new = beat_cube(paths, radar=radar, sweep=sweep, ris=ris)
-    old = _beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
+    old = beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
     scale = path_amplitude_sum(paths, radar, sweep, ris)[:, None, None]
     err = np.abs(new - old) / scale
     assert err.max() < rel_bound(n), f"max |ΔY|/Σ|γr| = {err.max():.3e} (bound {rel_bound(n):.3e})"
@@ -128,7 +128,7 @@ def test_fast_cube_equals_the_reference_for_table1_and_48_hall_like_paths(make_r
         paths = PathSet(gain=gain, delay=tau, delay_rate=nu, ris_incidence=angles, ris_departure=angles,
                         labels=("hall",) * 48)
         new = beat_cube(paths, radar=radar, sweep=sweep, ris=ris)
-        old = _beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
+        old = beat_cube_reference(paths, radar=radar, sweep=sweep, ris=ris)
         err = np.abs(new - old) / path_amplitude_sum(paths, radar, sweep, ris)[:, None, None]
         assert err.max() < rel_bound(48), f"max |ΔY|/Σ|γr| = {err.max():.3e}"
 
@@ -145,7 +145,7 @@ def test_frames_synthesise_each_beam_from_its_own_paths(make_radar, make_ris):
     cube = beat_cube(pf, radar=radar, sweep=sweep, ris=ris)
     for m in range(sweep.num_beams):
         one = BeamSweep(sweep.angles[m:m + 1])
-        ref = _beat_cube_reference(pf.frame(m), radar=radar, sweep=one, ris=ris)[0]
+        ref = beat_cube_reference(pf.frame(m), radar=radar, sweep=one, ris=ris)[0]
         scale = path_amplitude_sum(pf.frame(m), radar, one, ris)[0]
         assert np.abs(cube[m] - ref).max() / scale < rel_bound(12), f"beam {m}"
 
