@@ -5,7 +5,7 @@ The slow-time phase measures ν only modulo ``2 ν_max = 1/(f_c T_c)``: a radar 
 frame, so the RIS return's delay drifts across the sweep at the true rate ν — coarsely, but without
 ambiguity. :func:`delay_drift` measures the delay in each beam that carries the return (fast-time
 DTFT around τ̂ at the estimated ν, parabolic peak) and fits a robust (Theil–Sen) line over the
-beams' frame times ``RadarConfig.beam_times``; :func:`dsp.qualify.sweep_flags` raises ``aliased`` when the drift and
+beams' frame times ``RadarConfig.beam_times``; :func:`dsp.flags.sweep_flags` raises ``aliased`` when the drift and
 the Doppler disagree by more than ν_max (and five standard deviations of the drift). A capture
 simulated with frozen geometry (the paper's eq. (1)) has no drift: there the check cannot see
 velocity aliasing.

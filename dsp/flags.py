@@ -2,16 +2,30 @@
 
 One :class:`Flag` type serves both: a localization's flags (``dsp.Localization.flags``) and a raw
 capture's inspection (``risloc_rt.measured.inspect_capture``, codes in :data:`INSPECTION_CODES`).
+
+The flags of a detected estimate are a registry, as the scene checks' rules are
+(``risloc_rt.authoring.issues.RULES``): each is a small rule over one :class:`FlagContext`,
+registered in :data:`SWEEP_FLAG_RULES` in the order its flag is listed; :func:`sweep_flags` runs
+them all. (``no-detection`` is not a rule: without a detection there is no estimate to qualify.)
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["Flag", "FLAG_CODES", "INSPECTION_CODES", "flag_codes"]
+from .aod_fit import AodFit
+from .detection import Detection
+from .drift import DelayDrift
+from .geometry import RisPose
+from .qualify import is_one_dimensional, position_at
+from .radar import SPEED_OF_LIGHT, RadarConfig
+from .sweep import BeamSweep
+
+__all__ = ["Flag", "FLAG_CODES", "INSPECTION_CODES", "flag_codes", "GRATING_LOBE_DB", "FlagContext", "FlagRule",
+           "SWEEP_FLAG_RULES", "sweep_flags"]
 
 #: Every code a :class:`Flag` may carry, with a one-line meaning (``docs/flags.md``).
 FLAG_CODES: dict[str, str] = {
@@ -74,3 +88,227 @@ def flag_codes(flags: Any) -> tuple[str, ...]:
 
 def _deg(x: float) -> str:
     return f"{np.rad2deg(x):+.2f}°"
+
+
+#: A second lobe of the AoD fit within this many dB of the best raises ``grating-lobe`` [dB].
+GRATING_LOBE_DB = 3.0
+
+
+@dataclass(frozen=True, eq=False)
+class FlagContext:
+    """What the flag rules of a detected estimate read (:func:`dsp.self_localize` fills it).
+
+    Attributes
+    ----------
+    detection : Detection
+        The detector's outcome (``rejected``: stronger returns skipped as clutter).
+    fit : AodFit
+        The beam-pattern fit of the AoD (its ``candidates``: other lobes and their levels [dB]).
+    magnitudes : float array [M]
+        Per-beam magnitude of the return (which beam is strongest) [√W, any common scale].
+    sweep : BeamSweep
+    radar : RadarConfig
+    pose : RisPose
+    delay : float
+        τ̂, corrected for range-Doppler coupling [s].
+    apparent_delay : float
+        The delay the beat frequency alone reads, f₁/(S·T_s) [s] (where it sits in the range window).
+    delay_rate : float
+        ν̂ [s/s].
+    loopback_delay : float
+        τ_RB [s].
+    distance : float
+        d̂ [m].
+    aod : float array [2]
+        ``[az, el]`` [rad], RIS frame (elevation solved when ``height_solved``).
+    unresolved : (float, float) or None
+        The residual test's statistic and threshold [linear] when a second return was found, else None.
+    ue_height : float or None
+        The radar's known height [m], if given.
+    height_solved : bool
+        Whether the elevation was solved from ``ue_height``.
+    height_range : float
+        Height offset from the sweep plane the ``elevation-assumed`` message states the error for [m].
+    drift : DelayDrift or None
+        The delay's drift across the sweep (the unambiguous velocity check), if measured.
+    """
+
+    detection: Detection
+    fit: AodFit
+    magnitudes: np.ndarray
+    sweep: BeamSweep
+    radar: RadarConfig
+    pose: RisPose
+    delay: float
+    apparent_delay: float
+    delay_rate: float
+    loopback_delay: float
+    distance: float
+    aod: np.ndarray
+    unresolved: tuple[float, float] | None
+    ue_height: float | None
+    height_solved: bool
+    height_range: float
+    drift: DelayDrift | None = None
+
+
+#: A rule: the message of its flag for this estimate, or None when the flag is not raised.
+FlagRule = Callable[[FlagContext], "str | None"]
+
+#: The rules of a detected estimate: flag code -> rule, in the order the flags are listed.
+SWEEP_FLAG_RULES: dict[str, FlagRule] = {}
+
+
+def _rule(code: str) -> Callable[[FlagRule], FlagRule]:
+    """Register the decorated function as the rule of ``code`` (after those registered before)."""
+    if code not in FLAG_CODES or code in SWEEP_FLAG_RULES:
+        raise ValueError(f"{code!r} is not a flag code or already has a rule")
+
+    def register(rule: FlagRule) -> FlagRule:
+        SWEEP_FLAG_RULES[code] = rule
+        return rule
+
+    return register
+
+
+def sweep_flags(context: FlagContext) -> tuple[Flag, ...]:
+    """The flags of a detected estimate (``docs/flags.md``), in the order of :data:`SWEEP_FLAG_RULES`.
+
+    Parameters
+    ----------
+    context : FlagContext
+
+    Returns
+    -------
+    tuple of Flag
+    """
+    flags = []
+    for code, rule in SWEEP_FLAG_RULES.items():
+        message = rule(context)
+        if message is not None:
+            flags.append(Flag(code, message))
+    return tuple(flags)
+
+
+@_rule("no-beam-dependence")
+def _clutter_skipped(c: FlagContext) -> str | None:
+    if not c.detection.rejected:
+        return None
+    return (f"{c.detection.rejected} return(s) stronger than the one used crossed the detection threshold "
+            "but do not follow the sweep (clutter, the panel's structure, leakage): they were skipped; "
+            "check that the right return was taken (raise min_range to skip near ones)")
+
+
+@_rule("grating-lobe")
+def _second_lobe(c: FlagContext) -> str | None:
+    fit = c.fit
+    strong = fit.candidates[fit.candidates[:, 1] >= -GRATING_LOBE_DB] if fit.candidates.size else fit.candidates
+    if not strong.size:
+        return None
+    others = ", ".join(f"{_deg(a)} ({lvl:+.1f} dB)" for a, lvl in strong)
+    return (f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(c.aod[0])} and also at {others}; "
+            "a reflective RIS with λ/2 spacing has grating lobes beyond ±17°: use a relay RIS, a narrower "
+            "sweep, or a second sweep/RIS to decide")
+
+
+@_rule("beam-edge")
+def _at_sweep_edge(c: FlagContext) -> str | None:
+    sweep, aod = c.sweep, c.aod
+    az_lo, az_hi = float(sweep.angles[:, 0].min()), float(sweep.angles[:, 0].max())
+    best = int(np.argmax(c.magnitudes))
+    at_edge = best in (0, sweep.num_beams - 1)
+    outside = not (az_lo + 1e-9 < float(aod[0]) < az_hi - 1e-9)
+    if not (is_one_dimensional(sweep) and (at_edge or outside)):
+        return None
+    where = (f"the strongest beam is the {'first' if best == 0 else 'last'} of the sweep "
+             f"(az {_deg(sweep.angles[best, 0])})" if at_edge else
+             f"the AoD az {_deg(aod[0])} lies at or beyond the edge of the swept span "
+             f"[{_deg(az_lo)}, {_deg(az_hi)}]")
+    return (f"{where}: the UE may lie outside the swept span, where the AoD is pulled to the edge or "
+            "taken from a sidelobe; widen the sweep")
+
+
+@_rule("aliased")
+def _maybe_aliased(c: FlagContext) -> str | None:
+    radar, apparent_delay, delay_rate, drift = c.radar, c.apparent_delay, c.delay_rate, c.drift
+    edge = 2.0 * radar.delay_resolution
+    near_wrap = apparent_delay < edge or apparent_delay > radar.max_delay - edge
+    above_if = apparent_delay * radar.slope > radar.if_bandwidth
+    fast_doppler = abs(delay_rate) > 0.9 * radar.max_delay_rate
+    wrapped_doppler = drift is not None and \
+        abs(drift.rate - delay_rate) > max(radar.max_delay_rate, 5.0 * drift.std)
+    if not (near_wrap or above_if or fast_doppler or wrapped_doppler):
+        return None
+    why = []
+    if near_wrap:
+        why.append(f"the return sits within {edge * SPEED_OF_LIGHT / 2 * 100:.1f} cm of the range wrap (0 or "
+                   f"{radar.max_range:.2f} m)")
+    if above_if:
+        why.append(f"its beat frequency {apparent_delay * radar.slope / 1e6:.2f} MHz is above the IF bandwidth "
+                   f"{radar.if_bandwidth / 1e6:.2f} MHz")
+    if fast_doppler:
+        why.append(f"|v| = {abs(delay_rate) * SPEED_OF_LIGHT / 2:.2f} m/s is near the unambiguous "
+                   f"{radar.max_velocity:.2f} m/s")
+    if wrapped_doppler:
+        span = 2 * radar.max_delay_rate
+        unwrapped = delay_rate + span * round((drift.rate - delay_rate) / span)
+        why.append(f"the delay drifts across the sweep at {drift.rate * SPEED_OF_LIGHT / 2:+.2f} m/s "
+                   f"(±{drift.std * SPEED_OF_LIGHT / 2:.2f}) but the Doppler reads "
+                   f"{delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s: the velocity is beyond ±{radar.max_velocity:.2f} m/s "
+                   f"and wrapped, probably {unwrapped * SPEED_OF_LIGHT / 2:+.2f} m/s (shorten the chirp period)")
+    return "; ".join(why) + (f": the true return may lie {radar.max_range:.2f} m (or one velocity "
+                             "span) further; check with a second chirp configuration or the expected geometry")
+
+
+@_rule("unresolved-peaks")
+def _second_return_nearby(c: FlagContext) -> str | None:
+    if c.unresolved is None:
+        return None
+    stat, thr = c.unresolved
+    radar = c.radar
+    return (f"after removing the fitted RIS tone the residual within half a resolution cell is "
+            f"{10 * np.log10(max(stat, 1e-30)):.1f} dB (threshold {10 * np.log10(thr):.1f} dB): a second "
+            f"return lies within {radar.range_resolution * 100:.1f} cm / {radar.velocity_resolution:.2f} m/s "
+            "and biases delay and AoD; move the radar or use more bandwidth/chirps")
+
+
+@_rule("before-ris-delay")
+def _negative_distance(c: FlagContext) -> str | None:
+    if not c.delay < c.loopback_delay:
+        return None
+    return (f"the delay {c.delay * 1e9:.3f} ns is shorter than the RIS loop-back delay τ_RB = "
+            f"{c.loopback_delay * 1e9:.3f} ns: distance {c.distance:+.3f} m is negative and the position "
+            "lies behind the panel; check τ_RB, or the return is the panel's structural reflection "
+            "or an aliased one")
+
+
+@_rule("elevation-assumed")
+def _elevation_not_measured(c: FlagContext) -> str | None:
+    if is_one_dimensional(c.sweep) and c.ue_height is None:
+        return _sweep_plane_assumed(c)
+    if c.ue_height is not None and not c.height_solved:
+        return (f"ue_height={c.ue_height:.3f} m cannot be reached at distance {c.distance:.3f} m along the "
+                f"measured azimuth: the position assumes el {_deg(float(c.aod[1]))}; check the height "
+                "(world z) and the RIS pose")
+    return None
+
+
+def _sweep_plane_assumed(c: FlagContext) -> str:
+    """The ``elevation-assumed`` message of a 1-D sweep without a height, with the error ±height_range makes."""
+    pose, distance, aod, height_range = c.pose, c.distance, c.aod, c.height_range
+    el_assumed = float(aod[1])
+    if distance > 0:
+        u = float(np.cos(el_assumed) * np.sin(aod[0]))
+        base = position_at(pose, distance, float(aod[0]), el_assumed)
+        worst = 0.0
+        for sign in (-1.0, 1.0):
+            el = el_assumed + sign * float(np.arcsin(min(height_range / distance, 1.0)))
+            if abs(u) < np.cos(el):
+                az = float(np.arcsin(u / np.cos(el)))
+                worst = max(worst, float(np.linalg.norm(position_at(pose, distance, az, el) - base)))
+        extra = (f"; a UE ±{height_range:.2f} m off that plane would be misplaced by up to {worst:.3f} m "
+                 f"(mostly vertically)")
+    else:
+        extra = ""
+    return (f"a 1-D sweep cannot see elevation: the position assumes the UE in the sweep plane "
+            f"(el {_deg(el_assumed)}){extra}; give ue_height (the radar's known height) to solve it")

@@ -1,7 +1,9 @@
-"""What qualifies an estimate: its 1σ uncertainty, the flags, a known radar height, the time reference.
+"""What qualifies an estimate: its 1σ uncertainty and a known radar height.
 
-Used by :func:`dsp.self_localize`; the formulas are in ``docs/estimation.md`` and the flags in
-``docs/flags.md``.
+Used by :func:`dsp.self_localize`: :func:`solve_elevation` turns a known height into the elevation
+a 1-D sweep cannot see, :func:`sweep_uncertainty` turns an estimator's 1σ bounds into an
+:class:`Uncertainty` with the position's 1σ. The formulas are in ``docs/estimation.md``; the
+flags are in :mod:`dsp.flags`.
 """
 
 from __future__ import annotations
@@ -13,18 +15,12 @@ import numpy as np
 import scipy.optimize
 
 from .validation import fields_equal
-from .detection import Detection
-from .drift import DelayDrift
-from .flags import Flag
+from .crb import position_std
 from .geometry import RisPose, direction_from_angles
-from .radar import SPEED_OF_LIGHT, RadarConfig
-from .aod_fit import AodFit
 from .sweep import BeamSweep
 
-__all__ = ["Uncertainty", "GRATING_LOBE_DB", "is_one_dimensional", "elevation_for_height", "sweep_flags"]
-
-#: A second lobe of the AoD fit within this many dB of the best raises ``grating-lobe`` [dB].
-GRATING_LOBE_DB = 3.0
+__all__ = ["Uncertainty", "EstimatorBounds", "is_one_dimensional", "position_at", "elevation_for_height",
+           "solve_elevation", "sweep_uncertainty"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,12 +69,37 @@ class Uncertainty:
 
     __hash__ = None  # type: ignore[assignment]
 
+
+@dataclass(frozen=True)
+class EstimatorBounds:
+    """An estimator's 1σ of what it measures directly; :func:`sweep_uncertainty` adds the position's.
+
+    Attributes
+    ----------
+    distance : float
+        [m].
+    velocity : float
+        [m/s].
+    az, el : float
+        [rad]; ``el`` NaN when the sweep cannot see it.
+    kind : str
+        How they were made (:attr:`Uncertainty.kind`).
+    """
+
+    distance: float
+    velocity: float
+    az: float
+    el: float
+    kind: str
+
+
 def is_one_dimensional(sweep: BeamSweep) -> bool:
     """All beams at one elevation: the sweep measures only u = cos(el)·sin(az)."""
     return bool(np.ptp(sweep.angles[:, 1]) < 1e-12)
 
 
-def _position(pose: RisPose, distance: float, az: float, el: float) -> np.ndarray:
+def position_at(pose: RisPose, distance: float, az: float, el: float) -> np.ndarray:
+    """The world position [3] [m] at ``distance`` [m] from the RIS along RIS-frame ``(az, el)`` [rad]."""
     return pose.position + distance * pose.to_world(direction_from_angles(np.array([az, el])))
 
 
@@ -109,7 +130,7 @@ def elevation_for_height(pose: RisPose, distance: float, u: float, height: float
 
     def z(el: float) -> float:
         az = float(np.arcsin(np.clip(u / np.cos(el), -1, 1)))
-        return float(_position(pose, distance, az, el)[2]) - height
+        return float(position_at(pose, distance, az, el)[2]) - height
 
     grid = np.linspace(-el_max, el_max, 181)
     vals = np.array([z(e) for e in grid])
@@ -125,117 +146,78 @@ def elevation_for_height(pose: RisPose, distance: float, u: float, height: float
     return float(np.arcsin(np.clip(u / np.cos(el), -1, 1))), el
 
 
-def _deg(x: float) -> str:
-    return f"{np.rad2deg(x):+.2f}°"
+def solve_elevation(sweep: BeamSweep, pose: RisPose, distance: float, aod: np.ndarray,
+                    height: float | None) -> tuple[np.ndarray, bool]:
+    """The AoD with the elevation a 1-D sweep cannot see solved from the radar's known height.
+
+    Parameters
+    ----------
+    sweep : BeamSweep
+        Only a 1-D sweep (:func:`is_one_dimensional`) has its elevation solved.
+    pose : RisPose
+    distance : float
+        RIS–UE distance [m]; nothing is solved unless it is positive.
+    aod : float array [2]
+        The estimate ``[az, el]`` [rad]; its u = cos(el)·sin(az) is kept.
+    height : float or None
+        World z of the radar [m]; None: nothing to solve.
+
+    Returns
+    -------
+    aod : float array [2]
+        ``[az, el]`` [rad] from :func:`elevation_for_height`, or ``aod`` itself when not solved.
+    solved : bool
+        Whether the elevation was solved.
+    """
+    if is_one_dimensional(sweep) and height is not None and distance > 0:
+        u = float(np.cos(aod[1]) * np.sin(aod[0]))
+        sol = elevation_for_height(pose, distance, u, height, near=float(aod[1]))
+        if sol is not None:
+            return np.array(sol), True
+    return aod, False
 
 
-def sweep_flags(
-    *,
-    detection: Detection,
-    fit: AodFit,
-    magnitudes: np.ndarray,
-    sweep: BeamSweep,
-    radar: RadarConfig,
-    pose: RisPose,
-    delay: float,
-    apparent_delay: float,
-    delay_rate: float,
-    loopback_delay: float,
-    distance: float,
-    aod: np.ndarray,
-    unresolved: tuple[float, float] | None,
-    ue_height: float | None,
-    height_solved: bool,
-    height_range: float,
-    drift: DelayDrift | None = None,
-) -> tuple[Flag, ...]:
-    """The flags of a detected estimate (``docs/flags.md``), in a fixed order."""
-    flags: list[Flag] = []
-    if detection.rejected:
-        flags.append(Flag("no-beam-dependence",
-                          f"{detection.rejected} return(s) stronger than the one used crossed the detection threshold "
-                          "but do not follow the sweep (clutter, the panel's structure, leakage): they were skipped; "
-                          "check that the right return was taken (raise min_range to skip near ones)"))
-    strong = fit.candidates[fit.candidates[:, 1] >= -GRATING_LOBE_DB] if fit.candidates.size else fit.candidates
-    if strong.size:
-        others = ", ".join(f"{_deg(a)} ({lvl:+.1f} dB)" for a, lvl in strong)
-        flags.append(Flag("grating-lobe",
-                          f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(aod[0])} and also at {others}; "
-                          "a reflective RIS with λ/2 spacing has grating lobes beyond ±17°: use a relay RIS, a narrower "
-                          "sweep, or a second sweep/RIS to decide"))
-    az_lo, az_hi = float(sweep.angles[:, 0].min()), float(sweep.angles[:, 0].max())
-    best = int(np.argmax(magnitudes))
-    at_edge = best in (0, sweep.num_beams - 1)
-    outside = not (az_lo + 1e-9 < float(aod[0]) < az_hi - 1e-9)
-    if is_one_dimensional(sweep) and (at_edge or outside):
-        where = (f"the strongest beam is the {'first' if best == 0 else 'last'} of the sweep "
-                 f"(az {_deg(sweep.angles[best, 0])})" if at_edge else
-                 f"the AoD az {_deg(aod[0])} lies at or beyond the edge of the swept span "
-                 f"[{_deg(az_lo)}, {_deg(az_hi)}]")
-        flags.append(Flag("beam-edge",
-                          f"{where}: the UE may lie outside the swept span, where the AoD is pulled to the edge or "
-                          "taken from a sidelobe; widen the sweep"))
-    edge = 2.0 * radar.delay_resolution
-    near_wrap = apparent_delay < edge or apparent_delay > radar.max_delay - edge
-    above_if = apparent_delay * radar.slope > radar.if_bandwidth
-    fast_doppler = abs(delay_rate) > 0.9 * radar.max_delay_rate
-    wrapped_doppler = drift is not None and \
-        abs(drift.rate - delay_rate) > max(radar.max_delay_rate, 5.0 * drift.std)
-    if near_wrap or above_if or fast_doppler or wrapped_doppler:
-        why = []
-        if near_wrap:
-            why.append(f"the return sits within {edge * SPEED_OF_LIGHT / 2 * 100:.1f} cm of the range wrap (0 or "
-                       f"{radar.max_range:.2f} m)")
-        if above_if:
-            why.append(f"its beat frequency {apparent_delay * radar.slope / 1e6:.2f} MHz is above the IF bandwidth "
-                       f"{radar.if_bandwidth / 1e6:.2f} MHz")
-        if fast_doppler:
-            why.append(f"|v| = {abs(delay_rate) * SPEED_OF_LIGHT / 2:.2f} m/s is near the unambiguous "
-                       f"{radar.max_velocity:.2f} m/s")
-        if wrapped_doppler:
-            span = 2 * radar.max_delay_rate
-            unwrapped = delay_rate + span * round((drift.rate - delay_rate) / span)
-            why.append(f"the delay drifts across the sweep at {drift.rate * SPEED_OF_LIGHT / 2:+.2f} m/s "
-                       f"(±{drift.std * SPEED_OF_LIGHT / 2:.2f}) but the Doppler reads "
-                       f"{delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s: the velocity is beyond ±{radar.max_velocity:.2f} m/s "
-                       f"and wrapped, probably {unwrapped * SPEED_OF_LIGHT / 2:+.2f} m/s (shorten the chirp period)")
-        flags.append(Flag("aliased",
-                          "; ".join(why) + f": the true return may lie {radar.max_range:.2f} m (or one velocity "
-                          "span) further; check with a second chirp configuration or the expected geometry"))
-    if unresolved is not None:
-        stat, thr = unresolved
-        flags.append(Flag("unresolved-peaks",
-                          f"after removing the fitted RIS tone the residual within half a resolution cell is "
-                          f"{10 * np.log10(max(stat, 1e-30)):.1f} dB (threshold {10 * np.log10(thr):.1f} dB): a second "
-                          f"return lies within {radar.range_resolution * 100:.1f} cm / {radar.velocity_resolution:.2f} m/s "
-                          "and biases delay and AoD; move the radar or use more bandwidth/chirps"))
-    if delay < loopback_delay:
-        flags.append(Flag("before-ris-delay",
-                          f"the delay {delay * 1e9:.3f} ns is shorter than the RIS loop-back delay τ_RB = "
-                          f"{loopback_delay * 1e9:.3f} ns: distance {distance:+.3f} m is negative and the position "
-                          "lies behind the panel; check τ_RB, or the return is the panel's structural reflection "
-                          "or an aliased one"))
-    if is_one_dimensional(sweep) and ue_height is None:
-        el_assumed = float(aod[1])
-        if distance > 0:
-            u = float(np.cos(el_assumed) * np.sin(aod[0]))
-            base = _position(pose, distance, float(aod[0]), el_assumed)
-            worst = 0.0
-            for sign in (-1.0, 1.0):
-                el = el_assumed + sign * float(np.arcsin(min(height_range / distance, 1.0)))
-                if abs(u) < np.cos(el):
-                    az = float(np.arcsin(u / np.cos(el)))
-                    worst = max(worst, float(np.linalg.norm(_position(pose, distance, az, el) - base)))
-            extra = (f"; a UE ±{height_range:.2f} m off that plane would be misplaced by up to {worst:.3f} m "
-                     f"(mostly vertically)")
-        else:
-            extra = ""
-        flags.append(Flag("elevation-assumed",
-                          f"a 1-D sweep cannot see elevation: the position assumes the UE in the sweep plane "
-                          f"(el {_deg(el_assumed)}){extra}; give ue_height (the radar's known height) to solve it"))
-    elif ue_height is not None and not height_solved:
-        flags.append(Flag("elevation-assumed",
-                          f"ue_height={ue_height:.3f} m cannot be reached at distance {distance:.3f} m along the "
-                          f"measured azimuth: the position assumes el {_deg(float(aod[1]))}; check the height "
-                          "(world z) and the RIS pose"))
-    return tuple(flags)
+def sweep_uncertainty(pose: RisPose, aod: np.ndarray, distance: float, bounds: EstimatorBounds, *,
+                      peak_snr: float, solved_height: float | None = None) -> Uncertainty:
+    """An estimator's 1σ of distance, velocity and AoD, with the position's 1σ propagated from them.
+
+    Parameters
+    ----------
+    pose : RisPose
+    aod : float array [2]
+        The estimate ``[az, el]`` [rad] (after :func:`solve_elevation`).
+    distance : float
+        The estimated RIS–UE distance [m].
+    bounds : EstimatorBounds
+        The estimator's 1σ of distance [m], velocity [m/s], azimuth and elevation [rad].
+    peak_snr : float
+        The measured post-integration SNR at the pattern peak [linear].
+    solved_height : float or None
+        The radar's height [m] when the elevation was solved from it: the position then moves
+        along u = cos(el)·sin(az) and the elevation's 1σ follows from the distance's and u's.
+
+    Returns
+    -------
+    Uncertainty
+    """
+    sd_distance, sd_az, sd_el = bounds.distance, bounds.az, bounds.el
+    if solved_height is not None:
+        u0 = float(np.cos(aod[1]) * np.sin(aod[0]))
+        sd_u = sd_az * abs(np.cos(aod[0]) * np.cos(aod[1]))
+
+        def locate(p: np.ndarray) -> np.ndarray:
+            s = elevation_for_height(pose, p[0], p[1], solved_height, near=float(aod[1]))
+            a = s if s is not None else (float(aod[0]), float(aod[1]))
+            return pose.position + p[0] * pose.to_world(direction_from_angles(np.array(a)))
+
+        pos_sd = position_std(locate, [distance, u0], [sd_distance, sd_u])
+        el_sd = float(np.linalg.norm(position_std(lambda p: np.array([elevation_for_height(
+            pose, p[0], p[1], solved_height, near=float(aod[1]))[1], 0, 0]), [distance, u0], [sd_distance, sd_u])))
+        aod_sd = np.array([sd_az, el_sd])
+    else:
+        pos_sd = position_std(
+            lambda p: pose.position + p[0] * pose.to_world(direction_from_angles(p[1:3])),
+            [distance, aod[0], aod[1]], [sd_distance, sd_az, sd_el])
+        aod_sd = np.array([sd_az, sd_el])
+    return Uncertainty(distance=sd_distance, velocity=bounds.velocity, aod=aod_sd, position=pos_sd,
+                       peak_snr_db=float(10 * np.log10(peak_snr)), kind=bounds.kind)

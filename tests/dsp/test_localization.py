@@ -247,3 +247,62 @@ def test_localize_applies_the_position_formula(make_radar):
     np.testing.assert_allclose(loc.position, expected, atol=1e-12)
     np.testing.assert_allclose(pose.angles_to(loc.position), angles[1], atol=1e-12)
     assert loc.velocity == pytest.approx(nu * C / 2, rel=1e-12)
+
+
+# ------------------------------------------------------------------------------ the flag rules, one cause at a time
+def _quiet_context():
+    """A detected estimate with no flag's cause: a 2-D sweep (elevation seen), the strongest beam inside
+    it, no second lobe, the return mid-range at rest, after τ_RB, no second return, no skipped clutter."""
+    from dsp.aod_fit import AodFit
+    from dsp.detection import Detection
+    from dsp.flags import FlagContext
+
+    radar = RadarConfig(num_samples=64, num_chirps=16)
+    grid = np.deg2rad([[az, el] for az in (-12.0, -6.0, 0.0, 6.0, 12.0) for el in (-6.0, 0.0, 6.0)])
+    sweep = BeamSweep(grid)
+    aod = np.deg2rad([1.0, 0.5])
+    magnitudes = np.ones(sweep.num_beams)
+    magnitudes[7] = 5.0  # the beam at (0°, 0°)
+    return FlagContext(
+        detection=Detection(True, 30.0, 15.0, 1e-3), fit=AodFit(aod=aod, direction_cosine=float(np.sin(aod[0])),
+                                                               amplitude=1.0, candidates=np.zeros((0, 2))),
+        magnitudes=magnitudes, sweep=sweep, radar=radar, pose=RisPose.facing([0.0, 8.0, 1.5], [0.0, 0.0, 1.5]),
+        delay=2 * 6.0 / C + 1.78e-9, apparent_delay=0.5 * radar.max_delay, delay_rate=0.0, loopback_delay=1.78e-9,
+        distance=6.0, aod=aod, unresolved=None, ue_height=None, height_solved=False, height_range=1.0)
+
+
+def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
+    from dsp.aod_fit import AodFit
+    from dsp.detection import Detection
+    from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
+
+    assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
+                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed"]
+    quiet = _quiet_context()
+    assert sweep_flags(quiet) == ()
+    one_d = BeamSweep.azimuth_grid(*np.deg2rad([-12.0, 12.0, 3.0]))  # 9 beams at el 0
+    edge_mags = np.r_[5.0, np.ones(8)]
+    lobe = AodFit(aod=quiet.aod, direction_cosine=quiet.fit.direction_cosine, amplitude=1.0,
+                  candidates=np.array([[np.deg2rad(-30.0), -(GRATING_LOBE_DB - 0.5)]]))
+    causes = {
+        "no-beam-dependence": dict(detection=Detection(True, 30.0, 15.0, 1e-3, rejected=2)),
+        "grating-lobe": dict(fit=lobe),
+        # a 1-D sweep whose first beam is the strongest, the elevation solved from a known height
+        "beam-edge": dict(sweep=one_d, magnitudes=edge_mags, aod=np.deg2rad([-12.0, 0.0]), ue_height=1.5,
+                          height_solved=True),
+        "aliased": dict(apparent_delay=0.5 * quiet.radar.delay_resolution),  # within two cells of the wrap
+        "unresolved-peaks": dict(unresolved=(100.0, 10.0)),
+        "before-ris-delay": dict(delay=0.5 * quiet.loopback_delay, distance=-0.5 * quiet.loopback_delay * C / 2),
+        "elevation-assumed": dict(sweep=one_d, magnitudes=np.r_[np.ones(4), 5.0, np.ones(4)],
+                                  aod=np.deg2rad([1.0, 0.0])),
+    }
+    for code, change in causes.items():
+        assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **change))] == [code], code
+    # a lobe 3.5 dB down is below the grating-lobe threshold
+    weak = AodFit(aod=quiet.aod, direction_cosine=quiet.fit.direction_cosine, amplitude=1.0,
+                  candidates=np.array([[np.deg2rad(-30.0), -(GRATING_LOBE_DB + 0.5)]]))
+    assert sweep_flags(dataclasses.replace(quiet, fit=weak)) == ()
+    # every cause at once: every flag, in the registry's order
+    everything = {k: v for change in causes.values() for k, v in change.items()}
+    everything.update(magnitudes=edge_mags, aod=np.deg2rad([-12.0, 0.0]), ue_height=None, height_solved=False)
+    assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **everything))] == list(SWEEP_FLAG_RULES)
