@@ -28,7 +28,7 @@ import dsp
 from risloc_rt.io.report import process_capture
 from risloc_rt.model import simulate
 from risloc_rt.model.beat import add_noise
-from risloc_rt.studies.kernel import _analytic, prepare_point, run_once, run_rng
+from risloc_rt.studies.kernel import point_scenario, prepare_point, run_once, run_rng
 from risloc_rt.studies.params import complete_point
 
 GOAL = 0.1  # core-seconds per run
@@ -106,7 +106,7 @@ def main() -> None:
                       f"{parts['noise']:6.3f} {parts['detect']:6.3f} {parts['grid']:6.3f} {rest:6.3f} "
                       f"{len(det) / len(rows):4.2f} {mae_p:10.3f} {mae_d:9.3f} {fig:13.1f} min {per_run / GOAL:6.1f}x")
                 if args.naive:
-                    scenario = _analytic(params, structure=True)
+                    scenario = point_scenario(params, structure=True)
                     t_naive = []
                     for r in range(args.runs):
                         t = time.perf_counter()

@@ -137,6 +137,33 @@ def integer(value: Any, name: str, *, minimum: int | None = None, maximum: int |
     return int(value)
 
 
+def interval(value: Any, name: str, unit: str, *, low: float, high: float, closed: str = "neither",
+             error: type[Exception] | None = None) -> float:
+    """``value`` as a float inside the interval from ``low`` to ``high`` [``unit``].
+
+    ``closed`` says which ends belong to it: ``"neither"`` (low, high), ``"low"`` [low, high),
+    ``"high"`` (low, high] or ``"both"`` [low, high]. Errors as :func:`positive`.
+    """
+    if closed not in ("neither", "low", "high", "both"):
+        raise ValueError(f"closed={closed!r} must be 'neither', 'low', 'high' or 'both'")
+    v = _number(value, name, unit, error)
+    above = v >= low if closed in ("low", "both") else v > low
+    below = v <= high if closed in ("high", "both") else v < high
+    if not (np.isfinite(v) and above and below):
+        left = "[" if closed in ("low", "both") else "("
+        right = "]" if closed in ("high", "both") else ")"
+        raise (error or ValueError)(f"{name}={value!r} must lie in {left}{low:g}, {high:g}{right}"
+                                    + (f" [{unit}]" if unit else ""))
+    return v
+
+
+def one_of(value: Any, name: str, choices: Any, *, error: type[Exception] | None = None) -> Any:
+    """``value`` itself when it is one of ``choices``, else :class:`ValueError` (or ``error``) listing them."""
+    if value not in tuple(choices):
+        raise (error or ValueError)(f"{name}={value!r} must be one of {', '.join(map(str, choices))}")
+    return value
+
+
 def positive_int(value: Any, name: str, *, error: type[Exception] | None = None) -> int:
     """``value`` as an int >= 1 (:func:`integer` with ``minimum=1``)."""
     return integer(value, name, minimum=1, error=error)

@@ -9,6 +9,24 @@
     6  risloc_rt.cli
 
 Every ``import`` and ``from ... import`` of every module counts, at top level or inside a function.
+
+Within the floors, no import cycle: :func:`import_cycles` builds the module-level import graph of
+every module of ``dsp`` and ``risloc_rt`` and reports each strongly connected component of more
+than one module (with the file and line of every import on one of its cycles). What an edge is:
+
+- ``import a.b.c`` is an edge to ``a.b.c``; ``from pkg import name`` to ``pkg.name`` when that is a
+  module (a submodule imported by name), else to ``pkg`` (a name ``pkg/__init__.py`` defines or
+  re-exports); relative imports are resolved; top-level and function-level imports count alike
+  (a function-level import still ties the two modules together: it only defers the failure).
+- The packages Python initialises on the way (``a`` and ``a.b`` for ``import a.b.c``) are *not*
+  edges. A package whose ``__init__`` re-exports its submodules imports each of them, and each
+  submodule's own imports pass through that package: counting those implicit steps would make
+  every re-exporting ``__init__`` a cycle with each of its submodules, a cycle Python resolves by
+  design (the half-initialised package is already in ``sys.modules`` while its submodule loads).
+- An explicit import of a package itself (``from . import name``, ``from .. import __version__``)
+  *is* an edge to its ``__init__``: that ``__init__`` must have run up to ``name`` first, so a
+  submodule importing its own package's re-export while that ``__init__`` imports the submodule is
+  a real cycle (an ImportError or a half-defined name, depending on who is imported first).
 """
 
 from __future__ import annotations
@@ -56,6 +74,11 @@ def _module_name(path: Path) -> str:
     if parts[-1] == "__init__":
         parts = parts[:-1]
     return ".".join(parts)
+
+
+def _module_names() -> dict[str, Path]:
+    """Every module of ``dsp`` and ``risloc_rt``: its dotted name -> its file."""
+    return {_module_name(p): p for p in _source_files()}
 
 
 def _imports(path: Path) -> list[tuple[int, str]]:
@@ -113,6 +136,100 @@ def layering_violations() -> list[str]:
     return bad
 
 
+def import_graph() -> dict[str, dict[str, tuple[Path, int]]]:
+    """module -> {imported module: (file, line of its first import)} over ``dsp`` and ``risloc_rt`` (module docstring)."""
+    modules = _module_names()
+    graph: dict[str, dict[str, tuple[Path, int]]] = {name: {} for name in modules}
+    for name, path in modules.items():
+        for line, target in sorted(_imports(path)):
+            if target not in modules:  # ``from pkg import name``: the name is pkg's, not a submodule
+                target = target.rpartition(".")[0]
+            if target in modules and target != name:
+                graph[name].setdefault(target, (path, line))
+    return graph
+
+
+def strongly_connected(graph: dict[str, dict[str, object]]) -> list[list[str]]:
+    """Tarjan's strongly connected components of ``graph`` (an iterative DFS: no recursion limit)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        work = [(root, iter(sorted(graph[root])))]
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph[child]))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                out.append(sorted(component))
+    return out
+
+
+def _one_cycle(graph: dict[str, dict[str, tuple[Path, int]]], component: list[str]) -> list[str]:
+    """A shortest cycle through the first module of ``component``, staying inside it: [m0, m1, ..., m0]."""
+    inside = set(component)
+    start = component[0]
+    previous: dict[str, str] = {}
+    frontier = [start]
+    while frontier:
+        following = []
+        for node in frontier:
+            for child in sorted(graph[node]):
+                if child == start:
+                    path = [start]
+                    while node != start:
+                        path.append(node)
+                        node = previous[node]
+                    return [start, *reversed(path[1:]), start]
+                if child in inside and child not in previous:
+                    previous[child] = node
+                    following.append(child)
+        frontier = following
+    raise AssertionError(f"{component} is not strongly connected")  # pragma: no cover
+
+
+def import_cycles() -> list[str]:
+    """One line per import cycle: its modules, and the file:line of every import around one cycle."""
+    graph = import_graph()
+    found = []
+    for component in strongly_connected(graph):
+        if len(component) < 2:
+            continue
+        cycle = _one_cycle(graph, component)
+        steps = []
+        for a, b in zip(cycle, cycle[1:]):
+            path, line = graph[a][b]
+            steps.append(f"{path.relative_to(REPO)}:{line} imports {b}")
+        found.append(f"import cycle among {', '.join(component)}: " + "; ".join(steps))
+    return found
+
+
 def test_imports_point_down():
     assert layering_violations() == []
 
@@ -127,6 +244,45 @@ def test_the_checker_catches_an_upward_import(tmp_path, monkeypatch):
         fake.unlink()
     assert found == ["risloc_rt/model/_layering_probe.py:1 imports risloc_rt.cli.main (floor 6, risloc_rt.cli) "
                      "from floor 1 (risloc_rt.model): imports must point down"]
+
+
+def test_no_import_cycles():
+    assert import_cycles() == []
+
+
+def test_the_cycle_checker_catches_a_planted_cycle():
+    """Two probe modules importing each other (one at top level, one inside a function) are one
+    cycle, reported with both files and lines; a third that only imports one of them is not in it."""
+    folder = REPO / "risloc_rt" / "model"
+    files = {"_cycle_probe_a.py": "from . import _cycle_probe_b\n",
+             "_cycle_probe_b.py": "import numpy\n\n\ndef f():\n    from ._cycle_probe_a import x\n",
+             "_cycle_probe_c.py": "from ._cycle_probe_a import y\n"}
+    before = import_cycles()
+    for name, text in files.items():
+        (folder / name).write_text(text)
+    try:
+        found = [c for c in import_cycles() if c not in before]
+    finally:
+        for name in files:
+            (folder / name).unlink()
+    assert found == ["import cycle among risloc_rt.model._cycle_probe_a, risloc_rt.model._cycle_probe_b: "
+                     "risloc_rt/model/_cycle_probe_a.py:1 imports risloc_rt.model._cycle_probe_b; "
+                     "risloc_rt/model/_cycle_probe_b.py:5 imports risloc_rt.model._cycle_probe_a"]
+
+
+def test_a_package_reexporting_its_submodules_is_no_cycle_but_importing_its_own_reexport_is():
+    """``pkg/__init__`` importing ``pkg.mod`` is no cycle by itself (Python resolves the implicit
+    parent step); ``pkg.mod`` doing ``from . import name`` (a name of ``pkg/__init__``) closes one."""
+    graph = {"p": {"p.a": (REPO / "p" / "__init__.py", 1)}, "p.a": {}}
+    assert [c for c in strongly_connected(graph) if len(c) > 1] == []
+    graph["p.a"]["p"] = (REPO / "p" / "a.py", 3)
+    assert [c for c in strongly_connected(graph) if len(c) > 1] == [["p", "p.a"]]
+
+
+def test_tarjan_finds_every_component_of_a_known_graph():
+    """Two cycles joined by a one-way edge stay two components; a chain adds singletons."""
+    graph = {"a": {"b": 0}, "b": {"c": 0}, "c": {"a": 0, "d": 0}, "d": {"e": 0}, "e": {"d": 0, "f": 0}, "f": {}}
+    assert sorted(strongly_connected(graph)) == [["a", "b", "c"], ["d", "e"], ["f"]]
 
 
 @pytest.mark.parametrize("package", sorted(p for p in FLOORS if p.count(".") == 1 and not p.endswith("__main__")

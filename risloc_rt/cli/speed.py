@@ -1,217 +1,25 @@
 """``risloc speed``: speed against error of every estimator and trace setting, measured in one run.
 
-For every example hall (``scenes/*``) and radar position it traces the hall with a grid of
-ray-tracer settings (depth, rays per source, and the mechanisms beyond specular reflection:
-diffuse reflection, diffraction, refraction), synthesises noisy Table I captures with the same
-noise realizations for every setting, and localizes each with every estimator: the paper's grid
-method with its full 2-D DFT (``full``, the reference: the paper's current method), the same grid
-maximum found by the screened zoom search (``zoom``), and the refined estimator (``refined``). It
-prints time per realization beside the model error and the position RMSE against the Cramér–Rao
-bound, as ratios against the paper's full-grid method, says per hall which mechanisms change the
-localization and which only cost time, and draws the trade-off (``--plot``).
+A thin verb over :mod:`risloc_rt.studies.speed`: it prints the study's table (times beside the
+model error and the position RMSE against the Cramér–Rao bound, ratios against the paper's
+full-grid method) and the mechanism verdicts, and writes the rows as JSON (``--json``) and the
+trade-off figure (``--plot``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import time
-import warnings
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-__all__ = ["add_parser", "run_study", "TRACE_GRID"]
-
-#: (label, TraceSettings overrides). The first is the default; "ref" is the model reference.
-TRACE_GRID: tuple[tuple[str, dict[str, Any]], ...] = (
-    ("d3 1e5 (default)", {}),
-    ("d1 1e4", {"max_depth": 1, "samples_per_src": 10_000}),
-    ("d2 1e4", {"max_depth": 2, "samples_per_src": 10_000}),
-    ("d3 1e4", {"max_depth": 3, "samples_per_src": 10_000}),
-    ("d4 1e5", {"max_depth": 4, "samples_per_src": 100_000}),
-    ("d3 1e6", {"max_depth": 3, "samples_per_src": 1_000_000}),
-    ("+diffuse S=0.3", {"diffuse_reflection": True, "scattering_coefficient": 0.3}),
-    ("+diffraction", {"diffraction": True}),
-    ("+refraction", {"refraction": True}),
-    ("+all three", {"diffuse_reflection": True, "scattering_coefficient": 0.3, "diffraction": True,
-                    "refraction": True}),
-)
-REFERENCE = {"max_depth": 4, "samples_per_src": 1_000_000}
-#: Estimators: (label, ProcessingConfig.doppler_search, estimator).
-#: The paper's two are timed as ``dsp.localize(dsp.scan_beams(...))``; the refined one as ``process_capture``
-#: (detection, refinement, uncertainty and flags included). Its 1σ (PEB) is the CRB of every row.
-ESTIMATORS = (("full", "full", "paper"), ("zoom", "zoom", "paper"), ("refined", "zoom", "refined"))
-
-
-@dataclass
-class Row:
-    """One (scene, trace setting, estimator) cell of the study."""
-
-    scene: str
-    setting: str
-    estimator: str
-    trace_s: list[float] = field(default_factory=list)
-    paths: list[int] = field(default_factory=list)
-    model_db: list[float] = field(default_factory=list)
-    synth_s: list[float] = field(default_factory=list)
-    dsp_s: list[float] = field(default_factory=list)
-    err: list[float] = field(default_factory=list)
-    peb: list[float] = field(default_factory=list)
-    shift: list[float] = field(default_factory=list)  # |Δ position| against the default setting [m]
-
-    def summary(self) -> dict[str, Any]:
-        med = lambda x: float(np.median(x)) if x else float("nan")  # noqa: E731
-        rmse = float(np.sqrt(np.mean(np.square(self.err)))) if self.err else float("nan")
-        peb = float(np.sqrt(np.mean(np.square(self.peb)))) if self.peb else float("nan")
-        return {"scene": self.scene, "setting": self.setting, "estimator": self.estimator,
-                "n": len(self.err), "trace_s": med(self.trace_s), "paths": med(self.paths),
-                "model_error_db": med(self.model_db), "synthesis_s": med(self.synth_s), "dsp_s": med(self.dsp_s),
-                "rmse_m": rmse, "peb_m": peb, "rmse_over_crb": rmse / peb if peb > 0 else float("nan"),
-                "max_shift_m": float(np.max(self.shift)) if self.shift else float("nan")}
-
-
-def _model_error_db(cube: np.ndarray, ref: np.ndarray) -> float:
-    diff = np.linalg.norm(cube - ref)
-    return float("-inf") if diff == 0 else float(20 * np.log10(diff / np.linalg.norm(ref)))
-
-
-def _trace(scene: str, position: int, overrides: dict[str, Any]):
-    """(HallScenario, HallPaths, warm trace seconds): traced twice, the second time timed."""
-    from ..hall.raytrace.result import TraceSettings
-    from ..hall.scenario import hall_paths, hall_scenario
-    from ..hall.pruning import AliasWarning
-
-    hs = hall_scenario(scene, radar_index=position, trace=TraceSettings(**overrides))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", AliasWarning)
-        hall_paths(hs)  # compiles the solver kernels for this setting (once per machine) and loads the scene
-        hp = hall_paths(hs)
-    return hs, hp, hp.trace.timing["solve"]
-
-
-def run_study(scenes: list[str], *, realizations: int, full: int, seed: int, positions: int,
-              grid: tuple[tuple[str, dict[str, Any]], ...] = TRACE_GRID, log=print) -> list[dict[str, Any]]:
-    """Run the study; returns one summary dict per (scene, setting, estimator) (see :class:`Row`)."""
-    import dsp
-
-    from ..authoring.scene_folder import scene_directory
-    from ..authoring.spec import load_spec
-    from ..io.report import process_capture
-    from ..model.beat import beat_cube
-    from ..model.simulate import simulate
-
-    rows: dict[tuple[str, str, str], Row] = {}
-    for scene in scenes:
-        n_pos = min(positions, len(load_spec(scene_directory(scene) / "spec.toml").radar_positions()))
-        for pos in range(n_pos):
-            _, ref_paths, _ = _trace(scene, pos, REFERENCE)
-            base_positions: dict[tuple[str, int], np.ndarray] = {}
-            for label, overrides in grid:
-                hs, hp, t_trace = _trace(scene, pos, overrides)
-                sc = hs.base
-                ref = beat_cube(ref_paths.paths, radar=sc.radar, sweep=sc.sweep, ris=sc.ris)
-                clean = beat_cube(hp.paths, radar=sc.radar, sweep=sc.sweep, ris=sc.ris)
-                model_db = _model_error_db(clean, ref)
-                log(f"  {scene} radar {pos} {label}: {len(hp.paths)} paths kept of {len(hp.candidates)}, "
-                    f"warm trace {t_trace:.3f} s, model error {model_db:.1f} dB")
-                streams = np.random.SeedSequence([seed, pos, sum(map(ord, scene))]).spawn(realizations)
-                for r, ss in enumerate(streams):
-                    t0 = time.perf_counter()
-                    cap = simulate(sc, rng=np.random.default_rng(ss), paths=hp.paths, noise_stream="fast")
-                    t_synth = time.perf_counter() - t0
-                    refined, t_ref = process_capture(cap, estimator="refined")
-                    peb = float(refined.std.peb) if refined.std is not None else float("nan")
-                    for est, search, _ in ESTIMATORS:
-                        if est == "full" and (label != grid[0][0] or r >= full):
-                            continue
-                        if est == "refined":
-                            loc, t_dsp = refined, t_ref
-                        else:  # the paper's method exactly: localize(scan_beams(cube))
-                            t0 = time.perf_counter()
-                            loc = dsp.localize(dsp.scan_beams(cap.cube, cap.sweep, cap.radar,
-                                                              replace(sc.processing, doppler_search=search)),
-                                               radar=cap.radar, pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay)
-                            t_dsp = time.perf_counter() - t0
-                        row = rows.setdefault((scene, label, est), Row(scene, label, est))
-                        row.trace_s.append(t_trace)
-                        row.paths.append(len(hp.paths))
-                        row.model_db.append(model_db)
-                        row.synth_s.append(t_synth)
-                        row.dsp_s.append(t_dsp)
-                        row.err.append(float(np.linalg.norm(loc.position - sc.truth.ue_position)))
-                        row.peb.append(peb)
-                        key = (est, r)
-                        if label == grid[0][0]:
-                            base_positions[key] = loc.position
-                        elif key in base_positions:
-                            row.shift.append(float(np.linalg.norm(loc.position - base_positions[key])))
-    return [row.summary() for row in rows.values()]
-
-
-def format_table(summaries: list[dict[str, Any]]) -> str:
-    """The study as a Markdown table, with ratios against the paper's full-grid method per scene."""
-    lines = ["| scene | trace setting | estimator | n | warm trace [s] | kept paths | model error [dB] | "
-             "synthesis [s] | DSP [s] | time / full | position RMSE [mm] | RMSE/CRB | RMSE / full | "
-             "max shift vs default [mm] |", "|" + " --- |" * 14]
-    for s in summaries:
-        full = next((x for x in summaries if x["scene"] == s["scene"] and x["estimator"] == "full"), None)
-        per_real = s["synthesis_s"] + s["dsp_s"]
-        t_ratio = per_real / (full["synthesis_s"] + full["dsp_s"]) if full else float("nan")
-        e_ratio = s["rmse_m"] / full["rmse_m"] if full and full["rmse_m"] > 0 else float("nan")
-        model = "reference" if s["model_error_db"] == float("-inf") else f"{s['model_error_db']:.1f}"
-        shift = "–" if np.isnan(s["max_shift_m"]) else f"{1e3 * s['max_shift_m']:.2f}"
-        lines.append(f"| {s['scene']} | {s['setting']} | {s['estimator']} | {s['n']} | {s['trace_s']:.3f} | "
-                     f"{s['paths']:.0f} | {model} | {s['synthesis_s']:.3f} | {s['dsp_s']:.3f} | {t_ratio:.3f} | "
-                     f"{1e3 * s['rmse_m']:.2f} | {s['rmse_over_crb']:.2f} | {e_ratio:.2f} | {shift} |")
-    return "\n".join(lines)
-
-
-def mechanism_verdicts(summaries: list[dict[str, Any]]) -> list[str]:
-    """Per scene and mechanism: does it move the refined estimate by more than 10 % of its 1σ?"""
-    out = []
-    for s in summaries:
-        if s["estimator"] != "refined" or not s["setting"].startswith("+"):
-            continue
-        moved = s["max_shift_m"] > 0.1 * s["peb_m"]
-        out.append(f"{s['scene']}: {s['setting']} {'changes the localization' if moved else 'only costs time'} "
-                   f"(largest shift {1e3 * s['max_shift_m']:.2f} mm against 1σ = {1e3 * s['peb_m']:.2f} mm; "
-                   f"model change {s['model_error_db']:.1f} dB; warm trace {s['trace_s']:.2f} s)")
-    return out
-
-
-def plot_tradeoff(summaries: list[dict[str, Any]], path: Path) -> Path:
-    """Two panels: trace time against model error per setting; time per realization against RMSE."""
-    from ..io.plots import _pyplot, _save
-
-    plt = _pyplot()
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.8))
-    scenes = sorted({s["scene"] for s in summaries})
-    for i, scene in enumerate(scenes):
-        colour = f"C{i}"
-        trace = [s for s in summaries if s["scene"] == scene and s["estimator"] == "zoom"]
-        for s in trace:
-            y = -200.0 if s["model_error_db"] == float("-inf") else s["model_error_db"]
-            a.scatter(s["trace_s"], y, color=colour, label=scene if s is trace[0] else None)
-            a.annotate(s["setting"].replace(" (default)", "*"), (s["trace_s"], y), fontsize=6)
-        for marker, est in zip("osD", ("full", "zoom", "refined")):
-            pts = [s for s in summaries if s["scene"] == scene and s["estimator"] == est]
-            b.scatter([s["synthesis_s"] + s["dsp_s"] for s in pts], [1e3 * s["rmse_m"] for s in pts], color=colour,
-                      marker=marker, label=f"{scene} {est}")
-    a.set(xscale="log", xlabel="warm trace time [s]", ylabel="model error against depth 4, 10⁶ rays [dB]",
-          title="ray-trace settings")
-    b.set(xscale="log", yscale="log", xlabel="synthesis + DSP per realization [s]", ylabel="position RMSE [mm]",
-          title="estimators (every trace setting)")
-    a.legend(fontsize=7)
-    b.legend(fontsize=6, ncol=2)
-    return _save(fig, plt, path)
+__all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..authoring.scene_folder import SCENES_DIR
     from .._files import atomic_write_bytes
+    from ..authoring.scene_folder import SCENES_DIR
+    from ..studies.speed import format_table, mechanism_verdicts, plot_tradeoff, run_speed_study
     from .common import CliError
 
     scenes = args.scene or sorted(p.parent.name for p in SCENES_DIR.glob("*/spec.toml"))
@@ -220,8 +28,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"risloc speed: scenes {', '.join(scenes)}; {args.realizations} noise realizations per setting and radar "
           f"position (fast noise stream), the paper's full 2-D DFT on {min(args.full, args.realizations)} of them "
           f"at the default trace setting; reference model: depth 4, 10⁶ rays")
-    summaries = run_study(scenes, realizations=args.realizations, full=args.full, seed=args.seed,
-                          positions=args.positions)
+    summaries = run_speed_study(scenes, realizations=args.realizations, full=args.full, seed=args.seed,
+                                positions=args.positions)
     print(format_table(summaries))
     for line in mechanism_verdicts(summaries):
         print(line)
@@ -233,7 +41,14 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: Any) -> None:
-    """Register ``risloc speed``."""
+    """Register ``risloc speed``.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; ``speed`` is added to it, its ``func``
+        set to the verb (which returns the exit status).
+    """
     p = sub.add_parser("speed", help="speed against error of every estimator and trace setting, in one run",
                        description=__doc__.splitlines()[0])
     p.add_argument("--scene", action="append", help="scene name (repeatable; default: every scene in scenes/)")

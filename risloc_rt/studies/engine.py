@@ -2,7 +2,14 @@
 
 Each batch is (point, first run, last run); its numbers depend only on the study seed, the point
 and the run indices (:func:`risloc_rt.studies.kernel.run_rng`), so the table is the same for any
-number of workers, any order, and after any number of restarts. A worker process that dies (killed,
+number of workers, any order, and after any number of restarts.
+
+The engine knows no particular study. A study is a :class:`StudyPlan` (its points as plain data)
+and a *point preparer*: a module-level function ``prepare(params) -> PreparedPoint`` that makes what
+every run of a point shares (``kernel.prepare_point`` for a sweep, ``floor_map.prepare_cell`` for a
+floor map). Worker processes and Dask workers receive the preparer by its qualified name (pickle
+sends a module-level function as a reference), so :func:`execute` refuses a lambda, a closure or a
+bound method with a one-line error (:func:`check_preparer`) rather than failing inside a worker. A worker process that dies (killed,
 out of memory) breaks the pool: the batches it was running are retried on a fresh pool, reported,
 and after :data:`MAX_ATTEMPTS` failures the study stops with an error naming the batch. Nothing is
 dropped silently: the summary is only written when every run of every point is in the log.
@@ -20,12 +27,13 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Protocol
 
-from .spec import StudySpec
+from .kernel import PreparedPoint, run_once
 from .store import RunLog
 
-__all__ = ["StudyError", "Batch", "plan_batches", "run_batch", "execute", "default_workers"]
+__all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "check_preparer", "run_batch", "execute",
+           "default_workers", "connect_dask"]
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
@@ -40,6 +48,38 @@ class StudyError(RuntimeError):
     """A study could not go on (a worker died too often, the cluster is unreachable, ...)."""
 
 
+class StudyPlan(Protocol):
+    """What :func:`execute` needs of a study: a :class:`~risloc_rt.studies.spec.StudySpec` is one,
+    a floor map's cells are another.
+
+    Attributes
+    ----------
+    name : str
+        Shown on the progress bar.
+    runs : int
+        Monte Carlo runs per point.
+    seed : int
+        The study seed (run r of point p draws its noise from ``SeedSequence(seed, spawn_key=(p, r))``).
+    key : str
+        A hash of the settings: names the Dask tasks.
+    """
+
+    name: str
+    runs: int
+    seed: int
+
+    @property
+    def key(self) -> str: ...  # noqa: D102
+
+    def points(self) -> list[dict[str, Any]]:
+        """The points, in order, as plain (picklable) data: the argument of the point preparer."""
+        ...
+
+
+#: A point preparer: a module-level function ``params -> PreparedPoint`` (see the module docstring).
+Preparer = Callable[[dict[str, Any]], PreparedPoint]
+
+
 @dataclass(frozen=True)
 class Batch:
     """Runs ``start`` … ``stop - 1`` of point ``point`` (whose parameters are ``params``)."""
@@ -51,19 +91,42 @@ class Batch:
 
     @property
     def label(self) -> str:
+        """``"point P runs A-B"`` for messages."""
         return f"point {self.point} runs {self.start}-{self.stop - 1}"
 
 
 def default_workers() -> int:
-    """All cores this process may use."""
+    """All cores this process may use.
+
+    Returns
+    -------
+    int
+        The number of CPUs in this process's affinity mask (>= 1).
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux
         return max(1, os.cpu_count() or 1)
 
 
-def plan_batches(spec: StudySpec, done: set[tuple[int, int]], *, workers: int) -> list[Batch]:
-    """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube)."""
+def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -> list[Batch]:
+    """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube).
+
+    Parameters
+    ----------
+    spec : StudyPlan
+        The study.
+    done : set of (int, int)
+        The (point, run) pairs already in the log.
+    workers : int
+        Worker count: batches hold at most ``runs / (2 workers)`` runs (and at most 25), so every
+        worker gets work.
+
+    Returns
+    -------
+    list of Batch
+        Runs of consecutive indices, point by point.
+    """
     size = max(1, min(25, math.ceil(spec.runs / max(1, 2 * workers))))
     out: list[Batch] = []
     for p, params in enumerate(spec.points()):
@@ -78,25 +141,45 @@ def plan_batches(spec: StudySpec, done: set[tuple[int, int]], *, workers: int) -
     return out
 
 
+def check_preparer(prepare: Any) -> str:
+    """Refuse a point preparer that worker processes and Dask could not find by name.
+
+    Parameters
+    ----------
+    prepare : callable
+        The point preparer.
+
+    Returns
+    -------
+    str
+        Its qualified name, ``module.function``.
+
+    Raises
+    ------
+    TypeError
+        ``prepare`` is not a module-level function (a lambda, a closure, a bound method, ...).
+    """
+    module = getattr(prepare, "__module__", None)
+    qualname = getattr(prepare, "__qualname__", "")
+    found = getattr(sys.modules.get(module or ""), qualname, None) if "." not in qualname else None
+    if not callable(prepare) or found is not prepare:
+        raise TypeError(f"the point preparer {prepare!r} must be a module-level function (worker processes and "
+                        "Dask import it by its qualified name); define it at the top level of a module")
+    return f"{module}.{qualname}"
+
+
 _CACHE: dict[str, Any] = {}
 
 
-def _prepared(params: dict[str, Any]) -> Any:
-    """The point's shared cube and bound: a sweep point, or a floor-map cell (``"map_cell"`` in params)."""
+def _prepared(prepare: Preparer, params: dict[str, Any]) -> PreparedPoint:
+    """The point's shared cube and bound, made by ``prepare`` once per worker and point."""
     import json
 
-    key = json.dumps(params, sort_keys=True)
+    key = f"{prepare.__module__}.{prepare.__qualname__} " + json.dumps(params, sort_keys=True)
     prep = _CACHE.get(key)
     if prep is None:
         _CACHE.clear()  # one point per worker at a time: a Table I cube is 75 MB
-        if "map_cell" in params:
-            from .floor_map import prepare_cell
-
-            prep = prepare_cell(params)
-        else:
-            from .kernel import prepare_point
-
-            prep = prepare_point(params)
+        prep = prepare(params)
         _CACHE[key] = prep
     return prep
 
@@ -134,13 +217,32 @@ def _one_thread() -> Iterator[None]:
                 _blas_limiter = None
 
 
-def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_seed: int) -> dict[str, Any]:
-    """Run one batch (in a worker): ``{"rows": [...], "prepare": {...}}`` (plain data, picklable).
+def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int, stop: int,
+              study_seed: int) -> dict[str, Any]:
+    """Run one batch (in a worker): the point prepared by ``prepare``, then runs ``start`` … ``stop - 1``.
 
     Always on one thread — the DSP's (``dsp.limit_threads``) and BLAS's (threadpoolctl) — in a
     worker process, a Dask task or this process alike: the workers are the parallelism, and a
     multi-threaded BLAS sums long products in another order (last-digit differences, e.g. in the
     refined AoD), so this is what makes a study's numbers the same for any number of workers.
+
+    Parameters
+    ----------
+    prepare : Preparer
+        The point preparer (a module-level function).
+    params : dict
+        The point, as the plan's ``points()`` gave it.
+    point, start, stop : int
+        Point index and the runs' half-open index range.
+    study_seed : int
+        The study seed.
+
+    Returns
+    -------
+    dict
+        Plain, picklable data: ``rows`` (one dict per run, :func:`risloc_rt.studies.kernel.run_once`),
+        ``crb`` (the point's bounds [m, rad, m/s] and ``peak_snr_db`` [dB]), ``prepare_seconds`` [s]
+        and ``warnings`` (the preparer's, e.g. range aliasing).
     """
     import numpy as np
 
@@ -149,10 +251,8 @@ def run_batch(params: dict[str, Any], point: int, start: int, stop: int, study_s
         Path(marker).touch()
         os._exit(9)
 
-    from .kernel import run_once
-
     with _one_thread():
-        prep = _prepared(params)
+        prep = _prepared(prepare, params)
         buffer = np.empty_like(prep.cube)
         rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
@@ -182,16 +282,43 @@ def _init_worker(parent: int) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
-def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, quiet: bool = False,
+def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, dask: Any = None, quiet: bool = False,
             notice: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run every missing run of ``spec`` and append it to ``log``.
 
-    ``spec`` is a :class:`StudySpec` or anything with its ``name``, ``runs``, ``seed``, ``key`` and
-    ``points()`` (a floor map's cells). Returns ``{"crb": {point: {...}}, "prepare_seconds":
-    {point: s}, "warnings": {point: [...]}, "retried": [messages], "wall_seconds": s, "new_runs": n}``.
+    Parameters
+    ----------
+    spec : StudyPlan
+        The study: a :class:`~risloc_rt.studies.spec.StudySpec`, or a floor map's cells.
+    log : RunLog
+        The open run log; its finished runs are skipped.
+    prepare : Preparer
+        The point preparer, a module-level function (:func:`check_preparer`).
+    workers : int
+        Local worker processes; 1 runs in this process. Ignored with ``dask``.
+    dask : str or distributed.Client, optional
+        A scheduler address or a client: run the batches there.
+    quiet : bool
+        No progress bar (retries go to ``notice``).
+    notice : callable, optional
+        Receives the retry messages when ``quiet`` (default: print to stderr).
+
+    Returns
+    -------
+    dict
+        ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "warnings": {point: [...]},
+        "retried": [messages], "wall_seconds": s, "new_runs": n}`` (bounds in m, rad, m/s; times in s).
+
+    Raises
+    ------
+    TypeError
+        ``prepare`` is not a module-level function.
+    StudyError
+        A batch killed its worker :data:`MAX_ATTEMPTS` times, or the Dask cluster gave up on it.
     """
     from tqdm import tqdm
 
+    check_preparer(prepare)
     notice = notice or (lambda msg: print(msg, file=sys.stderr))
     batches = plan_batches(spec, log.done(), workers=workers)
     total = spec.runs * len(spec.points())
@@ -218,17 +345,17 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
 
     try:
         if dask is not None:
-            _run_dask(spec, batches, dask, take, say)
+            _run_dask(spec, prepare, batches, dask, take, say)
         elif workers == 1:
             for b in batches:
-                take(run_batch(b.params, b.point, b.start, b.stop, spec.seed), b)
+                take(run_batch(prepare, b.params, b.point, b.start, b.stop, spec.seed), b)
         else:
-            _run_pool(spec, batches, workers, take, say)
+            _run_pool(spec, prepare, batches, workers, take, say)
         # bounds of points whose runs were all done before this start (needed by the summary)
         for p, params in enumerate(spec.points()):
             if p not in info["crb"]:
                 with _one_thread():
-                    prep = _prepared(params)
+                    prep = _prepared(prepare, params)
                 info["crb"][p], info["prepare_seconds"][p] = prep.crb, prep.seconds
                 info["warnings"][p] = list(prep.params.get("warnings", ()))
     finally:
@@ -237,7 +364,8 @@ def execute(spec: StudySpec, log: RunLog, *, workers: int, dask: Any = None, qui
     return info
 
 
-def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callable, say: Callable) -> None:
+def _run_pool(spec: StudyPlan, prepare: Preparer, batches: list[Batch], workers: int, take: Callable,
+              say: Callable) -> None:
     import multiprocessing
 
     attempts = {b: 0 for b in batches}
@@ -256,7 +384,8 @@ def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callabl
                     try:
                         while queue and len(running) < workers:  # one batch per worker: a death names its batch
                             b = queue[0]
-                            running[pool.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed)] = b
+                            running[pool.submit(run_batch, prepare, b.params, b.point, b.start, b.stop,
+                                                spec.seed)] = b
                             queue.pop(0)
                     except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
                         broken += list(running.values())
@@ -293,7 +422,24 @@ def _run_pool(spec: StudySpec, batches: list[Batch], workers: int, take: Callabl
 
 
 def connect_dask(address: Any, *, timeout: float = 10.0) -> Any:
-    """A ``distributed.Client`` for ``address`` (or the client given), with a one-line error when unreachable."""
+    """A ``distributed.Client`` for ``address`` (or the client given), with a one-line error when unreachable.
+
+    Parameters
+    ----------
+    address : str or distributed.Client
+        A scheduler address (``tcp://host:8786``); a client is returned as it is.
+    timeout : float
+        How long to wait for the scheduler [s].
+
+    Returns
+    -------
+    distributed.Client
+
+    Raises
+    ------
+    StudyError
+        The scheduler cannot be reached within ``timeout`` (or ``distributed`` is missing).
+    """
     try:
         from distributed import Client
     except ImportError as exc:  # pragma: no cover - a pinned dependency
@@ -308,13 +454,14 @@ def connect_dask(address: Any, *, timeout: float = 10.0) -> Any:
                          "or leave out --dask to run on this machine") from None
 
 
-def _run_dask(spec: StudySpec, batches: list[Batch], address: Any, take: Callable, say: Callable) -> None:
+def _run_dask(spec: StudyPlan, prepare: Preparer, batches: list[Batch], address: Any, take: Callable,
+              say: Callable) -> None:
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
     client = connect_dask(address)
     try:
-        futures = {client.submit(run_batch, b.params, b.point, b.start, b.stop, spec.seed,
+        futures = {client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed,
                                  key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
                                  retries=MAX_ATTEMPTS - 1): b for b in batches}
         with client.as_current():

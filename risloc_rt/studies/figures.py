@@ -1,24 +1,43 @@
-"""Figures of a study in the paper's style (Figs 6–8): MAE of distance, angle and position against
-the varied parameter, log scale, the Cramér–Rao bound dashed (matplotlib imported when drawing)."""
+"""Figures of the studies, drawn through :mod:`risloc_rt.plotting` (own Agg canvas, atomic write).
+
+:func:`plot_summary`: a sweep in the paper's style (Figs 6–8), MAE of distance, angle and position
+against the varied parameter, log scale, the Cramér–Rao bound dashed. :func:`plot_map`: a floor
+map's four heat maps over the hall's outline. matplotlib is imported only when drawing.
+"""
 
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
 from typing import Any
 
-from .._files import atomic_write_bytes
+import numpy as np
+
+from ..plotting import new_figure, save_figure
 from .params import PARAMETERS, ris_size
 
-__all__ = ["plot_summary", "x_value"]
+__all__ = ["plot_summary", "plot_map", "x_value"]
 
 _PANELS = (("distance", "distance MAE [m]", 1.0), ("angle", "angle MAE [deg]", 180 / math.pi),
            ("position", "position MAE [m]", 1.0))
 
 
 def x_value(name: str, value: Any) -> float | None:
-    """A numeric x for ``value`` of parameter ``name`` (RIS size: its number of elements)."""
+    """A numeric x for ``value`` of parameter ``name`` (RIS size: its number of elements).
+
+    Parameters
+    ----------
+    name : str
+        A study parameter (:data:`risloc_rt.studies.params.PARAMETERS`).
+    value
+        Its value, in the parameter's unit (e.g. dBm, deg, m).
+
+    Returns
+    -------
+    float or None
+        The value as a number in the same unit (``ris_size``: rows × columns), None for a
+        categorical parameter.
+    """
     if name == "ris_size":
         r, c = ris_size(value)
         return float(r * c)
@@ -37,13 +56,23 @@ def _label(name: str) -> str:
 def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None = None) -> Path:
     """Three panels (distance, angle, position): MAE with 95 % intervals and CRB (dashed) vs the x parameter.
 
-    Other varied parameters give one line each. Returns the PNG's path (written atomically).
+    Other varied parameters give one line each.
+
+    Parameters
+    ----------
+    summary : dict
+        A study's ``summary.json`` object (:func:`risloc_rt.studies.summary.summarize`): MAE and
+        CRB in m and rad (drawn in m and deg).
+    path : path-like
+        The PNG to write (atomically).
+    title : str, optional
+        The figure's title (default: study name, runs per point and estimator).
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     xname = summary["x"]
     others = [n for n in summary["study"]["vary"] if n != xname]
     groups: dict[str, list[dict[str, Any]]] = {}
@@ -51,7 +80,8 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
         label = ", ".join(f"{n}={pt['params'][n]}" for n in others)
         groups.setdefault(label, []).append(pt)
     categorical = xname is None or x_value(xname, summary["points"][0]["params"][xname]) is None
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), constrained_layout=True)
+    fig, axes = new_figure(figsize=(13, 3.8), nrows=1, ncols=3)
+    fig.set_layout_engine("constrained")
     for ax, (q, ylabel, scale) in zip(axes, _PANELS):
         for i, (label, pts) in enumerate(groups.items()):
             if categorical:
@@ -84,7 +114,84 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
     runs = summary["points"][0]["runs"] if summary["points"] else 0
     fig.suptitle(title or f"{summary['study']['name']}: {runs} runs per point, "
                  f"estimator {summary['points'][0]['params']['estimator'] if summary['points'] else '?'}")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
+    return save_figure(fig, path, tight=False, dpi=110)
+
+
+def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | Path) -> Path:
+    """Four heat maps over the hall outline: position RMSE, detection probability, PEB, dominant flag.
+
+    Parameters
+    ----------
+    spec : risloc_rt.authoring.spec.HallSpec
+        The hall: its footprint [m], objects and RIS are drawn.
+    cells : list of dict
+        The map's cells (:class:`risloc_rt.studies.floor_map.MapResult`): ``x``, ``y`` [m],
+        ``rmse_position`` and ``peb`` [m], ``detection_probability``, ``dominant_flag``.
+    settings : risloc_rt.studies.floor_map.MapSettings
+        Its ``spacing`` [m] sizes the cells; the rest goes into the title.
+    path : path-like
+        The PNG to write (atomically).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from matplotlib import colormaps
+    from matplotlib.colors import LogNorm
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
+    from dsp import direction_from_angles
+
+    poly = np.array(spec.footprint, dtype=float)
+    xs = np.array([c["x"] for c in cells])
+    ys = np.array([c["y"] for c in cells])
+    s = settings.spacing
+    flags = sorted({c["dominant_flag"] for c in cells})
+    panels = [("position RMSE [m]", [c["rmse_position"] if c["rmse_position"] is not None else np.nan for c in cells], "log"),
+              ("detection probability", [c["detection_probability"] for c in cells], "lin"),
+              ("PEB (CRB) [m]", [c["peb"] for c in cells], "log"),
+              ("dominant flag", [flags.index(c["dominant_flag"]) for c in cells], "cat")]
+    fig, axes = new_figure(figsize=(12, 8), nrows=2, ncols=2)
+    fig.set_layout_engine("constrained")
+    ris = spec.ris_configs()[0]
+    for ax, (title, values, scale) in zip(axes.ravel(), panels):
+        v = np.array(values, dtype=float)
+        norm = LogNorm() if scale == "log" and np.nanmax(v) > 0 else None
+        cmap = "tab10" if scale == "cat" else ("viridis_r" if scale == "log" else "viridis")
+        x0, y0 = xs.min(), ys.min()
+        ix = np.rint((xs - x0) / s).astype(int)
+        iy = np.rint((ys - y0) / s).astype(int)
+        img = np.full((iy.max() + 1, ix.max() + 1), np.nan)
+        img[iy, ix] = v
+        xe = x0 - s / 2 + s * np.arange(ix.max() + 2)
+        ye = y0 - s / 2 + s * np.arange(iy.max() + 2)
+        sc = ax.pcolormesh(xe, ye, np.ma.masked_invalid(img), cmap=cmap, norm=norm,
+                           vmin=None if norm is not None else (0 if scale == "cat" else 0.0),
+                           vmax=None if norm is not None else (9 if scale == "cat" else 1.0))
+        if scale == "cat":
+            handles = [Line2D([], [], marker="s", ls="", color=colormaps["tab10"](i / 9),
+                                  label=f) for i, f in enumerate(flags)]
+            ax.legend(handles=handles, fontsize=7, loc="upper left")
+        else:
+            fig.colorbar(sc, ax=ax)
+        ax.add_patch(Polygon(poly, closed=True, fill=False, lw=2, color="k"))
+        for ob in spec.objects:
+            if hasattr(ob, "radius"):
+                ax.add_patch(Circle(ob.center[:2], ob.radius, color="0.4"))
+            elif hasattr(ob, "size"):
+                ax.add_patch(Rectangle((ob.center[0] - ob.size[0] / 2, ob.center[1] - ob.size[1] / 2), ob.size[0],
+                                       ob.size[1], angle=np.rad2deg(getattr(ob, "yaw", 0.0)), rotation_point="center",
+                                       color="0.4"))
+        p = ris.pose.position
+        n = ris.pose.to_world(direction_from_angles(np.zeros(2)))  # boresight
+        ax.plot(p[0], p[1], "r^", ms=10)
+        ax.annotate("", xy=(p[0] + 2 * n[0], p[1] + 2 * n[1]), xytext=(p[0], p[1]), arrowprops={"color": "r"})
+        ax.set_title(title)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    fig.suptitle(f"{settings.scene}: {len(cells)} cells, {settings.spacing:g} m grid at {settings.height:g} m, "
+                 f"{settings.runs} runs each, {settings.estimator} estimator (RIS: red)")
+    return save_figure(fig, path, tight=False, dpi=100)

@@ -4,9 +4,12 @@ Radar positions on a square grid over the hall's footprint at one height (``marg
 walls, outside objects, within the RIS's sweep fan); each cell is traced (``hall_paths`` with the
 trace cache: a rerun traces nothing), its noiseless cube synthesised once, and ``runs`` noise
 realizations localized (``kernel.run_once``, the noise of run r of cell c from
-``SeedSequence(seed, spawn_key=(c, r))``). The cells run on the sweeps' engine (worker processes or
-Dask, retried when a worker dies) and the runs are appended to ``runs.jsonl`` as in a sweep, so a
-killed map continues and the numbers do not depend on the number of workers. Outputs: ``map.json`` (one entry per cell), ``map.parquet`` and ``map.png``.
+``SeedSequence(seed, spawn_key=(c, r))``). The cells are the points of a study on the sweeps'
+engine (:func:`risloc_rt.studies.engine.execute` with :func:`prepare_cell` as the point preparer:
+worker processes or Dask, retried when a worker dies) and the runs are appended to ``runs.jsonl``
+as in a sweep, so a killed map continues and the numbers do not depend on the number of workers.
+Outputs: ``map.json`` (one entry per cell), ``map.parquet`` and ``map.png``
+(:func:`risloc_rt.studies.figures.plot_map`).
 """
 
 from __future__ import annotations
@@ -14,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import math
 import time
 import warnings
 from collections import Counter
@@ -24,16 +26,43 @@ from typing import Any
 
 import numpy as np
 
+from dsp.validation import integer, non_negative, one_of, positive
+
 from .._files import atomic_write_bytes
+from .engine import default_workers, execute
+from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError
 
-__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells"]
+__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "prepare_cell"]
 
 
 @dataclass(frozen=True)
 class MapSettings:
-    """A floor map: hall, grid spacing [m], radar height above the floor [m], runs per cell, ..."""
+    """A floor map: which hall, which grid, how many runs.
+
+    Attributes
+    ----------
+    scene : str
+        A hall in ``scenes/`` or a built scene folder.
+    spacing : float
+        Grid spacing [m].
+    height : float
+        Radar height above the floor [m].
+    runs : int
+        Noise runs per cell (>= 1).
+    seed : int
+        Study seed: run r of cell c draws its noise from ``SeedSequence(seed, spawn_key=(c, r))``.
+    estimator : {"paper", "refined"}
+    depth : int
+        Ray-tracing depth.
+    samples : int
+        Rays per source.
+    tx_power_dbm : float or None
+        Transmit power [dBm] (None: Table I's 20 dBm).
+    margin : float
+        Least distance of a cell from walls and objects [m].
+    """
 
     scene: str = "paper_hall"
     spacing: float = 1.0
@@ -48,25 +77,41 @@ class MapSettings:
 
     def __post_init__(self) -> None:
         for name in ("spacing", "height"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"--{name} {v!r} must be a positive number of metres")
-        if not (math.isfinite(self.margin) and self.margin >= 0):
-            raise ValueError(f"--margin {self.margin!r} must be >= 0 m")
-        if self.runs < 1:
-            raise ValueError(f"--runs {self.runs} must be >= 1")
-        if self.estimator not in ("paper", "refined"):
-            raise ValueError(f"--estimator {self.estimator!r} must be 'paper' or 'refined'")
+            positive(getattr(self, name), f"--{name}", "m", error=ValueError)
+        non_negative(self.margin, "--margin", "m", error=ValueError)
+        integer(self.runs, "--runs", minimum=1, error=ValueError)
+        one_of(self.estimator, "--estimator", ("paper", "refined"), error=ValueError)
 
     @property
     def key(self) -> str:
+        """sha256 of every setting but ``runs`` (more runs extend a map), 16 hex digits."""
         d = asdict(self)
         d.pop("runs")
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def grid_cells(settings: MapSettings) -> tuple[Any, np.ndarray, np.ndarray]:
-    """(spec, cells [C, 3] inside the footprint, away from walls and objects, within the sweep fan, mask)."""
+    """The cells of a floor map: inside the footprint, away from walls and objects, within the sweep fan.
+
+    Parameters
+    ----------
+    settings : MapSettings
+        The hall, ``spacing``, ``height`` and ``margin`` [m].
+
+    Returns
+    -------
+    spec : risloc_rt.authoring.spec.HallSpec
+        The hall's spec.
+    cells : ndarray, shape (C, 3)
+        Radar positions [m], world frame, at ``height``.
+    keep : ndarray of bool
+        Which grid points (x-major over the footprint's bounding box) are cells.
+
+    Raises
+    ------
+    ValueError
+        No grid point qualifies.
+    """
     from ..authoring.geometry import load_geometry
     from ..authoring.polygon import boundary_distance, contains
     from ..authoring.scene_folder import scene_directory
@@ -111,10 +156,21 @@ def _cell_settings(settings: MapSettings) -> dict[str, Any]:
 
 
 def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
-    """Trace one cell (through the trace cache), synthesise its noiseless cube once, and its bound.
+    """The floor map's point preparer: trace one cell (through the trace cache), synthesise its noiseless
+    cube once, and its bound.
 
-    ``params``: ``{"map_cell": index, "ue": [x, y, z], "settings": {...}}`` as :class:`_MapPlan`
-    makes them (plain data: a worker process or a Dask worker rebuilds the cell from them).
+    Parameters
+    ----------
+    params : dict
+        ``{"cell": index, "ue": [x, y, z] (radar position [m]), "settings": {...}}`` as
+        :class:`_MapPlan` makes them (plain data: a worker process or a Dask worker rebuilds the
+        cell from them).
+
+    Returns
+    -------
+    PreparedPoint
+        The cell's noiseless cube [√W], its bounds (``crb``: m, rad, m/s; ``peak_snr_db`` [dB]) and,
+        in ``params["warnings"]``, the tracer's warnings (e.g. range aliasing) instead of printing them.
     """
     from dsp import RadarConfig
 
@@ -167,17 +223,33 @@ class _MapPlan:
 
     def points(self) -> list[dict[str, Any]]:
         common = _cell_settings(self.settings)
-        return [{"map_cell": c, "ue": list(ue), "settings": common} for c, ue in enumerate(self.cells)]
+        return [{"cell": c, "ue": list(ue), "settings": common} for c, ue in enumerate(self.cells)]
 
 
 @dataclass(frozen=True)
 class MapResult:
+    """What a finished floor map wrote.
+
+    Attributes
+    ----------
+    cells : list of dict
+        One entry per cell (``map.json``): position ``x``, ``y``, ``z`` [m], ``runs``,
+        ``detection_probability``, ``rmse_position`` [m] (None without a detection), ``peb`` [m],
+        ``peak_snr_db`` [dB], ``dominant_flag``, ``flags`` (counts), ``trace_warnings``.
+    folder : Path
+    figure : Path
+        ``map.png``.
+    wall_seconds : float
+        Wall-clock time of the runs [s].
+    """
+
     cells: list[dict[str, Any]]
     folder: Path
     figure: Path
     wall_seconds: float
 
     def describe(self) -> str:
+        """One line: cells, detections, median and worst position RMSE [mm], time, files."""
         det = [c for c in self.cells if c["detection_probability"] > 0]
         rmse = [c["rmse_position"] for c in det if c["rmse_position"] is not None]
         return (f"{len(self.cells)} cells, detected in {len(det)}; position RMSE median "
@@ -190,12 +262,35 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
             quiet: bool = False, force: bool = False) -> MapResult:
     """Run (or continue) a floor map in folder ``out``.
 
-    The cells are the points of a study (:mod:`risloc_rt.studies.engine`): batches of runs on
-    ``workers`` processes (default: all cores; each traces its cells through the shared trace cache)
-    or on a Dask cluster (``dask``: an address or a ``distributed.Client``), resumable run by run.
-    """
-    from .engine import default_workers, execute
+    The cells are the points of a study (:mod:`risloc_rt.studies.engine`, point preparer
+    :func:`prepare_cell`): batches of runs on ``workers`` processes (each traces its cells through
+    the shared trace cache) or on a Dask cluster, resumable run by run.
 
+    Parameters
+    ----------
+    settings : MapSettings
+    out : path
+        The map's folder: created, or reopened to continue the same map.
+    workers : int, optional
+        Local worker processes (default: all cores); 1 runs in this process.
+    dask : str or distributed.Client, optional
+        A Dask scheduler address or client: run the batches there instead.
+    quiet : bool
+        No progress bar.
+    force : bool
+        Use a folder that holds another floor map (or other files).
+
+    Returns
+    -------
+    MapResult
+
+    Raises
+    ------
+    StudyFolderError
+        ``out`` holds something else and ``force`` is not given.
+    ValueError
+        ``workers`` < 1, or no cell qualifies (:func:`grid_cells`).
+    """
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
         raise ValueError(f"--workers {workers} must be >= 1")
     workers = int(workers) if workers is not None else default_workers()
@@ -214,7 +309,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
     try:
-        info = execute(plan, log, workers=workers, dask=dask, quiet=quiet)
+        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet)
         out_cells = []
         for c, ue in enumerate(cells):
             rows = [log.rows[(c, r)] for r in range(settings.runs)]
@@ -246,67 +341,3 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     fig = plot_map(spec, out_cells, settings, folder / "map.png")
     return MapResult(cells=out_cells, folder=folder, figure=fig, wall_seconds=wall)
 
-
-def plot_map(spec: Any, cells: list[dict[str, Any]], settings: MapSettings, path: Path) -> Path:
-    """Four heat maps over the hall outline: position RMSE, detection probability, PEB, dominant flag."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Polygon, Rectangle
-
-    from dsp import direction_from_angles
-
-    poly = np.array(spec.footprint, dtype=float)
-    xs = np.array([c["x"] for c in cells])
-    ys = np.array([c["y"] for c in cells])
-    s = settings.spacing
-    flags = sorted({c["dominant_flag"] for c in cells})
-    panels = [("position RMSE [m]", [c["rmse_position"] if c["rmse_position"] is not None else np.nan for c in cells], "log"),
-              ("detection probability", [c["detection_probability"] for c in cells], "lin"),
-              ("PEB (CRB) [m]", [c["peb"] for c in cells], "log"),
-              ("dominant flag", [flags.index(c["dominant_flag"]) for c in cells], "cat")]
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
-    ris = spec.ris_configs()[0]
-    for ax, (title, values, scale) in zip(axes.ravel(), panels):
-        v = np.array(values, dtype=float)
-        norm = matplotlib.colors.LogNorm() if scale == "log" and np.nanmax(v) > 0 else None
-        cmap = "tab10" if scale == "cat" else ("viridis_r" if scale == "log" else "viridis")
-        x0, y0 = xs.min(), ys.min()
-        ix = np.rint((xs - x0) / s).astype(int)
-        iy = np.rint((ys - y0) / s).astype(int)
-        img = np.full((iy.max() + 1, ix.max() + 1), np.nan)
-        img[iy, ix] = v
-        xe = x0 - s / 2 + s * np.arange(ix.max() + 2)
-        ye = y0 - s / 2 + s * np.arange(iy.max() + 2)
-        sc = ax.pcolormesh(xe, ye, np.ma.masked_invalid(img), cmap=cmap, norm=norm,
-                           vmin=None if norm is not None else (0 if scale == "cat" else 0.0),
-                           vmax=None if norm is not None else (9 if scale == "cat" else 1.0))
-        if scale == "cat":
-            handles = [plt.Line2D([], [], marker="s", ls="", color=plt.get_cmap("tab10")(i / 9),
-                                  label=f) for i, f in enumerate(flags)]
-            ax.legend(handles=handles, fontsize=7, loc="upper left")
-        else:
-            fig.colorbar(sc, ax=ax)
-        ax.add_patch(Polygon(poly, closed=True, fill=False, lw=2, color="k"))
-        for ob in spec.objects:
-            if hasattr(ob, "radius"):
-                ax.add_patch(Circle(ob.center[:2], ob.radius, color="0.4"))
-            elif hasattr(ob, "size"):
-                ax.add_patch(Rectangle((ob.center[0] - ob.size[0] / 2, ob.center[1] - ob.size[1] / 2), ob.size[0],
-                                       ob.size[1], angle=np.rad2deg(getattr(ob, "yaw", 0.0)), rotation_point="center",
-                                       color="0.4"))
-        p = ris.pose.position
-        n = ris.pose.to_world(direction_from_angles(np.zeros(2)))  # boresight
-        ax.plot(p[0], p[1], "r^", ms=10)
-        ax.annotate("", xy=(p[0] + 2 * n[0], p[1] + 2 * n[1]), xytext=(p[0], p[1]), arrowprops={"color": "r"})
-        ax.set_title(title)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-    fig.suptitle(f"{settings.scene}: {len(cells)} cells, {settings.spacing:g} m grid at {settings.height:g} m, "
-                 f"{settings.runs} runs each, {settings.estimator} estimator (RIS: red)")
-    b = io.BytesIO()
-    fig.savefig(b, format="png", dpi=100)
-    plt.close(fig)
-    return atomic_write_bytes(path, b.getvalue())

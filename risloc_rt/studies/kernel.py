@@ -26,7 +26,7 @@ from ..model import analytic_scenario, simulate
 from ..model.beat import add_noise
 from .params import ris_size
 
-__all__ = ["PreparedPoint", "prepare_point", "run_once", "run_rng", "point_bound"]
+__all__ = ["PreparedPoint", "prepare_point", "point_scenario", "run_once", "run_rng", "point_bound", "ROW_FLOATS"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,7 +71,22 @@ def _radar_sweep_processing(p: dict[str, Any]) -> tuple[RadarConfig, BeamSweep, 
     return radar, sweep, processing
 
 
-def _analytic(p: dict[str, Any], *, structure: bool):
+def point_scenario(p: dict[str, Any], *, structure: bool) -> Any:
+    """The analytic scenario of a study point (not a hall's: ``scene`` is ignored).
+
+    Parameters
+    ----------
+    p : dict
+        A complete point (:func:`risloc_rt.studies.params.complete_point`): distance [m], AoD [deg],
+        speed [m/s], RIS size, mode, radar and DFT sizes, transmit power [dBm], sweep [deg].
+    structure : bool
+        Include the RIS panel's structural reflection (the bound is computed without it).
+
+    Returns
+    -------
+    risloc_rt.model.Scenario
+        What ``simulate`` synthesises for every run of the point (SI units inside).
+    """
     radar, sweep, processing = _radar_sweep_processing(p)
     sc = analytic_scenario(distance=p["distance"], aod=np.deg2rad([p["aod_deg"], 0.0]), mode=p["mode"],
                            radar=radar, sweep=sweep, processing=processing, structure=structure,
@@ -90,14 +105,32 @@ def point_bound(cube_without_clutter: np.ndarray, *, radar: RadarConfig, sweep: 
                 pose: dsp.RisPose, truth: Any, loopback_delay: float) -> dict[str, float]:
     """The whole-sweep CRB (``dsp.sweep_crb``) at the true parameters and the true SNR.
 
-    Keys ``distance``, ``angle``, ``position``, ``velocity`` (the fixed-phase CRB, the figures'
-    dashed line), the same with ``_random_phase`` (the bound with the per-beam phases random,
-    what ``Localization.std`` reports and a phase-blind estimator can reach) and ``peak_snr_db``.
-
     The true post-integration SNR ρ = K N β²/σ² comes from the noiseless cube of the RIS return
     alone: β = Σ|A_m| |Z_m| / (K N Σ A_m²) with Z_m the beams' DTFTs at the true (τ, ν), the
     estimate ``dsp.self_localize`` uses on noisy data. Position: ``dsp.position_std`` of
     x = x_RIS + d·R·d(az, el) with the elevation known (a 1-D sweep).
+
+    Parameters
+    ----------
+    cube_without_clutter : complex ndarray, shape (M, K, N)
+        The noiseless beat cube of the RIS return alone [√W].
+    radar : dsp.RadarConfig
+    sweep : dsp.BeamSweep
+    pattern : dsp.BeamPattern
+        The RIS's beam pattern (rescaled to the radar's wavelength here).
+    pose : dsp.RisPose
+    truth : risloc_rt.model.Truth
+        True distance [m], AoD [rad] and radial velocity [m/s].
+    loopback_delay : float
+        The RIS's loop-back delay [s].
+
+    Returns
+    -------
+    dict of str to float
+        ``distance`` [m], ``angle`` (azimuth) [rad], ``position`` (PEB) [m], ``velocity`` [m/s]:
+        the fixed-phase CRB (the figures' dashed line); the same with ``_random_phase`` (the bound
+        with the per-beam phases random, what ``Localization.std`` reports and a phase-blind
+        estimator can reach); ``peak_snr_db``, the post-integration SNR ρ [dB].
     """
     pat = pattern.for_wavelength(radar.wavelength)
     tau = 2.0 * truth.distance / SPEED_OF_LIGHT + loopback_delay
@@ -122,7 +155,19 @@ def point_bound(cube_without_clutter: np.ndarray, *, radar: RadarConfig, sweep: 
 
 
 def prepare_point(params: dict[str, Any]) -> PreparedPoint:
-    """Synthesise the noiseless cube of one point and its bound (analytic scenario or a traced hall)."""
+    """A sweep's point preparer: the noiseless cube of one point and its bound (analytic scenario or a traced hall).
+
+    Parameters
+    ----------
+    params : dict
+        A complete point (:func:`risloc_rt.studies.params.complete_point`); with ``scene`` set, the
+        hall is traced (``depth``, ``samples``) through the trace cache.
+
+    Returns
+    -------
+    PreparedPoint
+        What every run of the point shares; ``seconds`` is the time this took [s].
+    """
     start = time.perf_counter()
     rng = np.random.default_rng(0)  # unused: noise=False
     if params["scene"]:
@@ -137,9 +182,9 @@ def prepare_point(params: dict[str, Any]) -> PreparedPoint:
         cap = simulate(hs.base, rng=rng, paths=traced.paths, noise=False)
         clean_ris = cap.cube  # the hall's echoes are far from the RIS return (docs/studies.md)
     else:
-        sc = _analytic(params, structure=params["structure"])
+        sc = point_scenario(params, structure=params["structure"])
         cap = simulate(sc, rng=rng, noise=False)
-        clean_ris = simulate(_analytic(params, structure=False), rng=rng, noise=False).cube \
+        clean_ris = simulate(point_scenario(params, structure=False), rng=rng, noise=False).cube \
             if params["structure"] else cap.cube
     pattern = cap.ris.beam_pattern()
     crb = point_bound(clean_ris, radar=cap.radar, sweep=cap.sweep, pattern=pattern, pose=cap.ris.pose,
@@ -150,7 +195,18 @@ def prepare_point(params: dict[str, Any]) -> PreparedPoint:
 
 
 def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
-    """The noise stream of run ``run`` of point ``point``: independent of workers and order."""
+    """The noise stream of run ``run`` of point ``point``: independent of workers and order.
+
+    Parameters
+    ----------
+    study_seed, point, run : int
+        The study seed and the run's indices.
+
+    Returns
+    -------
+    numpy.random.Generator
+        ``default_rng(SeedSequence(study_seed, spawn_key=(point, run)))``.
+    """
     return np.random.default_rng(np.random.SeedSequence(study_seed, spawn_key=(point, run)))
 
 
@@ -158,8 +214,23 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
              buffer: np.ndarray | None = None) -> dict[str, Any]:
     """One Monte Carlo run: the seeded noise (the "fast" stream) on the point's cube, then ``dsp.self_localize``.
 
-    Returns one row of the run table: errors [m, rad], the estimate, its 1σ, detection, flags
-    and the run's time [s] (noise + DSP, one core).
+    Parameters
+    ----------
+    prep : PreparedPoint
+        The point (from a point preparer).
+    study_seed, point, run : int
+        Select the noise stream (:func:`run_rng`).
+    buffer : complex ndarray, optional
+        Scratch space shaped like ``prep.cube``, reused between runs (the noisy cube is written there).
+
+    Returns
+    -------
+    dict
+        One row of the run table: ``point``, ``run``, ``detected``, ``true_aod_az`` [rad],
+        ``snr_db`` [dB], ``flags`` (comma-separated codes), ``seconds`` (noise + DSP, one core) [s],
+        and :data:`ROW_FLOATS`: the estimate (``distance`` [m], ``aod_az`` [rad], ``x``, ``y``, ``z``
+        [m]), signed errors [m, rad, m/s], ``angle_error`` [rad], ``position_error`` [m] and the
+        stated 1σ (``std_distance`` [m], ``std_aod_az`` [rad], ``peb`` [m]); NaN without a detection.
     """
     start = time.perf_counter()
     rng = run_rng(study_seed, point, run)
@@ -168,7 +239,7 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
     clean = prep.cube
     if p.get("aod_spread_deg", 0.0) > 0:  # this run's UE azimuth: its own cube (no sharing)
         az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
-        cap = simulate(_analytic({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
+        cap = simulate(point_scenario({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
         clean, truth = cap.cube, cap.truth
     cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer, stream="fast")
     loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,

@@ -5,6 +5,9 @@ Human-edited values (study files, ``--vary``) use the units in the names (``tx_p
 scenario. Every point of a study is a plain ``dict[str, bool | int | float | str]`` holding
 **every** parameter (defaults filled in), so a point is self-describing in ``summary.json`` and
 in the Parquet table.
+
+Range checks go through :mod:`dsp.validation` (the one validation idiom): a value out of range
+is a :class:`ValueError` naming the parameter, the value, the rule and the unit.
 """
 
 from __future__ import annotations
@@ -13,6 +16,8 @@ import math
 import re
 from dataclasses import dataclass
 from typing import Any, Callable
+
+from dsp.validation import integer, interval, one_of, positive
 
 __all__ = ["PARAMETERS", "Parameter", "check_value", "complete_point", "parse_values", "ris_size"]
 
@@ -31,41 +36,62 @@ class Parameter:
     help : str
         One line for ``risloc study sweep --help`` and docs/studies.md.
     check : callable, optional
-        ``value -> error text or None`` for values out of range.
+        ``check(value, name, unit)`` raises :class:`ValueError` (a :mod:`dsp.validation` check) for
+        a value out of range; it sees the value already converted to ``kind``.
     """
 
     kind: str
     default: Any
     unit: str
     help: str
-    check: Callable[[Any], str | None] | None = None
+    check: Callable[[Any, str, str], Any] | None = None
 
 
-def _positive(v: Any) -> str | None:
-    return None if v > 0 else "must be > 0"
+def _positive(value: Any, name: str, unit: str) -> float:
+    return positive(value, name, unit, error=ValueError)
 
 
-def _in(*choices: str) -> Callable[[Any], str | None]:
-    return lambda v: None if v in choices else f"must be one of {', '.join(choices)}"
+def _at_least(minimum: int) -> Callable[[Any, str, str], int]:
+    return lambda value, name, unit: integer(value, name, minimum=minimum, error=ValueError)
+
+
+def _within(low: float, high: float, closed: str = "neither") -> Callable[[Any, str, str], float]:
+    return lambda value, name, unit: interval(value, name, unit, low=low, high=high, closed=closed, error=ValueError)
+
+
+def _in(*choices: str) -> Callable[[Any, str, str], Any]:
+    return lambda value, name, unit: one_of(value, name, choices, error=ValueError)
 
 
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$")
 
 
 def ris_size(text: str) -> tuple[int, int]:
-    """``"16x4"`` -> (16, 4): RIS rows (along azimuth) × columns (along elevation)."""
+    """``"16x4"`` -> (16, 4): RIS rows (along azimuth) × columns (along elevation).
+
+    Parameters
+    ----------
+    text : str
+        ``ROWSxCOLUMNS`` (``x``, ``X`` or ``×``), positive integers.
+
+    Returns
+    -------
+    (int, int)
+        Rows and columns of elements.
+
+    Raises
+    ------
+    ValueError
+        ``text`` is not of that form.
+    """
     m = _SIZE.match(str(text))
     if not m or int(m.group(1)) < 1 or int(m.group(2)) < 1:
         raise ValueError(f"ris_size={text!r} must be ROWSxCOLUMNS with positive integers, e.g. 16x4")
     return int(m.group(1)), int(m.group(2))
 
 
-def _size_check(v: Any) -> str | None:
-    try:
-        ris_size(v)
-    except ValueError:
-        return "must be ROWSxCOLUMNS with positive integers, e.g. 16x4"
-    return None
+def _size_check(value: Any, name: str, unit: str) -> tuple[int, int]:
+    return ris_size(value)
 
 
 #: Every parameter a study knows. Unknown names are refused with this list.
@@ -79,24 +105,24 @@ PARAMETERS: dict[str, Parameter] = {
                           _size_check),
     "distance": Parameter("float", 13.38, "m", "UE–RIS distance (paper: 13.38 m)", _positive),
     "aod_deg": Parameter("float", 0.0, "deg", "UE azimuth seen from the RIS, RIS frame (paper: 0°)",
-                         lambda v: None if -90 < v < 90 else "must lie in (-90, 90)"),
+                         _within(-90.0, 90.0)),
     "aod_spread_deg": Parameter("float", 0.0, "deg", "each run draws the UE azimuth uniformly within aod_deg ± spread/2 "
                                 "(its own noiseless cube per run: slower); the bound is at aod_deg",
-                                lambda v: None if 0 <= v < 90 else "must lie in [0, 90)"),
+                                _within(0.0, 90.0, closed="low")),
     "speed": Parameter("float", 0.0, "m/s", "UE radial speed, away from the RIS > 0 (moves during the sweep)"),
     "mode": Parameter("str", "relay", "", "RIS mode: 'relay' (the experiment) or 'reflective' (eq. (1))",
                       _in("relay", "reflective")),
     "structure": Parameter("bool", True, "", "include the RIS panel's structural reflection (σ = 19 m²)"),
     "pfa": Parameter("float", 1e-3, "", "detector false-alarm probability per capture",
-                     lambda v: None if 0 < v < 1 else "must lie in (0, 1)"),
-    "num_chirps": Parameter("int", 128, "", "chirps per frame K (Table I: 128)", _positive),
-    "num_samples": Parameter("int", 600, "", "ADC samples per chirp N (Table I: 600)", _positive),
-    "n_dft": Parameter("int", 1199, "", "fast-time DFT length N_DFT (Table I: 1199)", _positive),
-    "k_dft": Parameter("int", 4793, "", "slow-time DFT length K_DFT (Table I: 4793)", _positive),
+                     _within(0.0, 1.0)),
+    "num_chirps": Parameter("int", 128, "", "chirps per frame K (Table I: 128)", _at_least(1)),
+    "num_samples": Parameter("int", 600, "", "ADC samples per chirp N (Table I: 600)", _at_least(1)),
+    "n_dft": Parameter("int", 1199, "", "fast-time DFT length N_DFT (Table I: 1199)", _at_least(1)),
+    "k_dft": Parameter("int", 4793, "", "slow-time DFT length K_DFT (Table I: 4793)", _at_least(1)),
     "scene": Parameter("str", "", "", "a hall in scenes/ (e.g. paper_hall): traced paths instead of the analytic ones"),
-    "radar_index": Parameter("int", 0, "", "which radar position of the hall's spec", lambda v: None if v >= 0 else "must be >= 0"),
-    "depth": Parameter("int", 3, "", "ray-tracing depth for halls", _positive),
-    "samples": Parameter("int", 100_000, "", "rays per source for halls", _positive),
+    "radar_index": Parameter("int", 0, "", "which radar position of the hall's spec", _at_least(0)),
+    "depth": Parameter("int", 3, "", "ray-tracing depth for halls", _at_least(1)),
+    "samples": Parameter("int", 100_000, "", "rays per source for halls", _at_least(1)),
 }
 
 #: Parameters of the analytic geometry that a hall (``scene``) takes from its spec instead.
@@ -104,7 +130,25 @@ ANALYTIC_ONLY = ("ris_size", "distance", "aod_deg", "aod_spread_deg", "speed", "
 
 
 def check_value(name: str, value: Any) -> Any:
-    """``value`` converted to the parameter's kind, or ``ValueError`` naming the parameter."""
+    """``value`` converted to the parameter's kind and checked against its range.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PARAMETERS`.
+    value
+        As written (a study file's value or a ``--vary``/``--set`` string), in the parameter's unit.
+
+    Returns
+    -------
+    bool, int, float or str
+        The value as the parameter's kind.
+
+    Raises
+    ------
+    ValueError
+        Unknown parameter, a value not of its kind, or out of its range (one line naming it).
+    """
     if name not in PARAMETERS:
         raise ValueError(f"unknown study parameter {name!r}; known: {', '.join(PARAMETERS)}")
     p = PARAMETERS[name]
@@ -131,14 +175,31 @@ def check_value(name: str, value: Any) -> Any:
     except (TypeError, ValueError):
         raise ValueError(f"{name}={value!r} is not a {p.kind}" + (f" [{p.unit}]" if p.unit else "")) from None
     if p.check is not None:
-        problem = p.check(out)
-        if problem:
-            raise ValueError(f"{name}={value!r} {problem}")
+        p.check(out, name, p.unit)
     return out
 
 
 def parse_values(name: str, text: str) -> list[Any]:
-    """``"0,10,20"`` -> [0.0, 10.0, 20.0] for ``--vary NAME=...`` (``lo:hi:step`` ranges too)."""
+    """``"0,10,20"`` -> [0.0, 10.0, 20.0] for ``--vary NAME=...`` (``lo:hi:step`` ranges too).
+
+    Parameters
+    ----------
+    name : str
+        The parameter.
+    text : str
+        Comma-separated values, or ``LO:HI:STEP`` ranges for numeric parameters (HI included), in
+        the parameter's unit.
+
+    Returns
+    -------
+    list
+        The checked values (:func:`check_value`), in order.
+
+    Raises
+    ------
+    ValueError
+        No value, a bad range (STEP <= 0, HI < LO, more than 10000 values) or a bad value.
+    """
     items = [t.strip() for t in str(text).split(",") if t.strip()]
     if not items:
         raise ValueError(f"--vary {name}= has no values; give them as {name}=V1,V2,... or {name}=LO:HI:STEP")
@@ -158,7 +219,23 @@ def parse_values(name: str, text: str) -> list[Any]:
 
 
 def complete_point(values: dict[str, Any]) -> dict[str, Any]:
-    """Every parameter: ``values`` (checked) over the defaults; refuses analytic-only ones for halls."""
+    """Every parameter: ``values`` (checked) over the defaults; refuses analytic-only ones for halls.
+
+    Parameters
+    ----------
+    values : dict
+        Parameter name -> value (units as in :data:`PARAMETERS`).
+
+    Returns
+    -------
+    dict
+        Every parameter of :data:`PARAMETERS`, in its order, with its kind.
+
+    Raises
+    ------
+    ValueError
+        A bad value, or an analytic-only parameter (:data:`ANALYTIC_ONLY`) given for a hall.
+    """
     point = {name: p.default for name, p in PARAMETERS.items()}
     for name, value in values.items():
         point[name] = check_value(name, value)

@@ -1,4 +1,8 @@
-"""``run_study``: a study folder from a spec, resumable, on local processes or a Dask cluster."""
+"""``run_study``: a study folder from a spec, resumable, on local processes or a Dask cluster.
+
+The points are the spec's grid; the engine prepares each with :func:`risloc_rt.studies.kernel.prepare_point`
+(the analytic scenario or a traced hall) and runs it with :func:`risloc_rt.studies.kernel.run_once`.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,8 @@ from typing import Any
 
 from .._files import atomic_write_bytes
 from .engine import default_workers, execute
+from .figures import plot_summary
+from .kernel import prepare_point
 from .spec import StudySpec
 from .store import SUMMARY, TABLE, open_study_folder, write_parquet
 from .summary import summarize
@@ -23,7 +29,7 @@ class StudyResult:
     Attributes
     ----------
     summary : dict
-        The content of ``summary.json``.
+        The content of ``summary.json`` (errors in m and rad, times in s).
     folder : Path
     table, summary_path, figure : Path
         ``runs.parquet``, ``summary.json`` and the figure (None with ``figures=False``).
@@ -49,6 +55,7 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     Parameters
     ----------
     spec : StudySpec
+        What to vary and how many runs per point.
     out : path
         The study folder: created, or reopened to continue the same study.
     workers : int, optional
@@ -61,6 +68,19 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
         Reuse a folder that holds another study (its log is kept under another name).
     figures : bool
         Draw ``study.png``.
+
+    Returns
+    -------
+    StudyResult
+
+    Raises
+    ------
+    StudyFolderError
+        ``out`` holds another study (or no study) and ``force`` is not given.
+    StudyError
+        A batch killed its worker too often, or the Dask cluster gave up on it.
+    ValueError
+        ``workers`` < 1.
     """
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
         raise ValueError(f"--workers {workers} must be >= 1")
@@ -68,7 +88,7 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     folder = Path(out)
     log = open_study_folder(folder, spec, force=force)
     try:
-        info = execute(spec, log, workers=workers, dask=dask, quiet=quiet)
+        info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet)
         rows = list(log.rows.values())
     finally:
         log.close()
@@ -81,8 +101,6 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     path = atomic_write_bytes(folder / SUMMARY, json.dumps(json_safe(summary), indent=1).encode() + b"\n")
     fig = None
     if figures:
-        from .figures import plot_summary
-
         fig = plot_summary(summary, folder / "study.png")
     return StudyResult(summary=summary, folder=folder, table=table, summary_path=path, figure=fig,
                        new_runs=info["new_runs"], wall_seconds=info["wall_seconds"])

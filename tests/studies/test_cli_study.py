@@ -74,7 +74,8 @@ def test_a_study_file_runs_and_prints_its_table(capsys, tmp_path):
 
 @pytest.mark.parametrize("args, match", [
     (["no_such_hall"], "no_such_hall"),
-    (["--spacing", "0"], "must be a positive number"),
+    (["--spacing", "0"], "--spacing=0.0 must be a finite number > 0 [m]"),
+    (["--margin", "-1"], "--margin=-1.0 must be a finite number >= 0 [m]"),
     (["--runs", "0"], "must be >= 1"),
 ])
 def test_map_bad_input_is_one_line_exit_2(capsys, tmp_path, args, match):

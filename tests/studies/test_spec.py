@@ -29,8 +29,13 @@ def test_ranges_and_types():
     ({"vary": ["tx_power_dbm="]}, "has no values"),
     ({"vary": []}, "nothing to vary"),
     ({"vary": ["tx_power_dbm=a"]}, "is not a float"),
-    ({"vary": ["sweep_step_deg=0,1"]}, "must be > 0"),
-    ({"vary": ["estimator=best"]}, "must be one of paper, refined"),
+    ({"vary": ["sweep_step_deg=0,1"]}, r"sweep_step_deg=0.0 must be a finite number > 0 \[deg\]"),
+    ({"vary": ["estimator=best"]}, "estimator='best' must be one of paper, refined"),
+    ({"vary": ["aod_deg=10,90"]}, r"aod_deg=90.0 must lie in \(-90, 90\) \[deg\]"),
+    ({"vary": ["aod_spread_deg=0,90"]}, r"aod_spread_deg=90.0 must lie in \[0, 90\) \[deg\]"),
+    ({"vary": ["pfa=0.5,1"]}, r"pfa=1.0 must lie in \(0, 1\)$"),
+    ({"vary": ["num_chirps=0"]}, "num_chirps=0 must be an integer >= 1"),
+    ({"vary": ["radar_index=-1"]}, "radar_index=-1 must be an integer >= 0"),
     ({"vary": ["ris_size=16by4"]}, "ROWSxCOLUMNS"),
     ({"vary": ["tx_power_dbm=1,1"]}, "lists a value twice"),
     ({"vary": ["tx_power_dbm=1", "tx_power_dbm=2"]}, "varied twice"),
@@ -60,3 +65,10 @@ def test_study_file_and_key(tmp_path):
         load_study_file(f)
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_study_file(tmp_path / "none.toml")
+
+
+def test_the_closed_ends_of_a_range_are_accepted_and_kinds_are_kept():
+    """[0, 90) takes 0, radar_index >= 0 takes 0; an int parameter stays an int (it enters the study key)."""
+    point = complete_point({"aod_spread_deg": "0", "radar_index": "0", "num_chirps": "16", "pfa": "0.5"})
+    assert point["aod_spread_deg"] == 0.0 and point["radar_index"] == 0 and point["pfa"] == 0.5
+    assert type(point["num_chirps"]) is int and point["num_chirps"] == 16

@@ -26,11 +26,11 @@ def test_a_run_is_what_simulate_then_locate_gives_for_the_same_noise():
     """The shortcut (cube once, noise per run) changes nothing: same numbers as simulate -> process_capture."""
     from risloc_rt.io.report import process_capture
     from risloc_rt.model import simulate
-    from risloc_rt.studies.kernel import _analytic
+    from risloc_rt.studies.kernel import point_scenario
 
     params = complete_point({**SMALL, "tx_power_dbm": 30.0, "estimator": "refined"})
     row = run_once(prepare_point(params), study_seed=3, point=1, run=4)
-    cap = simulate(_analytic(params, structure=True), rng=run_rng(3, 1, 4), noise_stream="fast")
+    cap = simulate(point_scenario(params, structure=True), rng=run_rng(3, 1, 4), noise_stream="fast")
     loc, _ = process_capture(cap, estimator="refined")
     assert row["distance"] == loc.distance and row["aod_az"] == loc.aod[0]
 
