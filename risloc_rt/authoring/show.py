@@ -6,14 +6,15 @@ positions with their boresight and the azimuth at which the RIS sees them. The e
 seen from -y) shows heights. Optionally the traced paths of one radar position are drawn in:
 the monostatic echoes and the radar → RIS legs, as polylines through their interaction points.
 
-Matplotlib's Agg canvas only (no pyplot state); nothing here imports sionna, mitsuba or drjit.
+Drawn with :mod:`risloc_rt.plotting` (its own Agg canvas, no pyplot state, an atomic write); nothing
+here imports sionna, mitsuba or drjit.
 """
 
 from __future__ import annotations
 
 import math
 import textwrap
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ import numpy as np
 
 from dsp import BeamSweep
 
+from ..plotting import new_figure, save_figure
 from .objects import BoxObject, CylinderObject, WallPanel
 from .spec import HallSpec, load_spec
 
@@ -109,7 +111,7 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
     ----------
     scene : HallSpec, or path of a spec (TOML) or of a scene folder
     out_png : str or Path
-        The PNG to write (folders are created).
+        The PNG to write (folders are created; written atomically).
     radar_index : int, optional
         Radar position to highlight (default: the one ``paths`` was traced from, if any).
     paths : risloc_rt.hall.HallPaths or risloc_rt.hall.raytrace.TraceResult, optional
@@ -124,11 +126,6 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
     -------
     SceneFigure
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Polygon
-
     spec = _resolve(scene)
     sweep = sweep if sweep is not None else BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))
     trace = getattr(paths, "trace", paths)
@@ -140,6 +137,46 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
     if radar_index is not None and not 0 <= radar_index < max(len(radars), 1):
         raise ValueError(f"radar_index={radar_index} is out of range: the spec has {len(radars)} radar position(s)")
 
+    views = _new_views(spec, dpi)
+    floor_patch = _draw_shell(views, spec)
+    _draw_objects(views, spec)
+    _draw_meshes(views, spec)
+    if trace is not None:
+        _draw_paths(views, trace)
+    _draw_ris(views, spec, sweep, radars, floor_patch)
+    if len(radars):
+        _draw_radars(views, spec, radars, radar_index)
+    _finish(views, spec, radar_index, trace)
+    out = save_figure(views.fig, out_png, tight=False, dpi=dpi)
+    plan, elev = views.plan, views.elev
+    return SceneFigure(path=out, plan_limits=np.array([plan.get_xlim(), plan.get_ylim()]),
+                       elevation_limits=np.array([elev.get_xlim(), elev.get_ylim()]), counts=views.counts,
+                       radar_index=radar_index)
+
+
+@dataclass(frozen=True)
+class _Views:
+    """The figure being drawn: its plan and elevation axes, the hall's extent, what was drawn so far.
+
+    ``lo``, ``hi``: footprint corners [2] [m]; ``size``: its larger side [m]; ``margin`` [m];
+    ``counts`` and ``legend`` (label key -> handle) fill up as the steps draw.
+    """
+
+    fig: Any
+    plan: Any
+    elev: Any
+    footprint: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    size: float
+    margin: float
+    height: float
+    counts: dict[str, int] = field(default_factory=dict)
+    legend: dict[str, Any] = field(default_factory=dict)
+
+
+def _new_views(spec: HallSpec, dpi: int) -> _Views:
+    """The figure, sized so that the plan and the elevation keep the hall's proportions."""
     fp = spec.footprint_array
     lo, hi = fp.min(axis=0), fp.max(axis=0)
     size = float(max(hi - lo))
@@ -148,15 +185,22 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
     width_in = 11.0
     plan_h = (hi[1] - lo[1] + 2 * margin) / (hi[0] - lo[0] + 2 * margin) * width_in * 0.78
     elev_h = (h + 2 * margin) / (hi[0] - lo[0] + 2 * margin) * width_in * 0.78
-    fig = Figure(figsize=(width_in, plan_h + elev_h + 1.6), dpi=dpi)
-    FigureCanvasAgg(fig)
+    fig = new_figure(figsize=(width_in, plan_h + elev_h + 1.6), dpi=dpi)
     gs = fig.add_gridspec(2, 1, height_ratios=[plan_h, elev_h], hspace=0.28, left=0.07, right=0.76, top=0.9,
                           bottom=0.07)
     plan, elev = fig.add_subplot(gs[0]), fig.add_subplot(gs[1], sharex=None)
     counts = dict.fromkeys(("walls", "objects", "meshes", "ris", "radars", "monostatic_paths", "ris_legs"), 0)
-    legend: dict[str, Any] = {}
+    return _Views(fig=fig, plan=plan, elev=elev, footprint=fp, lo=lo, hi=hi, size=size, margin=margin, height=h,
+                  counts=counts)
 
-    # --- hall shell ---------------------------------------------------------------------------
+
+def _draw_shell(views: _Views, spec: HallSpec) -> Any:
+    """Floor, numbered walls and the elevation's outline; returns the floor patch (the sweep fans are clipped to it)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Polygon
+
+    plan, elev, fp, h = views.plan, views.elev, views.footprint, views.height
+    lo, hi = views.lo, views.hi
     floor_patch = Polygon(fp, closed=True, facecolor="#f4f4f4", edgecolor="none", zorder=0)
     plan.add_patch(floor_patch)
     for i in range(len(fp)):
@@ -169,14 +213,21 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
                       va="center", fontsize=7, color="#555555", rotation=_text_angle(e), rotation_mode="anchor")
         if abs(e[0]) < 1e-9:  # a wall across the view: a line in the elevation
             elev.plot([a[0], a[0]], [0, h], color="#333333", lw=2.0, zorder=2)
-        counts["walls"] += 1
+        views.counts["walls"] += 1
     elev.plot([lo[0], hi[0]], [0, 0], color="#333333", lw=2.5, zorder=2)
     elev.plot([lo[0], hi[0]], [h, h], color="#333333", lw=2.5, zorder=2)
     elev.plot([lo[0], lo[0]], [0, h], color="#333333", lw=2.0, zorder=2)
     elev.plot([hi[0], hi[0]], [0, h], color="#333333", lw=2.0, zorder=2)
-    legend["wall"] = Line2D([], [], color="#333333", lw=2.5, label=f"walls ({spec.materials.walls.describe()})")
+    views.legend["wall"] = Line2D([], [], color="#333333", lw=2.5, label=f"walls ({spec.materials.walls.describe()})")
+    return floor_patch
 
-    # --- objects ------------------------------------------------------------------------------
+
+def _draw_objects(views: _Views, spec: HallSpec) -> None:
+    """Wall panels (doors, windows) along their wall; boxes and pillars by their footprint, coloured by material."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Polygon
+
+    plan, elev, fp, size = views.plan, views.elev, views.footprint, views.size
     for obj in spec.objects:
         colour = _colour(obj.material)
         if isinstance(obj, WallPanel):
@@ -192,8 +243,8 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
             z0, z1 = obj.z_range
             elev.add_patch(Polygon([[x0, z0], [x1, z0], [x1, z1], [x0, z1]], closed=True, facecolor=colour,
                                    edgecolor="#333333", lw=0.8, alpha=0.8, zorder=3))
-            legend[f"{obj.kind}:{colour}"] = Line2D([], [], color=colour, lw=5,
-                                                    label=f"{obj.kind} ({obj.material.describe()})")
+            views.legend[f"{obj.kind}:{colour}"] = Line2D([], [], color=colour, lw=5,
+                                                          label=f"{obj.kind} ({obj.material.describe()})")
         else:
             corners = obj.corners_xy()
             plan.add_patch(Polygon(corners, closed=True, facecolor=colour, edgecolor="#333333", lw=0.8, zorder=3))
@@ -207,47 +258,63 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
             elev.add_patch(Polygon([[x0, z0], [x1, z0], [x1, z1], [x0, z1]], closed=True, facecolor=colour,
                                    edgecolor="#333333", lw=0.8, alpha=0.6, zorder=3))
             kind = obj.kind if isinstance(obj, BoxObject) else "pillar"
-            legend[f"obj:{kind}:{colour}"] = Patch(facecolor=colour, edgecolor="#333333",
-                                                   label=f"{kind} ({obj.material.itu or obj.material.name})")
-        counts["objects"] += 1
-    if spec.meshes:
-        from scipy.spatial import ConvexHull, QhullError
+            views.legend[f"obj:{kind}:{colour}"] = Patch(facecolor=colour, edgecolor="#333333",
+                                                         label=f"{kind} ({obj.material.itu or obj.material.name})")
+        views.counts["objects"] += 1
 
-        from .shapes import scene_meshes
 
-        imported = {m.name: m for m in scene_meshes(spec) if m.kind == "mesh"}
-        for m in spec.meshes:
-            v = imported[m.name].vertices
-            xy = v[:, :2]
-            try:
-                hull = xy[ConvexHull(xy).vertices]
-            except (QhullError, ValueError):  # a flat or tiny mesh: its bounding box
-                (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
-                hull = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
-            colour = _colour(m.material)
-            plan.add_patch(Polygon(hull, closed=True, facecolor=colour, edgecolor="#333333", lw=0.8, hatch="///",
-                                   zorder=3))
-            plan.annotate(m.name, hull.mean(axis=0), ha="center", va="center", fontsize=6.5, zorder=6)
-            elev.add_patch(Polygon([[v[:, 0].min(), v[:, 2].min()], [v[:, 0].max(), v[:, 2].min()],
-                                    [v[:, 0].max(), v[:, 2].max()], [v[:, 0].min(), v[:, 2].max()]], closed=True,
-                                   facecolor=colour, edgecolor="#333333", lw=0.8, alpha=0.6, hatch="///", zorder=3))
-            legend[f"mesh:{colour}"] = Patch(facecolor=colour, edgecolor="#333333", hatch="///",
-                                             label=f"imported mesh ({m.material.itu or m.material.name})")
-            counts["meshes"] += 1
+def _draw_meshes(views: _Views, spec: HallSpec) -> None:
+    """Imported meshes, hatched: their convex hull in the plan, their bounding box in the elevation."""
+    if not spec.meshes:
+        return
+    from matplotlib.patches import Patch, Polygon
+    from scipy.spatial import ConvexHull, QhullError
 
-    # --- traced paths -------------------------------------------------------------------------
-    if trace is not None:
-        for key, traced, colour, label in (("monostatic_paths", trace.monostatic, _MONO_COLOUR, "traced echoes"),
-                                           ("ris_legs", None, _LEG_COLOUR, "traced radar → RIS legs")):
-            groups = [traced] if traced is not None else list(trace.legs)
-            for g in groups:
-                for line in path_polylines(g):
-                    plan.plot(line[:, 0], line[:, 1], color=colour, lw=0.7, alpha=0.45, zorder=4)
-                    elev.plot(line[:, 0], line[:, 2], color=colour, lw=0.7, alpha=0.45, zorder=4)
-                    counts[key] += 1
-            legend[key] = Line2D([], [], color=colour, lw=1.2, label=f"{label} ({counts[key]})")
+    from .shapes import scene_meshes
 
-    # --- RIS -----------------------------------------------------------------------------------
+    plan, elev = views.plan, views.elev
+    imported = {m.name: m for m in scene_meshes(spec) if m.kind == "mesh"}
+    for m in spec.meshes:
+        v = imported[m.name].vertices
+        xy = v[:, :2]
+        try:
+            hull = xy[ConvexHull(xy).vertices]
+        except (QhullError, ValueError):  # a flat or tiny mesh: its bounding box
+            (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+            hull = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        colour = _colour(m.material)
+        plan.add_patch(Polygon(hull, closed=True, facecolor=colour, edgecolor="#333333", lw=0.8, hatch="///",
+                               zorder=3))
+        plan.annotate(m.name, hull.mean(axis=0), ha="center", va="center", fontsize=6.5, zorder=6)
+        elev.add_patch(Polygon([[v[:, 0].min(), v[:, 2].min()], [v[:, 0].max(), v[:, 2].min()],
+                                [v[:, 0].max(), v[:, 2].max()], [v[:, 0].min(), v[:, 2].max()]], closed=True,
+                               facecolor=colour, edgecolor="#333333", lw=0.8, alpha=0.6, hatch="///", zorder=3))
+        views.legend[f"mesh:{colour}"] = Patch(facecolor=colour, edgecolor="#333333", hatch="///",
+                                               label=f"imported mesh ({m.material.itu or m.material.name})")
+        views.counts["meshes"] += 1
+
+
+def _draw_paths(views: _Views, trace: Any) -> None:
+    """The traced paths of one radar position as polylines: monostatic echoes, then the radar → RIS legs."""
+    from matplotlib.lines import Line2D
+
+    for key, traced, colour, label in (("monostatic_paths", trace.monostatic, _MONO_COLOUR, "traced echoes"),
+                                       ("ris_legs", None, _LEG_COLOUR, "traced radar → RIS legs")):
+        groups = [traced] if traced is not None else list(trace.legs)
+        for g in groups:
+            for line in path_polylines(g):
+                views.plan.plot(line[:, 0], line[:, 1], color=colour, lw=0.7, alpha=0.45, zorder=4)
+                views.elev.plot(line[:, 0], line[:, 2], color=colour, lw=0.7, alpha=0.45, zorder=4)
+                views.counts[key] += 1
+        views.legend[key] = Line2D([], [], color=colour, lw=1.2, label=f"{label} ({views.counts[key]})")
+
+
+def _draw_ris(views: _Views, spec: HallSpec, sweep: BeamSweep, radars: np.ndarray, floor_patch: Any) -> None:
+    """Each RIS: its panel, boresight arrow, name and beam-sweep fan (clipped to the floor)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Polygon
+
+    plan, elev, size = views.plan, views.elev, views.size
     az = sweep.angles[:, 0]
     for r in spec.ris:
         pose = r.pose
@@ -272,43 +339,50 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
         w = pose.column_axis
         elev.plot([p[0] - vh * w[0], p[0] + vh * w[0]], [p[2] - vh * w[2], p[2] + vh * w[2]], color=_RIS_COLOUR,
                   lw=4, solid_capstyle="butt", zorder=7)
-        counts["ris"] += 1
+        views.counts["ris"] += 1
     if spec.ris:
-        legend["ris"] = Line2D([], [], color=_RIS_COLOUR, lw=4, label="RIS panel + boresight")
-        legend["fan"] = Patch(facecolor=_RIS_COLOUR, alpha=0.15, edgecolor=_RIS_COLOUR,
-                              label=f"beam sweep {np.rad2deg(az.min()):+.0f}° … {np.rad2deg(az.max()):+.0f}°")
+        views.legend["ris"] = Line2D([], [], color=_RIS_COLOUR, lw=4, label="RIS panel + boresight")
+        views.legend["fan"] = Patch(facecolor=_RIS_COLOUR, alpha=0.15, edgecolor=_RIS_COLOUR,
+                                    label=f"beam sweep {np.rad2deg(az.min()):+.0f}° … {np.rad2deg(az.max()):+.0f}°")
 
-    # --- radar positions ------------------------------------------------------------------------
-    if len(radars):
-        bores = spec.radar_boresights()
-        pose0 = spec.ris[0].pose if spec.ris else None
-        for i, (q, bdir) in enumerate(zip(radars, bores)):
-            big = i == radar_index
-            ms = 9 if big else 6
-            plan.plot(q[0], q[1], "o", color=_RADAR_COLOUR, ms=ms, mec="black" if big else _RADAR_COLOUR, zorder=9)
-            elev.plot(q[0], q[2], "o", color=_RADAR_COLOUR, ms=ms, mec="black" if big else _RADAR_COLOUR, zorder=9)
-            tip = q + 0.05 * size * bdir
-            plan.annotate("", xy=tip[:2], xytext=q[:2], arrowprops=dict(arrowstyle="-|>", color=_RADAR_COLOUR, lw=1.2),
-                          zorder=9)
-            label = f"R{i}"
-            if pose0 is not None:
-                az_i = math.degrees(pose0.angles_to(q)[0])
-                label += f"  {az_i:+.1f}°, {np.linalg.norm(q - pose0.position):.2f} m"
-                if len(radars) <= 12:
-                    plan.plot([q[0], pose0.position[0]], [q[1], pose0.position[1]], ls=":", color=_RADAR_COLOUR,
-                              lw=0.8, zorder=5)
+
+def _draw_radars(views: _Views, spec: HallSpec, radars: np.ndarray, radar_index: int | None) -> None:
+    """The radar positions with their boresight; labelled with the azimuth and distance the first RIS sees."""
+    from matplotlib.lines import Line2D
+
+    plan, elev, size = views.plan, views.elev, views.size
+    bores = spec.radar_boresights()
+    pose0 = spec.ris[0].pose if spec.ris else None
+    for i, (q, bdir) in enumerate(zip(radars, bores)):
+        big = i == radar_index
+        ms = 9 if big else 6
+        plan.plot(q[0], q[1], "o", color=_RADAR_COLOUR, ms=ms, mec="black" if big else _RADAR_COLOUR, zorder=9)
+        elev.plot(q[0], q[2], "o", color=_RADAR_COLOUR, ms=ms, mec="black" if big else _RADAR_COLOUR, zorder=9)
+        tip = q + 0.05 * size * bdir
+        plan.annotate("", xy=tip[:2], xytext=q[:2], arrowprops=dict(arrowstyle="-|>", color=_RADAR_COLOUR, lw=1.2),
+                      zorder=9)
+        label = f"R{i}"
+        if pose0 is not None:
+            az_i = math.degrees(pose0.angles_to(q)[0])
+            label += f"  {az_i:+.1f}°, {np.linalg.norm(q - pose0.position):.2f} m"
             if len(radars) <= 12:
-                away = -bdir[:2] / max(np.linalg.norm(bdir[:2]), 1e-9)  # label behind the radar
-                plan.annotate(label, (q[0], q[1]), xytext=away * 8 + (0, 6 if abs(away[1]) <= 0.3 else 0),
-                              textcoords="offset points",
-                              ha="right" if away[0] < -0.3 else "left" if away[0] > 0.3 else "center",
-                              va="top" if away[1] < -0.3 else "bottom" if away[1] > 0.3 else "center",
-                              fontsize=7.5, color=_RADAR_COLOUR, zorder=9)
-            counts["radars"] += 1
-        legend["radar"] = Line2D([], [], marker="o", ls="", color=_RADAR_COLOUR,
-                                 label="radar Ri: azimuth, distance\nseen from the RIS" if spec.ris else "radar")
+                plan.plot([q[0], pose0.position[0]], [q[1], pose0.position[1]], ls=":", color=_RADAR_COLOUR,
+                          lw=0.8, zorder=5)
+        if len(radars) <= 12:
+            away = -bdir[:2] / max(np.linalg.norm(bdir[:2]), 1e-9)  # label behind the radar
+            plan.annotate(label, (q[0], q[1]), xytext=away * 8 + (0, 6 if abs(away[1]) <= 0.3 else 0),
+                          textcoords="offset points",
+                          ha="right" if away[0] < -0.3 else "left" if away[0] > 0.3 else "center",
+                          va="top" if away[1] < -0.3 else "bottom" if away[1] > 0.3 else "center",
+                          fontsize=7.5, color=_RADAR_COLOUR, zorder=9)
+        views.counts["radars"] += 1
+    views.legend["radar"] = Line2D([], [], marker="o", ls="", color=_RADAR_COLOUR,
+                                   label="radar Ri: azimuth, distance\nseen from the RIS" if spec.ris else "radar")
 
-    # --- axes ---------------------------------------------------------------------------------
+
+def _finish(views: _Views, spec: HallSpec, radar_index: int | None, trace: Any) -> None:
+    """Limits, equal aspect, grid and labels of both views; the title and the legend."""
+    plan, elev, lo, hi, margin, h = views.plan, views.elev, views.lo, views.hi, views.margin, views.height
     plan.set_xlim(lo[0] - margin, hi[0] + margin)
     plan.set_ylim(lo[1] - margin, hi[1] + margin)
     elev.set_xlim(lo[0] - margin, hi[0] + margin)
@@ -328,12 +402,6 @@ def show_scene(scene: HallSpec | str | Path, out_png: str | Path, *, radar_index
                           placeholder=" …")
     if radar_index is not None and trace is not None:
         title += f"\ntraced paths of radar position R{radar_index} (max depth {trace.settings.max_depth})"
-    fig.suptitle(title, fontsize=10, x=0.07, ha="left")
-    fig.legend(handles=list(legend.values()), loc="upper left", bbox_to_anchor=(0.77, 0.9), fontsize=7.5,
-               frameon=False)
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
-    return SceneFigure(path=out, plan_limits=np.array([plan.get_xlim(), plan.get_ylim()]),
-                       elevation_limits=np.array([elev.get_xlim(), elev.get_ylim()]), counts=counts,
-                       radar_index=radar_index)
+    views.fig.suptitle(title, fontsize=10, x=0.07, ha="left")
+    views.fig.legend(handles=list(views.legend.values()), loc="upper left", bbox_to_anchor=(0.77, 0.9),
+                     fontsize=7.5, frameon=False)
