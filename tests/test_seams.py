@@ -19,6 +19,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import pytest
@@ -195,3 +196,104 @@ def test_the_dotted_name_check_can_fail() -> None:
     assert DOTTED.findall("call risloc_rt.raytrace.ensure_backend() first; see dsp.detect.") == [
         "risloc_rt.raytrace.ensure_backend", "dsp.detect"]
     assert DOTTED.findall("scenes/risloc_rt.yaml and my_dsp.x") == []
+
+
+#: Run in a fresh interpreter: set a headless, non-Agg backend, draw every figure kind cheaply, and
+#: report matplotlib's global state before and after as JSON (the last line of stdout).
+_DRAW_EVERYTHING = r'''
+import json, sys, warnings
+from pathlib import Path
+from types import SimpleNamespace
+
+import matplotlib
+matplotlib.use(sys.argv[2])
+out = Path(sys.argv[1])
+before = {"backend": matplotlib.get_backend(), "rc": {k: repr(v) for k, v in matplotlib.rcParams.items()}}
+
+import numpy as np
+import dsp
+import risloc_rt
+from risloc_rt.authoring import show_scene
+from risloc_rt.io import plots
+
+drawn, notes = [], []
+# a small synthetic sweep: a tone with the relay pattern's beam dependence, in unit noise
+radar = dsp.RadarConfig(num_samples=64, num_chirps=16)
+processing = dsp.ProcessingConfig(n_dft=127, k_dft=64)
+sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-21.0, 21.0, 3.0]))
+pattern = dsp.BeamPattern().for_wavelength(radar.wavelength)
+pose = dsp.RisPose.facing([0.0, 8.0, 1.5], [0.0, 0.0, 1.5])
+tau = 2 * 6.0 / dsp.SPEED_OF_LIGHT + 1.78e-9
+f1 = radar.slope * tau * radar.sample_period
+k, n = np.arange(radar.num_chirps), np.arange(radar.num_samples)
+rng = np.random.default_rng(0)
+amp = np.abs(pattern.amplitude(np.deg2rad([5.0, 0.0]), sweep.angles)) * 2.0
+cube = amp[:, None, None] * np.exp(2j * np.pi * f1 * n)[None, None, :] * np.ones((1, k.size, 1))
+cube = cube + (rng.standard_normal(cube.shape) + 1j * rng.standard_normal(cube.shape)) * np.sqrt(0.5)
+loc = dsp.self_localize(cube, sweep=sweep, radar=radar, processing=processing, pose=pose, loopback_delay=1.78e-9,
+                        pattern=pattern)
+assert loc.detected, loc.flags
+ddm = dsp.delay_doppler_map(cube[loc.beam_index], radar, processing)
+peak = np.array([np.unravel_index(int(ddm.power.argmax()), ddm.power.shape)])
+drawn.append(plots.plot_delay_doppler(ddm, peak, out / "ddm.png"))
+drawn.append(plots.plot_sweep(loc, out / "sweep.png"))
+drawn.append(plots.plot_range_profile(ddm, loc, out / "profile.svg", loopback_delay=1.78e-9))
+profile = SimpleNamespace(distance=ddm.distance, power=ddm.power[0], peaks=[int(ddm.power[0].argmax())],
+                          labels=["RIS loop-back"], beam=np.zeros(2))
+drawn.append(plots.plot_labelled_profile(profile, out / "labelled.png"))
+drawn.append(show_scene(Path(sys.argv[3]) / "scenes" / "paper_hall", out / "hall.png").path)
+
+try:
+    import risloc_rt.measured as measured
+except ImportError as exc:
+    measured = None
+    notes.append(f"risloc_rt.measured does not import ({exc}): plot_inspection not drawn")
+plot_inspection = getattr(measured, "plot_inspection", None)
+if measured is not None and plot_inspection is None:
+    notes.append("risloc_rt.measured has no plot_inspection: not drawn")
+elif plot_inspection is not None:
+    rd = np.abs(rng.standard_normal((16, 64))) + 1.0
+    inspection = SimpleNamespace(range_profile=rd.mean(axis=0), range_doppler=rd, doppler_bins=np.arange(-8, 8),
+                                 peak=SimpleNamespace(range_bin=10, doppler_bin=0))
+    plot_inspection(inspection, out / "inspection.png")
+    drawn.append(out / "inspection.png")
+
+import risloc_rt.studies as studies
+plot_summary = getattr(studies, "plot_summary", None)
+if plot_summary is None:
+    notes.append("risloc_rt.studies exports no plot_summary: drawn from risloc_rt.studies.figures instead")
+    from risloc_rt.studies.figures import plot_summary
+name = next(p for p, spec in studies.PARAMETERS.items() if spec.kind == "float")
+q = {"distance": 0.01, "angle": 0.001, "position": 0.02}
+points = [{"params": {name: x, "estimator": "paper"}, "runs": 3, "mae": q, "crb": q,
+           "mae_ci95": {key: [0.5 * v, 2 * v] for key, v in q.items()}} for x in (1.0, 2.0)]
+summary = {"x": name, "study": {"name": "state", "vary": [name]}, "points": points}
+drawn.append(plot_summary(summary, out / "summary.png"))
+
+after = {"backend": matplotlib.get_backend(), "rc": {k: repr(v) for k, v in matplotlib.rcParams.items()}}
+pyplot = "matplotlib.pyplot" in sys.modules
+fignums = sys.modules["matplotlib.pyplot"].get_fignums() if pyplot else []
+print(json.dumps({"before": before, "after": after, "pyplot": pyplot, "fignums": fignums, "notes": notes,
+                  "drawn": [str(p) for p in drawn]}))
+'''
+
+
+@pytest.mark.parametrize("backend", ["svg", "pdf"])
+def test_drawing_every_figure_leaves_matplotlib_global_state_alone(tmp_path: Path, backend: str) -> None:
+    """Figures are drawn on their own Agg canvas: the caller's backend and rcParams stay, pyplot is never loaded."""
+    run = subprocess.run([sys.executable, "-c", _DRAW_EVERYTHING, str(tmp_path), backend, str(REPO)],
+                         capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    state = json.loads(run.stdout.strip().splitlines()[-1])
+    for note in state["notes"]:
+        warnings.warn(note, stacklevel=1)
+    assert state["before"]["backend"] == backend  # the state the caller set, not a default
+    assert state["after"]["backend"] == backend
+    changed = {k for k in state["before"]["rc"] if state["before"]["rc"][k] != state["after"]["rc"].get(k)}
+    assert not changed, f"rcParams changed by drawing: {sorted(changed)}"
+    assert not state["pyplot"], "matplotlib.pyplot was imported by risloc_rt"
+    assert state["fignums"] == []
+    drawn = [Path(p) for p in state["drawn"]]
+    assert len(drawn) >= 6
+    for path in drawn:  # each figure was really drawn and written
+        assert path.parent == tmp_path and path.stat().st_size > 5_000, path
