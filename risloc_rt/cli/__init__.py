@@ -42,7 +42,13 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``risloc``."""
+    """The argument parser of ``risloc``.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        Every verb a sub-command; its errors are one line with exit status 2.
+    """
     from . import calibrate, capture, compare, demo, locate, scene, simulate, speed, study, trace
 
     parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
@@ -78,6 +84,19 @@ def join_negative_values(argv: Sequence[str], value_options: set[str]) -> list[s
     argparse takes ``-6,1,2`` for an option (only plain negative numbers such as ``-6`` are
     recognised), so coordinates with a negative first component would need ``--ue=-6,1,2``;
     this makes the form a user writes work as written.
+
+    Parameters
+    ----------
+    argv : sequence of str
+        The command line (without the program name).
+    value_options : set of str
+        The option strings that take exactly one value.
+
+    Returns
+    -------
+    list of str
+        ``argv`` with each such option and its negative value joined by ``=``; nothing after ``--``
+        is touched.
     """
     out: list[str] = []
     args = list(argv)
@@ -139,7 +158,19 @@ def _classify(exc: BaseException) -> tuple[int, str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``risloc``; returns the exit status (0, 1 failure, 2 bad input, 130 interrupted)."""
+    """Entry point of ``risloc``: parse, run the verb, turn every error into one line on stderr.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0, :data:`EXIT_FAILURE` (1), :data:`EXIT_BAD_INPUT` (2),
+        :data:`EXIT_INTERRUPTED` (130), or a verb's own (``EXIT_NO_DETECTION``, 3).
+    """
     from .common import CliError
 
     parser = build_parser()

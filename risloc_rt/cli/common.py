@@ -25,7 +25,25 @@ class CliError(Exception):
 
 
 def vector(text: str, name: str) -> np.ndarray:
-    """Three comma-separated finite numbers ``X,Y,Z`` (flag ``name`` in the message)."""
+    """Three comma-separated finite numbers ``X,Y,Z``.
+
+    Parameters
+    ----------
+    text : str
+        The flag's value, e.g. ``1.0,2.5,1.2`` [m or m/s].
+    name : str
+        The flag, named in the error.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The numbers, in the flag's unit.
+
+    Raises
+    ------
+    CliError
+        Not three finite numbers.
+    """
     try:
         values = [float(x) for x in text.split(",")]
     except ValueError:
@@ -36,7 +54,25 @@ def vector(text: str, name: str) -> np.ndarray:
 
 
 def angle_pair(text: str, name: str) -> np.ndarray:
-    """Two comma-separated finite angles ``AZ,EL`` in degrees -> radians [2]."""
+    """Two comma-separated finite angles ``AZ,EL`` in degrees -> radians.
+
+    Parameters
+    ----------
+    text : str
+        The flag's value, e.g. ``7.3,0`` [deg].
+    name : str
+        The flag, named in the error.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        Azimuth and elevation [rad].
+
+    Raises
+    ------
+    CliError
+        Not two finite numbers.
+    """
     try:
         values = [float(x) for x in text.split(",")]
     except ValueError:
@@ -47,7 +83,20 @@ def angle_pair(text: str, name: str) -> np.ndarray:
 
 
 def processing_overrides(args: argparse.Namespace, base: ProcessingConfig) -> ProcessingConfig:
-    """``base`` with ``--doppler-search`` and ``--min-range`` applied."""
+    """``base`` with ``--doppler-search`` and ``--min-range`` applied.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_processing_flags`).
+    base : dsp.ProcessingConfig
+        The capture's or scenario's processing.
+
+    Returns
+    -------
+    dsp.ProcessingConfig
+        ``base`` itself when neither flag is given.
+    """
     changes: dict[str, Any] = {}
     if getattr(args, "doppler_search", None):
         changes["doppler_search"] = args.doppler_search
@@ -56,8 +105,18 @@ def processing_overrides(args: argparse.Namespace, base: ProcessingConfig) -> Pr
     return replace(base, **changes) if changes else base
 
 
-def trace_cache(args: argparse.Namespace):
-    """The user's trace cache, or ``None`` with ``--no-cache``."""
+def trace_cache(args: argparse.Namespace) -> Any:
+    """The user's trace cache, or ``None`` with ``--no-cache``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_trace_flags`).
+
+    Returns
+    -------
+    risloc_rt.hall.raytrace.cache.TraceCache or None
+    """
     if args.no_cache:
         return None
     from ..hall.raytrace.cache import TraceCache, default_cache_dir
@@ -65,8 +124,23 @@ def trace_cache(args: argparse.Namespace):
     return TraceCache(default_cache_dir())
 
 
-def trace_settings(args: argparse.Namespace):
-    """:class:`TraceSettings` with ``--depth``, ``--samples`` and the mechanism flags applied."""
+def trace_settings(args: argparse.Namespace) -> Any:
+    """:class:`TraceSettings` with ``--depth``, ``--samples`` and the mechanism flags applied.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_trace_flags`).
+
+    Returns
+    -------
+    risloc_rt.hall.raytrace.tracer.TraceSettings
+
+    Raises
+    ------
+    CliError
+        ``--diffuse`` outside [0, 1].
+    """
     from ..hall.raytrace.tracer import TraceSettings
 
     changes = {}
@@ -84,8 +158,20 @@ def trace_settings(args: argparse.Namespace):
     return TraceSettings(**changes)
 
 
-def quiet_hall_paths(hs, cache):
-    """hall_paths with its AliasWarnings collected in the report only (the CLI prints them once)."""
+def quiet_hall_paths(hs: Any, cache: Any) -> Any:
+    """hall_paths with its AliasWarnings collected in the report only (the CLI prints them once).
+
+    Parameters
+    ----------
+    hs : risloc_rt.hall.HallScenario
+        The hall and radar position.
+    cache : TraceCache or None
+        The trace cache (:func:`trace_cache`).
+
+    Returns
+    -------
+    risloc_rt.hall.HallPaths
+    """
     from ..hall.pruning import AliasWarning
     from ..hall.scenario import hall_paths
 
@@ -94,8 +180,18 @@ def quiet_hall_paths(hs, cache):
         return hall_paths(hs, cache=cache)
 
 
-def plot_traced_profile(hs, traced, path: Path) -> None:
-    """The labelled range profile of ``traced`` at the beam nearest the true AoD, as a PNG."""
+def plot_traced_profile(hs: Any, traced: Any, path: Path) -> None:
+    """The labelled range profile of ``traced`` at the beam nearest the true AoD, as a PNG.
+
+    Parameters
+    ----------
+    hs : risloc_rt.hall.HallScenario
+        The hall and radar position (radar, sweep, RIS, true AoD [rad]).
+    traced : risloc_rt.hall.HallPaths
+        Its traced paths.
+    path : Path
+        The PNG to write (atomically).
+    """
     from ..hall.path_table import labelled_range_profile
     from ..io import plots as plotting
 
@@ -107,7 +203,13 @@ def plot_traced_profile(hs, traced, path: Path) -> None:
 
 
 def add_trace_flags(p: argparse.ArgumentParser) -> None:
-    """``--depth``, ``--samples``, ``--diffuse``, ``--diffraction``, ``--refraction``, ``--no-cache``."""
+    """Add ``--depth``, ``--samples``, ``--diffuse``, ``--diffraction``, ``--refraction``, ``--no-cache``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A verb's parser.
+    """
     p.add_argument("--depth", type=int, help="ray-tracing depth (default 3)")
     p.add_argument("--samples", type=int, help="rays per source (default 100000)")
     p.add_argument("--diffuse", type=float, metavar="S",
@@ -123,7 +225,13 @@ EXIT_NO_DETECTION = 3
 
 
 def add_estimator_flags(p: argparse.ArgumentParser) -> None:
-    """``--estimator``, ``--ue-height``, ``--pfa``."""
+    """Add ``--estimator``, ``--ue-height`` [m], ``--pfa``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A verb's parser.
+    """
     p.add_argument("--estimator", choices=["refined", "paper"], default="refined",
                    help="'refined' (default): off-grid delay/Doppler from all beams, AoD from a fit of the RIS beam "
                         "pattern; 'paper': the seed paper's grid method")
@@ -134,12 +242,29 @@ def add_estimator_flags(p: argparse.ArgumentParser) -> None:
 
 
 def estimator_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The keyword options of :func:`risloc_rt.io.report.process_capture` from the flags."""
+    """The keyword options of :func:`risloc_rt.io.report.process_capture` from the flags.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_estimator_flags`).
+
+    Returns
+    -------
+    dict
+        ``estimator``, ``ue_height`` [m] (or None) and ``pfa`` (or None).
+    """
     return {"estimator": args.estimator, "ue_height": args.ue_height, "pfa": args.pfa}
 
 
 def add_processing_flags(p: argparse.ArgumentParser) -> None:
-    """``--doppler-search``, ``--min-range``."""
+    """Add ``--doppler-search``, ``--min-range`` [m].
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A verb's parser.
+    """
     p.add_argument("--doppler-search", choices=["zoom", "full"],
                    help="peak search over Doppler: 'zoom' (default, exact on the grid, fast) or 'full' (the paper's full 2-D DFT)")
     p.add_argument("--min-range", type=float, metavar="M",

@@ -79,7 +79,14 @@ def _demo_analytic(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``demo`` to an ``add_subparsers()`` object."""
+    """Add ``demo`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     demo = sub.add_parser("demo", help="localize end to end in the default ray-traced hall (or --analytic: the paper's point-target scenario)")
     demo.add_argument("--out", default="risloc-demo", help="output directory for result.json and plots (default: %(default)s)")
     demo.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")

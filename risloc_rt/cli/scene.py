@@ -106,6 +106,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``scene`` (with ``build``, ``check``, ``show``) to an ``add_subparsers()`` object.
 
     Each sub-command sets ``func``: ``args.func(args)`` runs it and returns the exit status.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``scene`` parser.
     """
     scene = subparsers.add_parser(
         "scene", help="author hall scenes: build a spec, check it, draw it",

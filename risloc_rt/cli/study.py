@@ -134,7 +134,14 @@ def _parallel_options(parser: argparse.ArgumentParser) -> None:
 
 
 def add_parser(sub) -> None:
-    """Add ``study`` (``sweep``, ``map``) to an ``add_subparsers()`` object."""
+    """Add ``study`` (``sweep``, ``map``) to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     study = sub.add_parser("study", help="Monte Carlo studies: parameter sweeps (the paper's Figs 6-8), floor maps",
                            description="Monte Carlo studies (docs/studies.md)")
     verbs = study.add_subparsers(dest="study_command", required=True, metavar="{sweep,map}")

@@ -39,7 +39,14 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``trace`` to an ``add_subparsers()`` object."""
+    """Add ``trace`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     trace = sub.add_parser("trace", help="ray trace a hall for one radar position and list the paths")
     trace.add_argument("scene", help="scene name in scenes/ or folder with scene.xml and spec.toml")
     trace.add_argument("--ue", required=True, metavar="X,Y,Z", help="radar position [m]")

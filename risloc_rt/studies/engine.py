@@ -72,7 +72,13 @@ class StudyPlan(Protocol):
     def key(self) -> str: ...  # noqa: D102
 
     def points(self) -> list[dict[str, Any]]:
-        """The points, in order, as plain (picklable) data: the argument of the point preparer."""
+        """The points, in order.
+
+        Returns
+        -------
+        list of dict
+            Plain (picklable) data, one per point: the argument of the point preparer.
+        """
         ...
 
 

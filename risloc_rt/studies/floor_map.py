@@ -249,7 +249,13 @@ class MapResult:
     wall_seconds: float
 
     def describe(self) -> str:
-        """One line: cells, detections, median and worst position RMSE [mm], time, files."""
+        """One line for the terminal.
+
+        Returns
+        -------
+        str
+            Cells, detections, median and worst position RMSE [mm], wall time [s], the files.
+        """
         det = [c for c in self.cells if c["detection_probability"] > 0]
         rmse = [c["rmse_position"] for c in det if c["rmse_position"] is not None]
         return (f"{len(self.cells)} cells, detected in {len(det)}; position RMSE median "

@@ -99,12 +99,26 @@ class StudySpec:
         return self.vary[0][0] if self.vary else None
 
     def points(self) -> list[dict[str, Any]]:
-        """Every grid point with every parameter filled in (defaults from :data:`PARAMETERS`)."""
+        """Every grid point with every parameter filled in (defaults from :data:`PARAMETERS`).
+
+        Returns
+        -------
+        list of dict
+            The cartesian product of the grid axes, last axis fastest; each point holds every
+            parameter (:func:`risloc_rt.studies.params.complete_point`), units as in its name.
+        """
         names = [n for n, _ in self.vary]
         grids = [v for _, v in self.vary]
         return [complete_point({**self.fixed, **dict(zip(names, combo))}) for combo in itertools.product(*grids)]
 
     def to_dict(self) -> dict[str, Any]:
+        """The spec as plain data (``study.json``, ``summary.json``).
+
+        Returns
+        -------
+        dict
+            ``name``, ``runs``, ``seed``, ``description``, ``fixed`` and ``vary`` (name -> list of values).
+        """
         return {"name": self.name, "runs": self.runs, "seed": self.seed, "description": self.description,
                 "fixed": dict(self.fixed), "vary": {n: list(v) for n, v in self.vary}}
 
@@ -121,7 +135,26 @@ class StudySpec:
 
 
 def load_study_file(path: str | Path, *, runs: int | None = None, seed: int | None = None) -> StudySpec:
-    """Read a study file (module docstring); ``runs``/``seed`` override the file's."""
+    """Read a study file (module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML file.
+    runs, seed : int, optional
+        Override the file's ``runs`` (default 100) and ``seed`` (default 0).
+
+    Returns
+    -------
+    StudySpec
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Not TOML, unknown tables, keys or parameters, or a bad value (one line naming it).
+    """
     p = Path(path)
     try:
         data = tomllib.loads(p.read_text())
@@ -163,7 +196,30 @@ def _assignment(text: str, flag: str) -> tuple[str, str]:
 
 def spec_from_options(*, vary: list[str] | None, fixed: list[str] | None, runs: int, seed: int,
                       name: str = "sweep") -> StudySpec:
-    """The spec of ``--vary NAME=V1,V2 ... --set NAME=V``."""
+    """The spec of ``--vary NAME=V1,V2 ... --set NAME=V``.
+
+    Parameters
+    ----------
+    vary : list of str, optional
+        ``NAME=V1,V2,...`` or ``NAME=LO:HI:STEP`` (units as in the name), one per grid axis.
+    fixed : list of str, optional
+        ``NAME=V``, one per fixed parameter.
+    runs : int
+        Monte Carlo runs per point.
+    seed : int
+        The study seed.
+    name : str
+        The study's name.
+
+    Returns
+    -------
+    StudySpec
+
+    Raises
+    ------
+    ValueError
+        Nothing to vary, a malformed assignment, an unknown parameter or a bad value.
+    """
     grid = []
     for text in vary or []:
         n, v = _assignment(text, "--vary")

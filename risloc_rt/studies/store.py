@@ -42,7 +42,18 @@ def _clean(value: Any) -> Any:
 
 
 class RunLog:
-    """The append-only JSON-lines log of finished runs."""
+    """The append-only JSON-lines log of finished runs.
+
+    Parameters
+    ----------
+    path : Path
+        ``runs.jsonl``.
+
+    Attributes
+    ----------
+    rows : dict of (int, int) to dict
+        The runs read or appended, by (point, run); the first row of a pair wins.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -50,7 +61,13 @@ class RunLog:
         self._fh: Any = None
 
     def open(self) -> "RunLog":
-        """Read what is there (cutting off a torn last line) and open for appending."""
+        """Read what is there (cutting off a torn last line) and open for appending.
+
+        Returns
+        -------
+        RunLog
+            ``self``.
+        """
         good = 0
         if self.path.exists():
             data = self.path.read_bytes()
@@ -73,10 +90,23 @@ class RunLog:
         return self
 
     def done(self) -> set[tuple[int, int]]:
+        """The finished runs.
+
+        Returns
+        -------
+        set of (int, int)
+            (point, run) pairs in the log.
+        """
         return set(self.rows)
 
     def append(self, rows: Iterable[dict[str, Any]]) -> None:
-        """Append rows (one write, then fsync): after a crash either all or a cut-off tail remain."""
+        """Append rows (one write, then fsync): after a crash either all or a cut-off tail remain.
+
+        Parameters
+        ----------
+        rows : iterable of dict
+            Run rows (:func:`risloc_rt.studies.kernel.run_once`); non-finite floats are written as null.
+        """
         rows = list(rows)
         if not rows:
             return
@@ -89,6 +119,7 @@ class RunLog:
             self.rows.setdefault((int(r["point"]), int(r["run"])), r)
 
     def close(self) -> None:
+        """Close the file (the rows read stay available)."""
         if self._fh is not None:
             self._fh.close()
             self._fh = None
@@ -98,6 +129,25 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> Run
     """Create or reopen ``out`` for ``spec``; refuse a folder of another study (or not a study) without ``force``.
 
     With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl``; nothing is deleted.
+
+    Parameters
+    ----------
+    out : Path
+        The study folder.
+    spec : StudySpec
+        The study (its key is written to ``study.json``).
+    force : bool
+        Use a folder that holds another study, or other files.
+
+    Returns
+    -------
+    RunLog
+        The folder's run log, open for appending.
+
+    Raises
+    ------
+    StudyFolderError
+        ``out`` is a file, or holds another study or other files, and ``force`` is not given.
     """
     out = Path(out)
     manifest = out / MANIFEST
@@ -130,7 +180,26 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> Run
 
 def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str, Any]], *,
                   study_seed: int, runs: int) -> Path:
-    """The run table (one row per run, runs < ``runs``) with each point's parameters, atomically."""
+    """The run table (one row per run, runs < ``runs``) with each point's parameters, atomically.
+
+    Parameters
+    ----------
+    path : Path
+        ``runs.parquet``.
+    rows : list of dict
+        The run rows (any order; runs >= ``runs`` are left out).
+    points : list of dict
+        The study's points: their parameters become ``param_*`` columns.
+    study_seed : int
+        Written as the ``study_seed`` column.
+    runs : int
+        Runs per point.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -152,8 +221,19 @@ def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str,
     return atomic_write_bytes(path, buf.getvalue(), sync=True)
 
 
-def read_runs_table(path: str | Path):
-    """The Parquet run table as a ``pyarrow.Table``."""
+def read_runs_table(path: str | Path) -> Any:
+    """The Parquet run table as a ``pyarrow.Table``.
+
+    Parameters
+    ----------
+    path : path-like
+        ``runs.parquet`` of a study folder.
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per run (columns in ``docs/studies.md``).
+    """
     import pyarrow.parquet as pq
 
     return pq.read_table(path)

@@ -53,8 +53,27 @@ def _intervals(err: np.ndarray, rng: np.random.Generator) -> tuple[list[float], 
 def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, Any]:
     """The ``summary.json`` object: ``{"study": ..., "points": [...]}`` (module docstring).
 
-    ``rows`` are the run rows of every point (runs ≥ ``spec.runs`` are ignored); ``info`` is what
-    :func:`risloc_rt.studies.engine.execute` returned (bounds, preparation times, retries).
+    Parameters
+    ----------
+    spec : StudySpec
+        The study.
+    rows : list of dict
+        The run rows of every point (runs >= ``spec.runs`` are ignored).
+    info : dict
+        What :func:`risloc_rt.studies.engine.execute` returned (bounds, preparation times, retries).
+
+    Returns
+    -------
+    dict
+        ``study``, ``key``, ``x`` (the figures' x parameter), ``units``, ``intervals``, ``retried``
+        and ``points``: per point its parameters, detection probability (Wilson 95 % interval),
+        MAE and RMSE of distance [m], angle [rad] and position [m] with bootstrap 95 % intervals,
+        the CRB and the random-phase bound, their ratios, mean SNR [dB], flag counts and times [s].
+
+    Raises
+    ------
+    RuntimeError
+        A point has fewer than ``spec.runs`` runs in ``rows``.
     """
     points = spec.points()
     by_point: dict[int, list[dict[str, Any]]] = {p: [] for p in range(len(points))}
