@@ -1,7 +1,7 @@
 """Speed against error of every estimator and trace setting in one run: ``risloc speed``.
 
 A thin wrapper so the study sits beside the other benchmarks; the arguments are those of
-``risloc speed`` (``risloc_rt/cli/speed.py``), e.g.
+``risloc speed`` (the study: ``risloc_rt/studies/speed.py``), e.g.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speed_error.py --realizations 3 --full 1 \\
         --json speed.json --plot docs/speed-error.png
