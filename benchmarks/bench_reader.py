@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from risloc_rt.measured import RawLayout, encode_frames, iter_frames, open_raw
-from risloc_rt.measured.files import SplitWriter
-from risloc_rt.measured.packets import PacketRecorder
+from risloc_rt.measured.dca1000.split_files import SplitWriter
+from risloc_rt.measured.dca1000.packets import PacketRecorder
 
 LAYOUT = RawLayout(num_samples=256, num_rx=4, chirps_per_loop=3, num_loops=64)
 TONE_BIN = 38

@@ -13,9 +13,9 @@ __all__ = ["add_parser"]
 
 def _run(args: argparse.Namespace) -> int:
     from ..io.capture_file import load_capture
-    from ..measured.calibrate import calibrate_capture
-    from ..measured.calibration import write_calibration
-    from ..measured.hall_model import hall_model, ue_position_of
+    from ..measured.compare.calibration_file import write_calibration
+    from ..measured.compare.calibration_fit import calibrate_capture
+    from ..measured.compare.traced_hall import hall_model, ue_position_of
 
     out = Path(args.output)
     if out.suffix not in (".toml", ".json"):

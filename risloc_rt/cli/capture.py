@@ -8,8 +8,8 @@ import json
 
 import numpy as np
 
-from ..measured.import_capture import DEFAULT_LEAKAGE
-from ..measured.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
+from ..measured.sweep.importer import DEFAULT_LEAKAGE
+from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
 from .common import CliError
 
 __all__ = ["add_parser"]

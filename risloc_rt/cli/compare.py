@@ -15,10 +15,10 @@ _OWN = ("index.html", "comparison.json", "range_profiles.png", "delay_doppler.pn
 def _run(args: argparse.Namespace) -> int:
     from ..io.capture_file import load_capture
     from ..io.report import process_capture
-    from ..measured.calibration import read_calibration
-    from ..measured.compare import compare_capture
-    from ..measured.compare_report import write_comparison
-    from ..measured.hall_model import hall_model, ue_position_of
+    from ..measured.compare.calibration_file import read_calibration
+    from ..measured.compare.comparison import compare_capture
+    from ..measured.compare.comparison_page import write_comparison
+    from ..measured.compare.traced_hall import hall_model, ue_position_of
 
     out = Path(args.output)
     if out.exists() and not out.is_dir():

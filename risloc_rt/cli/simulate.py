@@ -48,7 +48,7 @@ def _placed_scenario(args: argparse.Namespace) -> Scenario:
 def _run(args: argparse.Namespace) -> int:
     cal = None
     if args.calibration is not None:
-        from ..measured.calibration import apply_to_scenario, calibrated_paths, read_calibration
+        from ..measured.compare.calibration_file import apply_to_scenario, calibrated_paths, read_calibration
 
         cal = read_calibration(args.calibration)
     if args.scene is None:
@@ -79,7 +79,7 @@ def _run(args: argparse.Namespace) -> int:
         for w in traced.report.warnings:
             print(f"warning: {w}")
     if args.format == "dca1000":
-        from ..measured.emulate_capture import dca1000_radar
+        from ..measured.emulate.experiment import dca1000_radar
 
         scenario = replace(scenario, radar=dca1000_radar(scenario.radar))
     if cal is not None:
@@ -100,8 +100,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _write_dca1000(args: argparse.Namespace, capture) -> int:
-    """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate_capture)."""
-    from ..measured.emulate_capture import emulate_capture
+    """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate.experiment)."""
+    from ..measured.emulate.experiment import emulate_capture
 
     dc = 0j
     if args.dc_offset is not None:
@@ -115,8 +115,8 @@ def _write_dca1000(args: argparse.Namespace, capture) -> int:
         raise CliError("--complex64 applies to --format npz; a DCA1000 capture holds int16 ADC codes")
     offset = 0.0
     if args.calibration is not None:
-        from ..measured.calibration import adc_power_offset_db, read_calibration
-        from ..measured.emulate_capture import full_scale
+        from ..measured.compare.calibration_file import adc_power_offset_db, read_calibration
+        from ..measured.emulate.experiment import full_scale
 
         offset = adc_power_offset_db(read_calibration(args.calibration), 2.0 ** (args.adc_bits - 1) /
                                      full_scale(capture.radar))

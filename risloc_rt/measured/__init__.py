@@ -1,9 +1,20 @@
-"""Measured TI DCA1000 captures: raw ADC reader, configuration parsers, inspection and a binary emulator.
+"""Measured TI DCA1000 captures: raw ADC reader, configuration parsers, inspection, sweep import and emulators.
 
-The reader, parsers, inspection and binary emulator are numpy/scipy (plus ``dsp``) only; the sweep
-import (``import_capture``) and the experiment emulator (``emulate_capture``) build and take a
-``risloc_rt.model.Capture`` (floor 5 may import the floors below). Formats, byte layouts and error
-messages: ``docs/measured-captures.md``; sweep schedules: ``docs/formats.md``.
+The package is built in rooms whose imports point one way (a room imports the rooms before it,
+never one after; ``tests/measured/test_measured_rooms.py`` checks it):
+
+0. :mod:`.errors` — :class:`MeasuredFormatError` and the text-file reader;
+1. :mod:`.ti` — TI radar configurations: :class:`TiChirpConfig`, mmWave SDK ``.cfg``, Studio JSON;
+2. :mod:`.dca1000` — raw data: byte layouts, split files, packets, the streaming reader, channels, inspection;
+3. :mod:`.sweep` — a recorded RIS sweep: schedule, RIS timing, alignment, leakage removal, the import;
+4. :mod:`.emulate` — experiment emulators: raw files, an experiment's folder, a whole recording;
+5. :mod:`.compare` — against the traced hall: hall model, calibration file and fit, comparison and its page
+   (not re-exported here: it loads ``hall`` and ``io``).
+
+Rooms 0-2 and :mod:`.emulate.raw_files` are numpy/scipy (plus ``dsp``) only; the sweep import
+(``import_capture``) and the experiment emulators build and take a ``risloc_rt.model.Capture``
+(floor 5 may import the floors below). Formats, byte layouts and error messages:
+``docs/measured-captures.md``; sweep schedules: ``docs/formats.md``.
 
 Axis order: the reader returns ``complex64 [F, K, V, N]``: frames, loops (chirps per virtual
 channel), virtual channels (chirp of the TDM loop major, receiver minor: ``v = c·R + r``),
@@ -19,26 +30,27 @@ ADC samples, in ADC counts, with the project's sign convention (``I − jQ``) un
 >>> report = measured.inspect_capture("adc_data_Raw_0.bin", "profile.cfg"); print(report.to_json())
 """
 
-from .align import RisPowerSeries, SweepAlignment, fit_alignment, manual_alignment, ris_power_series
-from .channels import combine_channels
-from .dca1000 import CaptureInfo, FrameBlock, RawCapture, iter_frames, open_raw, read_raw
-from .emulate_raw import (AdcImpairments, EmulatedCapture, QuantizedCube, Recording, quantize_cube,
-                          write_raw_capture)
+from .dca1000.channels import combine_channels
+from .dca1000.inspection import CaptureInspection, Peak, inspect_capture, plot_inspection
+from .dca1000.packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
+from .dca1000.raw_layout import RawLayout, decode_frames, encode_frames
+from .dca1000.reader import CaptureInfo, FrameBlock, RawCapture, iter_frames, open_raw, read_raw
+from .dca1000.split_files import capture_files
+from .emulate.experiment import EmulatedExperiment, dca1000_radar, emulate_capture
+from .emulate.raw_files import (AdcImpairments, EmulatedCapture, QuantizedCube, Recording, quantize_cube,
+                                write_raw_capture)
+from .emulate.recording import EmulatedRecording, RecordingPlan, emulate_recording
 from .errors import MeasuredFormatError
-from .emulate_capture import EmulatedExperiment, dca1000_radar, emulate_capture
-from .emulate_recording import EmulatedRecording, RecordingPlan, emulate_recording
-from .files import capture_files
-from .import_capture import default_processing, import_capture
-from .inspect import CaptureInspection, Peak, inspect_capture, load_config, plot_inspection
-from .layout import RawLayout, decode_frames, encode_frames
-from .leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
-from .packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
-from .ris_timing import RisProgram, chirp_states
-from .sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
-from .sweep_schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
+from .sweep.alignment import RisPowerSeries, SweepAlignment, fit_alignment, manual_alignment, ris_power_series
+from .sweep.importer import default_processing, import_capture
+from .sweep.leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
+from .sweep.ris_timing import RisProgram, chirp_states
+from .sweep.schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
                              write_sweep_schedule)
-from .studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
-from .ti_config import TiChirp, TiChirpConfig, slope_step, start_frequency_step
+from .ti.chirp_config import TiChirp, TiChirpConfig, slope_step, start_frequency_step
+from .ti.config_file import load_config
+from .ti.sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
+from .ti.studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
 
 __all__ = [
     "EmulatedRecording", "LEAKAGE_METHODS", "RecordingPlan", "RisPowerSeries", "RisProgram", "SweepAlignment",

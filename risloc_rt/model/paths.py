@@ -1,15 +1,20 @@
-"""Propagation paths UE → … → UE that feed the beat-signal model."""
+"""Propagation paths UE → … → UE that feed the beat-signal model, and the operations on them.
+
+:class:`PathSet` (one geometry) and :class:`PathFrames` (one geometry per frame) hold the paths;
+:func:`select_paths` keeps some of them and :func:`shift_paths` lengthens them all, e.g. by a
+radar's internal range offset (``risloc_rt.measured`` uses both).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from dsp.validation import as_finite_array
 
-__all__ = ["PathFrames", "PathSet"]
+__all__ = ["PathFrames", "PathSet", "select_paths", "shift_paths"]
 
 
 @dataclass(frozen=True)
@@ -222,3 +227,43 @@ class PathFrames:
     def power(self) -> np.ndarray:
         """|γ_{m,l}|² [M, L] [W] (RIS paths before the array response)."""
         return np.abs(self.gain) ** 2
+
+
+def select_paths(paths: PathSet, keep: np.ndarray) -> PathSet:
+    """The paths of ``paths`` where ``keep`` is true, in their order.
+
+    Parameters
+    ----------
+    paths : PathSet
+        L paths.
+    keep : bool array [L]
+        Which to keep (e.g. ``paths.via_ris`` or its complement).
+
+    Returns
+    -------
+    PathSet
+        Gains [√W], delays [s], delay rates [s/s], RIS angles [rad] and labels of the kept paths.
+    """
+    return PathSet(paths.gain[keep], paths.delay[keep], paths.delay_rate[keep], paths.ris_incidence[keep],
+                   paths.ris_departure[keep], tuple(lab for lab, k in zip(paths.labels, keep) if k))
+
+
+def shift_paths(paths: PathSet, delay: float, carrier_frequency: float) -> PathSet:
+    """``paths`` with every delay longer by ``delay`` and the carrier phase that goes with it.
+
+    Parameters
+    ----------
+    paths : PathSet
+        L paths.
+    delay : float
+        Added to every τ_l [s] (a radar's range offset r adds ``2·r/c``).
+    carrier_frequency : float
+        f_c [Hz]: every gain turns by ``exp(−j2π f_c · delay)``, as eq. (1)'s carrier phase.
+
+    Returns
+    -------
+    PathSet
+        Delays τ_l + ``delay`` [s], gains ``γ_l · exp(−j2π f_c · delay)`` [√W], the rest unchanged.
+    """
+    return replace(paths, delay=paths.delay + delay,
+                   gain=paths.gain * np.exp(-2j * np.pi * carrier_frequency * delay))

@@ -1,6 +1,6 @@
 """Sweep alignment (first_frame = "auto"): emulated recordings with a known start, dwell and RIS clock drift.
 
-The emulator (risloc_rt.measured.emulate_recording) switches the RIS chirp by chirp on its own
+The emulator (risloc_rt.measured.emulate.recording) switches the RIS chirp by chirp on its own
 clock; the truth is the program's start and dwell in radar frames. A selected frame is right when
 at most MIX_TOLERANCE of its chirps see another beam under the *true* timing.
 """
@@ -15,9 +15,9 @@ from risloc_rt.cli import main
 from risloc_rt.io.capture_file import load_capture
 from risloc_rt.io.report import process_capture
 from risloc_rt.measured import dca1000_radar, import_capture
-from risloc_rt.measured.align import MIX_TOLERANCE
-from risloc_rt.measured.emulate_recording import RecordingPlan, emulate_recording
-from risloc_rt.measured.ris_timing import OFF, SYNC, RisProgram, chirp_states
+from risloc_rt.measured.sweep.alignment import MIX_TOLERANCE
+from risloc_rt.measured.emulate.recording import RecordingPlan, emulate_recording
+from risloc_rt.measured.sweep.ris_timing import OFF, SYNC, RisProgram, chirp_states
 from risloc_rt.model.builder import analytic_scenario
 
 DISTANCE, AOD_DEG = 9.3, 17.2

@@ -14,9 +14,9 @@ import pytest
 
 from risloc_rt.cli import main
 from risloc_rt.io.capture_file import load_capture
-from risloc_rt.measured.calibrate import calibrate_capture
-from risloc_rt.measured.calibration import read_calibration
-from risloc_rt.measured.hall_model import hall_model
+from risloc_rt.measured.compare.calibration_file import read_calibration
+from risloc_rt.measured.compare.calibration_fit import calibrate_capture
+from risloc_rt.measured.compare.traced_hall import hall_model
 
 RANGE_OFFSET, TAU_RB, ZETA_DB = 0.0123, 1.93e-9, 42.0          # what conftest.injected_hall injects
 TRACE = ["--depth", "2", "--samples", "20000"]
@@ -66,7 +66,7 @@ def test_calibrate_cli_file_and_locate_with_it(hall_capture, tmp_path, capsys, m
 
     truth = hall_capture["capture"].truth.distance
     from risloc_rt.io.report import process_capture
-    from risloc_rt.measured.calibration import apply_to_capture
+    from risloc_rt.measured.compare.calibration_file import apply_to_capture
 
     raw, _ = process_capture(hall_capture["capture"])
     fixed, _ = process_capture(apply_to_capture(hall_capture["capture"], cal))
@@ -78,7 +78,7 @@ def test_calibrate_cli_file_and_locate_with_it(hall_capture, tmp_path, capsys, m
 
 
 def test_simulate_with_a_calibration(hall_capture, tmp_path, capsys):
-    from risloc_rt.measured.calibration import Calibration, write_calibration
+    from risloc_rt.measured.compare.calibration_file import Calibration, write_calibration
 
     cal = write_calibration(Calibration(range_offset=0.02, loopback_delay=2.0e-9, amplification_db=40.0,
                                         noise_power_dbm=-60.0, power_offset_db=100.0), tmp_path / "c.toml")

@@ -16,9 +16,9 @@ import subprocess
 import pytest
 
 from risloc_rt.cli import main
-from risloc_rt.measured.calibrate import calibrate_capture
-from risloc_rt.measured.calibration import write_calibration
-from risloc_rt.measured.hall_model import hall_model
+from risloc_rt.measured.compare.calibration_file import write_calibration
+from risloc_rt.measured.compare.calibration_fit import calibrate_capture
+from risloc_rt.measured.compare.traced_hall import hall_model
 
 TRACE = ["--depth", "2", "--samples", "20000"]
 LOS = "ris_loopback: out LOS | back LOS"

@@ -9,7 +9,7 @@ from dsp import ProcessingConfig, RadarConfig
 from risloc_rt.io.report import process_capture
 from risloc_rt.measured import (AdcImpairments, TiChirpConfig, dca1000_radar, emulate_capture, import_capture,
                                 write_raw_capture)
-from risloc_rt.measured.emulate_capture import ADC_START_TIME, RAMP_MARGIN, full_scale
+from risloc_rt.measured.emulate.experiment import ADC_START_TIME, RAMP_MARGIN, full_scale
 from risloc_rt.model.builder import analytic_scenario
 from risloc_rt.model.simulate import simulate
 

@@ -17,7 +17,7 @@ from risloc_rt.io.report import process_capture
 from risloc_rt.measured import (AdcImpairments, Recording, dca1000_radar, emulate_capture, format_sweep_schedule,
                                 import_capture, parse_sweep_schedule, read_sdk_cfg, read_sweep_schedule,
                                 write_raw_capture)
-from risloc_rt.measured.emulate_capture import full_scale
+from risloc_rt.measured.emulate.experiment import full_scale
 from risloc_rt.model.builder import analytic_scenario
 from risloc_rt.model.simulate import simulate
 

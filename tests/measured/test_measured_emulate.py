@@ -116,7 +116,7 @@ def test_combine_channels_gives_the_localization_cube(make_config, make_tone):
 
 def test_split_files_appear_together_or_not_at_all(tmp_path, make_config, make_tone):
     """Atomic split writes: an error mid-stream leaves no split file; an existing capture is not overwritten."""
-    from risloc_rt.measured.files import SplitWriter
+    from risloc_rt.measured.dca1000.split_files import SplitWriter
 
     with pytest.raises(RuntimeError, match="link down"):
         with SplitWriter(tmp_path, "adc_data", max_file_size=100) as writer:

@@ -1,4 +1,4 @@
-"""Sweep schedule files (risloc_rt.measured.sweep_schedule): parse, format, errors."""
+"""Sweep schedule files (risloc_rt.measured.sweep.schedule): parse, format, errors."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from risloc_rt.measured import (MeasuredFormatError, SweepSchedule, format_sweep_schedule, parse_sweep_schedule,
                                 read_sweep_schedule)
-from risloc_rt.measured.calibration import read_calibration
+from risloc_rt.measured.compare.calibration_file import read_calibration
 
 GOOD = """\
 frames_per_beam = 3

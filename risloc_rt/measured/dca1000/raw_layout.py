@@ -23,8 +23,8 @@ import numpy as np
 
 from dsp.validation import integer
 
-from .errors import MeasuredFormatError
-from .ti_config import ADC_FORMATS, AdcFormat, TiChirpConfig
+from ..errors import MeasuredFormatError
+from ..ti.chirp_config import ADC_FORMATS, AdcFormat, TiChirpConfig
 
 __all__ = ["Convention", "RawLayout", "decode_frames", "encode_frames"]
 

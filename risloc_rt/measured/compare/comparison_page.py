@@ -15,31 +15,25 @@ from typing import Any
 
 import numpy as np
 
-from .._files import atomic_open, atomic_write_bytes
-from .compare import Comparison
+from ..._files import atomic_write_bytes
+from ...plotting import new_figure, save_figure
+from .comparison import Comparison
 
 __all__ = ["FIGURES", "write_comparison"]
 
 FIGURES = {"range_profiles": "range_profiles.png", "delay_doppler": "delay_doppler.png", "sweep": "sweep_power.png"}
+DPI = 90
+"""Resolution of the PNG figures [dots per inch]."""
 
 
 def _db(x: np.ndarray) -> np.ndarray:
     return 10 * np.log10(np.maximum(np.asarray(x, float), 1e-300))
 
 
-def _save(fig: Any, path: Path) -> None:
-    with atomic_open(path) as fh:
-        fig.savefig(fh, format="png", dpi=90)
-
-
-def _figures(c: Comparison, folder: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def _range_profiles(c: Comparison, path: Path) -> None:
+    """Zero-Doppler range profiles [dB counts²] against range [m]: the best beam (peaks labelled), the sweep mean."""
     angle = np.rad2deg(c.measured.sweep.angles[:, 0])
-    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    fig, axes = new_figure(figsize=(10, 7), nrows=2, ncols=1, sharex=True)
     for ax, (meas, sim, title) in zip(axes, ((c.profile_measured, c.profile_simulated,
                                                f"best beam {c.beam} ({angle[c.beam]:+.1f}°)"),
                                               (c.mean_profile_measured, c.mean_profile_simulated, "mean over the sweep"))):
@@ -53,14 +47,15 @@ def _figures(c: Comparison, folder: Path) -> None:
                          color="k" if p["explained"] else "r")
     axes[0].legend()
     axes[1].set_xlabel("range τ·c/2 [m]")
-    fig.tight_layout()
-    _save(fig, folder / FIGURES["range_profiles"])
-    plt.close(fig)
+    save_figure(fig, path, tight=True, dpi=DPI)
 
+
+def _delay_doppler(c: Comparison, path: Path) -> None:
+    """The best beam's delay-Doppler maps [dB counts²], measured and ray-traced, on one colour scale (70 dB)."""
     dm, ds = _db(c.ddm_measured.power), _db(c.ddm_simulated.power)
     vmax = max(dm.max(), ds.max())
     vmin = vmax - 70
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    fig, axes = new_figure(figsize=(12, 4.5), nrows=1, ncols=2, sharey=True)
     for ax, d, ddm, title in ((axes[0], dm, c.ddm_measured, "measured"), (axes[1], ds, c.ddm_simulated, "ray-traced")):
         im = ax.imshow(d, aspect="auto", origin="lower", vmin=vmin, vmax=vmax, cmap="viridis",
                        extent=(ddm.distance[0], ddm.distance[-1], ddm.velocity[0], ddm.velocity[-1]))
@@ -68,10 +63,13 @@ def _figures(c: Comparison, folder: Path) -> None:
         ax.set_xlabel("range τ·c/2 [m]")
     axes[0].set_ylabel("velocity [m/s]")
     fig.colorbar(im, ax=axes, label="power [dB counts²] (one scale)")
-    _save(fig, folder / FIGURES["delay_doppler"])
-    plt.close(fig)
+    save_figure(fig, path, tight=False, dpi=DPI)
 
-    fig, ax = plt.subplots(figsize=(8, 4))
+
+def _sweep_power(c: Comparison, path: Path) -> None:
+    """P_ave [dB counts²] of every beam against its azimuth [deg], measured and ray-traced."""
+    angle = np.rad2deg(c.measured.sweep.angles[:, 0])
+    fig, ax = new_figure(figsize=(8, 4), nrows=1)
     ax.plot(angle, _db(c.pave_measured), "o-", ms=3, label="measured")
     ax.plot(angle, _db(c.pave_simulated), "s-", ms=3, alpha=0.8, label="ray-traced")
     ax.set_xlabel("RIS beam azimuth [deg]")
@@ -79,9 +77,14 @@ def _figures(c: Comparison, folder: Path) -> None:
     ax.set_title("sweep power P_ave")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    _save(fig, folder / FIGURES["sweep"])
-    plt.close(fig)
+    save_figure(fig, path, tight=True, dpi=DPI)
+
+
+def _figures(c: Comparison, folder: Path) -> None:
+    """The three PNG figures of :data:`FIGURES`, each written atomically (:mod:`risloc_rt.plotting`)."""
+    _range_profiles(c, folder / FIGURES["range_profiles"])
+    _delay_doppler(c, folder / FIGURES["delay_doppler"])
+    _sweep_power(c, folder / FIGURES["sweep"])
 
 
 def _fmt(v: Any, digits: int = 3) -> str:
@@ -138,7 +141,20 @@ window.addEventListener("load", markFigures);
 
 
 def write_comparison(c: Comparison, folder: str | Path) -> dict[str, Path]:
-    """Write the figures, ``comparison.json`` and ``index.html`` into ``folder``; returns their paths."""
+    """Write the figures, ``comparison.json`` and ``index.html`` into ``folder``, each atomically.
+
+    Parameters
+    ----------
+    c : Comparison
+        From :func:`~.comparison.compare_capture`.
+    folder : path
+        Created when missing; the page's files in it are replaced.
+
+    Returns
+    -------
+    dict of str to Path
+        ``index``, ``json`` and one entry per figure of :data:`FIGURES`.
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     _figures(c, folder)

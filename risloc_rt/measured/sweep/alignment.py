@@ -47,12 +47,12 @@ import scipy.stats
 from dsp import RadarConfig
 from dsp.radar import SPEED_OF_LIGHT
 
-from .errors import MeasuredFormatError
+from ..errors import MeasuredFormatError
 from .leakage import range_gate_basis
 from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
 
-__all__ = ["SweepAlignment", "RisPowerSeries", "ris_power_series", "fit_alignment", "manual_alignment",
-           "select_frames"]
+__all__ = ["MIX_TOLERANCE", "NULL_P", "RisPowerSeries", "SweepAlignment", "fit_alignment", "manual_alignment",
+           "ris_power_series", "select_frames"]
 
 NULL_P = 1e-3
 """The fit must beat one constant level (no RIS) at this significance (F-test), else the confidence is 0."""

@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from ..hall.pruning import AliasWarning
-from ..hall.scenario import HallPaths, HallScenario, hall_paths, hall_scenario
-from ..model.capture import Capture
-from ..model.ris import RisConfig
-from .errors import MeasuredFormatError
+from ...hall.pruning import AliasWarning
+from ...hall.scenario import HallPaths, HallScenario, hall_paths, hall_scenario
+from ...model.capture import Capture
+from ...model.ris import RisConfig
+from ..errors import MeasuredFormatError
 
 __all__ = ["HallModel", "hall_model", "ue_position_of"]
 

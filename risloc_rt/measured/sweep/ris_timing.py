@@ -14,8 +14,8 @@ stretched by the RIS clock's rate against the radar's: a beam lasts ``dwell = fr
 (1 + drift)`` radar frames (not necessarily a whole number). ``start`` is the radar time of the
 first beam's switch-on [frames from the recording's first frame]. The sync pattern sits
 ``sync_length · (1 + drift)`` frames before it. :func:`chirp_states` evaluates the program at
-chirp times; the emulator (:mod:`.emulate_recording`) synthesises with it and the aligner
-(:mod:`.align`) fits it, so both share one definition.
+chirp times; the emulator (:mod:`..emulate.recording`) synthesises with it and the aligner
+(:mod:`.alignment`) fits it, so both share one definition.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MeasuredFormatError
+from ..errors import MeasuredFormatError
 
-__all__ = ["OFF", "SYNC", "RisProgram", "chirp_states", "chirp_fractions"]
+__all__ = ["OFF", "SYNC", "RisProgram", "chirp_fractions", "chirp_states"]
 
 OFF = -1
 """State code: the RIS does not re-transmit (amplifier off)."""

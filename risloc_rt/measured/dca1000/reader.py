@@ -19,13 +19,13 @@ import numpy as np
 
 from dsp.validation import integer
 
-from .errors import MeasuredFormatError
-from .files import capture_files, iter_file_bytes
-from .layout import Convention, RawLayout, decode_frames
+from ..errors import MeasuredFormatError
 from .packets import (HEADER_BYTES, DroppedPackets, PacketIssue, detect_payload_size, iter_packet_stream,
                       packet_stream_length)
+from .raw_layout import Convention, RawLayout, decode_frames
+from .split_files import capture_files, iter_file_bytes
 
-__all__ = ["CaptureInfo", "FrameBlock", "RawCapture", "iter_frames", "open_raw", "read_raw"]
+__all__ = ["CaptureInfo", "Form", "FrameBlock", "RawCapture", "iter_frames", "open_raw", "read_raw"]
 
 Form = Literal["auto", "raw", "packets"]
 _MIB = 1 << 20
@@ -242,7 +242,7 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
     frames_per_block : int, default 8
         Frames per yielded block (the last may be shorter).
     convention : {"paper", "ti"}, default "paper"
-        Sign of Q (:func:`risloc_rt.measured.layout.decode_frames`).
+        Sign of Q (:func:`~.raw_layout.decode_frames`).
     max_frames : int, optional
         Stop after this many frames.
 

@@ -7,7 +7,7 @@ convention, ``s = y`` for ``convention="ti"``)::
     I += Re d + n_I                                   Q += Im d + n_Q                     (DC offset, noise)
     code = clip(rint(x / full_scale · 2^(b−1)), −2^(b−1), 2^(b−1) − 1)                    (b-bit ADC)
 
-then the codes are laid out (:mod:`~risloc_rt.measured.layout`: lanes, I/Q swap), written raw or as
+then the codes are laid out (:mod:`~risloc_rt.measured.dca1000.raw_layout`: lanes, I/Q swap), written raw or as
 packets (sequence numbers, losses), cut at a file-size limit and optionally truncated.
 """
 
@@ -19,15 +19,15 @@ from typing import Literal
 
 import numpy as np
 
-from .._files import atomic_write_bytes
 from dsp.validation import finite, integer, non_negative, positive
 
-from .errors import MeasuredFormatError
-from .files import SplitWriter
-from .layout import Convention, RawLayout, encode_frames
-from .packets import MAX_PAYLOAD, PacketRecorder
-from .sdk_cfg import format_sdk_cfg
-from .ti_config import TiChirpConfig
+from ..._files import atomic_write_bytes
+from ..dca1000.packets import HEADER_BYTES, MAX_PAYLOAD, PacketRecorder
+from ..dca1000.raw_layout import Convention, RawLayout, encode_frames
+from ..dca1000.split_files import SplitWriter
+from ..errors import MeasuredFormatError
+from ..ti.chirp_config import TiChirpConfig
+from ..ti.sdk_cfg import format_sdk_cfg
 
 __all__ = ["AdcImpairments", "EmulatedCapture", "QuantizedCube", "Recording", "quantize_cube", "write_raw_capture"]
 
@@ -235,7 +235,7 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
     """Write ``cube`` as the DCA1000 files of a capture made with ``config``, plus its ``.cfg``.
 
     Every file is written atomically; the split files appear together, only once all are
-    complete (:class:`~risloc_rt.measured.files.SplitWriter`).
+    complete (:class:`~risloc_rt.measured.dca1000.split_files.SplitWriter`).
 
     Parameters
     ----------
@@ -287,7 +287,7 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
         dropped: tuple[int, ...] = ()
     else:
         writer = SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size,
-                             record_size=10 + recording.payload_size, overwrite=overwrite)
+                             record_size=HEADER_BYTES + recording.payload_size, overwrite=overwrite)
         with writer:
             rec = PacketRecorder(writer, payload_size=recording.payload_size, drop=frozenset(recording.drop_packets),
                                  drop_probability=recording.drop_probability, rng=rng)
@@ -295,6 +295,6 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
             files = rec.close()
         dropped = tuple(rec.dropped)
     atomic_write_bytes(cfg_path, format_sdk_cfg(
-        cfg, comment=f"written by risloc_rt.measured.emulate_raw: {layout.describe()}").encode("utf-8"))
+        cfg, comment=f"written by risloc_rt.measured.emulate.raw_files: {layout.describe()}").encode("utf-8"))
     return EmulatedCapture(files=files, cfg_path=cfg_path, config=cfg, layout=layout, quantized=quant,
                            dropped_sequences=dropped, stream_bytes=int(stream.size))

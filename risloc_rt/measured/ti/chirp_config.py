@@ -2,7 +2,7 @@
 
 :class:`TiChirpConfig` holds what an mmWave SDK ``.cfg`` file or an mmWave Studio JSON export says
 about the waveform and the ADC, converted to SI units (Hz, s, Hz/s). It is the single source the
-raw-data layout (:class:`risloc_rt.measured.layout.RawLayout`), the ``.cfg`` writer and
+raw-data layout (:class:`risloc_rt.measured.dca1000.raw_layout.RawLayout`), the ``.cfg`` writer and
 :meth:`TiChirpConfig.to_radar_config` are built from.
 """
 
@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from dsp.validation import finite, integer, non_negative, positive
 
-from .errors import MeasuredFormatError
+from ..errors import MeasuredFormatError
 
 if TYPE_CHECKING:                       # dsp is imported where it is used, so parsing works without it
     import dsp
 
-__all__ = ["AdcFormat", "TiChirp", "TiChirpConfig", "slope_step", "start_frequency_step"]
+__all__ = ["ADC_BITS", "ADC_FORMATS", "AdcFormat", "TiChirp", "TiChirpConfig", "slope_step", "start_frequency_step"]
 
 AdcFormat = Literal["real", "complex1x", "complex2x"]
 ADC_FORMATS: tuple[str, ...] = ("real", "complex1x", "complex2x")

@@ -19,8 +19,8 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from .errors import MeasuredFormatError
-from .files import SplitWriter
+from ..errors import MeasuredFormatError
+from .split_files import SplitWriter
 
 __all__ = ["HEADER_BYTES", "MAX_PAYLOAD", "DroppedPackets", "PacketIssue", "PacketRecorder",
            "detect_payload_size", "iter_packet_stream", "pack_header", "packet_stream_length"]

@@ -1,4 +1,5 @@
-"""From the reader's ``[F, K, V, N]`` to the project's beat cube ``[F, K, N]`` (one channel or a beam)."""
+"""From the reader's ``[F, K, V, N]`` to the project's beat cube ``[F, K, N]`` (one channel or a beam), and the
+maximal-ratio weights that combine the channels on one return."""
 
 from __future__ import annotations
 
@@ -6,9 +7,12 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import MeasuredFormatError
+from dsp import RadarConfig
+from dsp.radar import SPEED_OF_LIGHT
 
-__all__ = ["combine_channels"]
+from ..errors import MeasuredFormatError
+
+__all__ = ["combine_channels", "mrc_weights"]
 
 
 def combine_channels(cube: np.ndarray, *, channels: int | Sequence[int] | None = 0,
@@ -57,3 +61,33 @@ def combine_channels(cube: np.ndarray, *, channels: int | Sequence[int] | None =
         raise MeasuredFormatError("weights are all zero")
     out = np.einsum("fkvn,v->fkn", y[:, :, idx, :], w / norm)
     return out.astype(y.dtype, copy=False) if np.iscomplexobj(y) else out
+
+
+def mrc_weights(cube: np.ndarray, radar: RadarConfig, min_range: float) -> np.ndarray:
+    """Maximal-ratio weights ``conj(h_v)·h_0/|h_0|`` [V]: h_v the strongest return's complex amplitude in channel v
+    (the combined cube keeps the first channel's phase).
+
+    Parameters
+    ----------
+    cube : ndarray, complex [M, K, V, N]
+        Beams (or frames), chirps, virtual channels, samples [ADC counts].
+    radar : RadarConfig
+        Slope S [Hz/s], sample rate f_s [Hz]: the range of each bin, ``n·f_s/N·c/(2S)`` [m].
+    min_range : float
+        Bins nearer than this to zero beat frequency (either side) are not candidates [m].
+
+    Returns
+    -------
+    ndarray, complex [V]
+        The chirp-mean range profile (Hann) of every beam and channel; the strongest (beam, range
+        bin) beyond ``min_range``, summed over channels, gives h_v there. For
+        :func:`combine_channels` ``weights``.
+    """
+    N = cube.shape[-1]
+    prof = np.fft.ifft(cube.mean(axis=1) * np.hanning(N + 2)[1:-1], axis=-1)              # [M, V, N]
+    rng = np.arange(N) * radar.sample_rate / N * SPEED_OF_LIGHT / (2 * radar.slope)
+    power = np.sum(np.abs(prof) ** 2, axis=1)
+    power[:, (rng < min_range) | (rng > rng[-1] - min_range)] = 0
+    m, r = np.unravel_index(int(np.argmax(power)), power.shape)
+    h = prof[m, :, r]
+    return np.conj(h) * (h[0] / abs(h[0]) if abs(h[0]) > 0 else 1.0)

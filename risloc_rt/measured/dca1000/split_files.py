@@ -12,10 +12,10 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from .._files import atomic_open
-from .errors import MeasuredFormatError
+from ..._files import atomic_open
+from ..errors import MeasuredFormatError
 
-__all__ = ["SplitWriter", "capture_files", "split_name"]
+__all__ = ["SplitWriter", "capture_files", "iter_file_bytes", "split_name"]
 
 _SPLIT = re.compile(r"^(?P<stem>.*_Raw_)(?P<index>\d+)(?P<suffix>\.bin)$")
 

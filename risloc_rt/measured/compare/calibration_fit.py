@@ -1,6 +1,6 @@
 """Fit the radar's range offset, the RIS's τ_RB and ζ, the noise floor and the power offset to a capture.
 
-The model is the traced hall (:mod:`.hall_model`) with the nominal RIS. For a static radar the
+The model is the traced hall (:mod:`.traced_hall`) with the nominal RIS. For a static radar the
 chirp mean of each beam, ``z_m[n] = mean_k y[m, k, n]`` [ADC counts], is::
 
     z_m[n] = Σ_s a_s e^{−j2π S (τ_s + τ_off) n T_s}  +  β Σ_l g_l r_{m,l} e^{−j2π S (τ_l + τ_off + δ) n T_s}
@@ -29,12 +29,12 @@ import scipy.optimize
 
 from dsp.radar import SPEED_OF_LIGHT
 
-from ..model.capture import Capture
-from ..model.paths import PathSet
-from ..model.ris import ris_response
-from .calibration import Calibration
-from .errors import MeasuredFormatError
-from .leakage import range_gate_basis
+from ...model.capture import Capture
+from ...model.paths import PathSet
+from ...model.ris import ris_response
+from ..errors import MeasuredFormatError
+from ..sweep.leakage import range_gate_basis
+from .calibration_file import Calibration
 
 __all__ = ["calibrate_capture"]
 

@@ -3,14 +3,14 @@
 :func:`emulate_recording` synthesises every recorded frame chirp by chirp from the scenario's
 paths (frozen geometry): the paths that do not pass through the RIS (hall echoes, targets, the
 panel's structure) in every frame; the RIS re-transmission of the beam the RIS shows at that
-chirp (:func:`~.ris_timing.chirp_states`: sync-on frames show ``sync_beam``, off frames nothing);
-a Tx→Rx leakage tone near zero range with per-chirp phase jitter; receiver noise; then the ADC
-and the DCA1000 files (:func:`~.emulate_capture.write_frames`). A beam boundary inside a frame
+chirp (:func:`~risloc_rt.measured.sweep.ris_timing.chirp_states`: sync-on frames show ``sync_beam``,
+off frames nothing); a Tx→Rx leakage tone near zero range with per-chirp phase jitter; receiver noise; then the ADC
+and the DCA1000 files (:func:`~.experiment.write_frames`). A beam boundary inside a frame
 switches the RIS between two of its chirps, as a free-running RIS does.
 
-It also injects what a calibration must find (:mod:`.calibration`): the radar's internal range
-offset (every delay longer by ``2·range_offset/c``), a receiver gain the model does not know
-(``power_offset_db``), and the RIS's true τ_RB and ζ (give them in ``scenario.ris``; the schedule
+It also injects what a calibration must find (:mod:`risloc_rt.measured.compare.calibration_file`):
+the radar's internal range offset (every delay longer by ``2·range_offset/c``), a receiver gain
+the model does not know (``power_offset_db``), and the RIS's true τ_RB and ζ (give them in ``scenario.ris``; the schedule
 written states ``nominal_ris``'s).
 """
 
@@ -24,20 +24,19 @@ import numpy as np
 
 from dsp import BeamSweep, db_to_linear
 from dsp.radar import SPEED_OF_LIGHT
-
-from ..model.beat import beat_cube
-from ..model.paths import PathSet
-from ..model.ris import RisConfig
-from ..model.scenario import Scenario, analytic_paths
-from .emulate_capture import (SCHEDULE_NAME, EmulatedExperiment, check_folder, dca1000_radar, schedule_fields,
-                              sweep_schedule_of, write_frames)
 from dsp.validation import non_negative
 
-from .errors import MeasuredFormatError
-from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
-from .sweep_schedule import write_sweep_schedule
+from ...model.beat import beat_cube
+from ...model.paths import PathSet, select_paths, shift_paths
+from ...model.ris import RisConfig
+from ...model.scenario import Scenario, analytic_paths
+from ..errors import MeasuredFormatError
+from ..sweep.ris_timing import SYNC, RisProgram, chirp_fractions, chirp_states
+from ..sweep.schedule import write_sweep_schedule
+from .experiment import (SCHEDULE_NAME, EmulatedExperiment, check_folder, dca1000_radar, schedule_fields,
+                         sweep_schedule_of, write_frames)
 
-__all__ = ["RecordingPlan", "EmulatedRecording", "emulate_recording", "shift_paths"]
+__all__ = ["EmulatedRecording", "RecordingPlan", "emulate_recording"]
 
 
 @dataclass(frozen=True)
@@ -50,7 +49,7 @@ class RecordingPlan:
         Radar frames recorded before the RIS program starts (fractional: the RIS's clock phase).
     frames_per_beam : int
     sync_on, sync_off, sync_cycles, sync_gap : int
-        The on/off sync pattern before the sweep (:class:`~.ris_timing.RisProgram`).
+        The on/off sync pattern before the sweep (:class:`~risloc_rt.measured.sweep.ris_timing.RisProgram`).
     clock_drift : float
         RIS clock rate error d: every RIS duration lasts ``(1 + d)`` × nominal radar frames.
     tail_frames : int
@@ -121,17 +120,6 @@ class EmulatedRecording:
     num_frames: int
 
 
-def shift_paths(paths: PathSet, delay: float, carrier_frequency: float) -> PathSet:
-    """``paths`` with every delay longer by ``delay`` [s] (and the carrier phase that goes with it)."""
-    return replace(paths, delay=paths.delay + delay,
-                   gain=paths.gain * np.exp(-2j * np.pi * carrier_frequency * delay))
-
-
-def _subset(paths: PathSet, keep: np.ndarray) -> PathSet:
-    return PathSet(paths.gain[keep], paths.delay[keep], paths.delay_rate[keep], paths.ris_incidence[keep],
-                   paths.ris_departure[keep], tuple(lab for lab, k in zip(paths.labels, keep) if k))
-
-
 def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: RecordingPlan = RecordingPlan(),
                       rng: np.random.Generator, paths: PathSet | None = None, nominal_ris: RisConfig | None = None,
                       noise: bool = True, adc_bits: int = 16, dc_offset: complex = 0j,
@@ -141,7 +129,7 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
     Parameters
     ----------
     scenario : Scenario
-        Radar (made TI-compatible with :func:`~.emulate_capture.dca1000_radar`), RIS (its true
+        Radar (made TI-compatible with :func:`~.experiment.dca1000_radar`), RIS (its true
         τ_RB and ζ), sweep, UE (frozen at ``ue_position``).
     folder : path
         Created if missing; refused if it holds a capture already.
@@ -155,7 +143,7 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
     noise : bool
         Add the receiver noise (``radar.noise_power``).
     adc_bits, dc_offset, iq_gain_db, dropped_packets_rate
-        As :func:`~.emulate_capture.emulate_capture` (dc_offset in LSB counts).
+        As :func:`~.experiment.emulate_capture` (dc_offset in LSB counts).
     """
     folder = check_folder(folder)
     radar = dca1000_radar(scenario.radar)
@@ -172,8 +160,8 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
     via = base.via_ris
     sync_beam = scenario.ris.relay_rx_angle if plan.sync_beam is None else np.asarray(plan.sync_beam, float)
     one = BeamSweep(np.zeros((1, 2)))
-    static = beat_cube(_subset(base, ~via), radar=radar, sweep=one, ris=scenario.ris)[0]          # [K, N]
-    ris_paths = _subset(base, via)
+    static = beat_cube(select_paths(base, ~via), radar=radar, sweep=one, ris=scenario.ris)[0]          # [K, N]
+    ris_paths = select_paths(base, via)
     beams = beat_cube(ris_paths, radar=radar, sweep=scenario.sweep, ris=scenario.ris)             # [M, K, N]
     sync = beat_cube(ris_paths, radar=radar, sweep=BeamSweep(sync_beam[None]), ris=scenario.ris)  # [1, K, N]
     table = np.concatenate([beams, sync, np.zeros((1, K, N), complex)])                          # [M + 2, K, N]

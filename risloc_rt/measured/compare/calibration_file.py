@@ -10,7 +10,7 @@ Five quantities, each with its 1σ (``docs/formats.md``, "Calibration files"):
   gain the link budget does not know) [dB].
 
 :func:`apply_to_capture` makes ``risloc locate`` use them (τ_RB + the range offset's delay as the
-capture's loop-back delay); :func:`apply_to_scenario` and :func:`shift_for_calibration` make
+capture's loop-back delay); :func:`apply_to_scenario` and :func:`calibrated_paths` make
 ``risloc simulate`` and ``risloc compare`` synthesise what the calibrated radar measures.
 """
 
@@ -25,13 +25,14 @@ from typing import Any
 
 from dsp.radar import SPEED_OF_LIGHT
 
-from .._files import atomic_write_bytes
-from ..model.capture import Capture
-from ..model.scenario import Scenario
-from .errors import MeasuredFormatError, read_text_file
+from ..._files import atomic_write_bytes
+from ...model.capture import Capture
+from ...model.paths import PathSet, shift_paths
+from ...model.scenario import Scenario, analytic_paths
+from ..errors import MeasuredFormatError, read_text_file
 
-__all__ = ["Calibration", "read_calibration", "write_calibration", "apply_to_capture", "apply_to_scenario",
-           "calibration_delay", "calibrated_paths", "adc_power_offset_db"]
+__all__ = ["Calibration", "adc_power_offset_db", "apply_to_capture", "apply_to_scenario", "as_dict",
+           "calibrated_paths", "calibration_delay", "read_calibration", "write_calibration"]
 
 FORMAT = "risloc-calibration"
 VERSION = 1
@@ -149,7 +150,7 @@ def apply_to_capture(capture: Capture, calibration: Calibration) -> Capture:
 def apply_to_scenario(scenario: Scenario, calibration: Calibration) -> Scenario:
     """For synthesis: the RIS's τ_RB and ζ and the radar's noise power from the calibration.
 
-    The range offset is applied to the paths (:func:`~.emulate_recording.shift_paths` by
+    The range offset is applied to the paths (:func:`risloc_rt.model.paths.shift_paths` by
     :func:`calibration_delay`), the power offset by the ADC emulation (``power_offset_db``).
     """
     ris = replace(scenario.ris, loopback_delay=calibration.loopback_delay,
@@ -158,11 +159,8 @@ def apply_to_scenario(scenario: Scenario, calibration: Calibration) -> Scenario:
     return replace(scenario, ris=ris, radar=radar)
 
 
-def calibrated_paths(scenario: Scenario, paths: Any, calibration: Calibration) -> Any:
+def calibrated_paths(scenario: Scenario, paths: PathSet | None, calibration: Calibration) -> PathSet:
     """``paths`` (default: the scenario's analytic ones, frozen geometry) longer by :func:`calibration_delay`."""
-    from ..model.scenario import analytic_paths
-    from .emulate_recording import shift_paths
-
     base = analytic_paths(scenario) if paths is None else paths
     return shift_paths(base, calibration_delay(calibration), scenario.radar.carrier_frequency)
 

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import MeasuredFormatError
-from .ti_config import ADC_FORMATS, TiChirp, TiChirpConfig
+from ..errors import MeasuredFormatError
+from .chirp_config import ADC_FORMATS, TiChirp, TiChirpConfig
 
 __all__ = ["ParsedStudioJson", "parse_studio_json", "read_studio_json"]
 

@@ -34,7 +34,7 @@ import scipy.signal
 from dsp import RadarConfig
 from dsp.radar import SPEED_OF_LIGHT
 
-from .errors import MeasuredFormatError
+from ..errors import MeasuredFormatError
 
 __all__ = ["LEAKAGE_METHODS", "DEFAULT_GATE_RANGE", "LeakageMethod", "range_gate_basis", "apply_range_gate",
            "subtract_background"]

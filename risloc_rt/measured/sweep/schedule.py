@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from .._files import atomic_write_bytes
-from .errors import MeasuredFormatError, read_text_file
+from ..._files import atomic_write_bytes
+from ..errors import MeasuredFormatError, read_text_file
 from .ris_timing import RisProgram
 
 __all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
@@ -62,7 +62,7 @@ class SweepSchedule:
         Recorded frames per beam (>= 1); the import takes the first frame of each beam.
     first_frame : int or None
         Index of the sweep's first frame in the recording; ``None`` is ``"auto"`` (found on import,
-        :mod:`.align`).
+        :mod:`.alignment`).
     channel : int
         Virtual channel used for localization.
     ris_position, ris_facing : tuple of 3 floats

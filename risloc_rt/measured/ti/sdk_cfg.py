@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import MeasuredFormatError
-from .ti_config import ADC_FORMATS, TiChirp, TiChirpConfig
+from ..errors import MeasuredFormatError
+from .chirp_config import ADC_FORMATS, TiChirp, TiChirpConfig
 
 __all__ = ["ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg", "read_sdk_cfg"]
 
@@ -91,25 +91,40 @@ def read_sdk_cfg(path: str | Path, *, strict: bool = True) -> ParsedSdkCfg:
     return parse_sdk_cfg(text, source=str(path), strict=strict)
 
 
-def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> ParsedSdkCfg:
-    """Parse an mmWave SDK 3.x ``.cfg`` into a :class:`TiChirpConfig`.
+@dataclass(frozen=True)
+class _CfgCommands:
+    """The mapped commands of a ``.cfg``, by line, before their fields are read.
 
-    Parameters
-    ----------
-    text : str
-        The file's content: one ``command arg arg …`` per line; ``%`` starts a comment.
-    source : str
-        Name used in error messages.
-    strict : bool, default True
-        Unknown commands raise (they usually mean another SDK or a typo); with ``False`` they are
-        skipped and listed in :attr:`ParsedSdkCfg.skipped`.
-
-    Raises
-    ------
-    MeasuredFormatError
-        A missing required command, a wrong argument count, a non-numeric field, an unknown
-        command (``strict``), or inconsistent commands; the message names the line.
+    ``single`` holds the commands given once (``channelCfg``, ``adcCfg``, …), ``profiles`` the
+    ``profileCfg`` lines by profile id, ``chirps`` every ``chirpCfg`` line in file order; each as
+    ``(line number, arguments)``.
     """
+
+    source: str
+    single: dict[str, tuple[int, list[str]]]
+    profiles: dict[int, tuple[int, list[str]]]
+    chirps: tuple[tuple[int, list[str]], ...]
+    skipped: tuple[tuple[int, str], ...]
+
+    def where(self, command: str) -> str:
+        """``source:line`` of a command given once."""
+        return f"{self.source}:{self.single[command][0]}"
+
+
+@dataclass(frozen=True)
+class _FrameCommand:
+    """``frameCfg``'s fields: the loop's chirp indices, loops, frames, period [s]; ``where`` for messages."""
+
+    where: str
+    start_idx: int
+    end_idx: int
+    num_loops: int
+    num_frames: int
+    period: float
+
+
+def _command_lines(text: str, source: str, strict: bool) -> _CfgCommands:
+    """Sort the lines into commands: skipped, refused (advanced frame, unknown, wrong argument count) or kept."""
     found: dict[str, tuple[int, list[str]]] = {}
     profiles: dict[int, tuple[int, list[str]]] = {}
     chirp_lines: list[tuple[int, list[str]]] = []
@@ -150,31 +165,43 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
             if cmd in found:
                 raise MeasuredFormatError(f"{where}: {cmd} given again (first at line {found[cmd][0]}); keep one")
             found[cmd] = (lineno, args)
+    return _CfgCommands(source=source, single=found, profiles=profiles, chirps=tuple(chirp_lines),
+                        skipped=tuple(skipped))
 
+
+def _check_required(cmds: _CfgCommands) -> None:
+    """Every command a raw capture needs is there, and the output mode (when given) is frame-based."""
+    source = cmds.source
     for cmd in ("channelCfg", "adcCfg", "frameCfg"):
-        if cmd not in found:
+        if cmd not in cmds.single:
             raise MeasuredFormatError(f"{source}: no {cmd} line; a raw capture needs channelCfg, adcCfg, "
                                       "profileCfg, chirpCfg and frameCfg")
-    if not profiles:
+    if not cmds.profiles:
         raise MeasuredFormatError(f"{source}: no profileCfg line; add the profile the chirps use")
-    if not chirp_lines:
+    if not cmds.chirps:
         raise MeasuredFormatError(f"{source}: no chirpCfg line; add one chirpCfg per chirp of the loop")
-
-    if "dfeDataOutputMode" in found:
-        ln, args = found["dfeDataOutputMode"]
+    if "dfeDataOutputMode" in cmds.single:
+        ln, args = cmds.single["dfeDataOutputMode"]
         mode = _integer(args[0], f"{source}:{ln}", "modeType")
         if mode != 1:
             raise MeasuredFormatError(f"{source}:{ln}: dfeDataOutputMode {mode} is not supported "
                                       "(only 1, frame-based chirps)")
 
-    ln, args = found["channelCfg"]
-    w = f"{source}:{ln}"
+
+def _channel_masks(cmds: _CfgCommands) -> tuple[int, int]:
+    """``channelCfg``: (rxChannelEn, txChannelEn) bit masks."""
+    args = cmds.single["channelCfg"][1]
+    w = cmds.where("channelCfg")
     rx_mask, tx_mask = _integer(args[0], w, "rxChannelEn"), _integer(args[1], w, "txChannelEn")
     if rx_mask <= 0 or rx_mask > 0xFF:
         raise MeasuredFormatError(f"{w}: channelCfg rxChannelEn={args[0]} enables no receiver")
+    return rx_mask, tx_mask
 
-    ln, args = found["adcCfg"]
-    w = f"{source}:{ln}"
+
+def _adc_format(cmds: _CfgCommands) -> tuple[int, str, bool]:
+    """``adcCfg`` and ``adcbufCfg``: (ADC bits, ADC format, I/Q swap flag), the two commands checked against each other."""
+    ln, args = cmds.single["adcCfg"]
+    w = cmds.where("adcCfg")
     bits_code, fmt_code = _integer(args[0], w, "numADCBits"), _integer(args[1], w, "adcOutputFmt")
     if bits_code not in (0, 1, 2):
         raise MeasuredFormatError(f"{w}: adcCfg numADCBits={bits_code} must be 0, 1 or 2 (12, 14, 16 bits)")
@@ -183,9 +210,9 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
                                   "or 2 (complex2x)")
     adc_format = ADC_FORMATS[fmt_code]
     iq_swap = False
-    if "adcbufCfg" in found:
-        ln2, args2 = found["adcbufCfg"]
-        w2 = f"{source}:{ln2}"
+    if "adcbufCfg" in cmds.single:
+        args2 = cmds.single["adcbufCfg"][1]
+        w2 = cmds.where("adcbufCfg")
         off = 1 if len(args2) == 5 else 0
         buf_fmt = _integer(args2[off], w2, "adcOutputFmt")
         if buf_fmt not in (0, 1):
@@ -195,9 +222,13 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
                 f"{w2}: adcbufCfg says {'real' if buf_fmt else 'complex'} samples but adcCfg (line {ln}) says "
                 f"{adc_format}; make them agree")
         iq_swap = _integer(args2[off + 1], w2, "sampleSwap") == 1
+    return (12, 14, 16)[bits_code], adc_format, iq_swap
 
-    ln, args = found["frameCfg"]
-    wf = f"{source}:{ln}"
+
+def _frame_command(cmds: _CfgCommands) -> _FrameCommand:
+    """``frameCfg``: the loop's chirp indices, loops and frames checked against the devices' limits."""
+    args = cmds.single["frameCfg"][1]
+    wf = cmds.where("frameCfg")
     start_idx, end_idx = _integer(args[0], wf, "chirpStartIdx"), _integer(args[1], wf, "chirpEndIdx")
     num_loops, num_frames = _integer(args[2], wf, "numLoops"), _integer(args[3], wf, "numFrames")
     period = _number(args[4], wf, "framePeriodicity") / 1e3
@@ -211,10 +242,15 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
         raise MeasuredFormatError(f"{wf}: frameCfg numLoops={num_loops} must be 1…{MAX_LOOPS}")
     if num_frames < 0:
         raise MeasuredFormatError(f"{wf}: frameCfg numFrames={num_frames} must be >= 0 (0 = until stopped)")
+    return _FrameCommand(where=wf, start_idx=start_idx, end_idx=end_idx, num_loops=num_loops, num_frames=num_frames,
+                         period=period)
 
+
+def _chirps_by_index(cmds: _CfgCommands) -> dict[int, tuple[int, list[str]]]:
+    """Every chirp index the ``chirpCfg`` lines define → its line (ranges expanded, each index defined once)."""
     by_index: dict[int, tuple[int, list[str]]] = {}
-    for lnc, a in chirp_lines:
-        wc = f"{source}:{lnc}"
+    for lnc, a in cmds.chirps:
+        wc = f"{cmds.source}:{lnc}"
         lo, hi = _integer(a[0], wc, "startIdx"), _integer(a[1], wc, "endIdx")
         if not (0 <= lo <= MAX_CHIRP_INDEX and 0 <= hi <= MAX_CHIRP_INDEX):
             raise MeasuredFormatError(f"{wc}: chirpCfg startIdx={lo}, endIdx={hi} must lie in 0…{MAX_CHIRP_INDEX} "
@@ -225,29 +261,68 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
             if idx in by_index:
                 raise MeasuredFormatError(f"{wc}: chirp {idx} defined again (first at line {by_index[idx][0]})")
             by_index[idx] = (lnc, a)
+    return by_index
+
+
+def _loop_chirps(cmds: _CfgCommands, frame: _FrameCommand, tx_mask: int) -> tuple[tuple[TiChirp, ...], int]:
+    """The chirps of the frame's loop (offsets in SI units) and the one profile id they all use."""
+    by_index = _chirps_by_index(cmds)
     chirps: list[TiChirp] = []
     profile_ids: set[int] = set()
-    for idx in range(start_idx, end_idx + 1):
+    for idx in range(frame.start_idx, frame.end_idx + 1):
         if idx not in by_index:
-            raise MeasuredFormatError(f"{wf}: frameCfg uses chirp {idx}, which no chirpCfg defines")
+            raise MeasuredFormatError(f"{frame.where}: frameCfg uses chirp {idx}, which no chirpCfg defines")
         lnc, a = by_index[idx]
-        wc = f"{source}:{lnc}"
+        wc = f"{cmds.source}:{lnc}"
         pid = _integer(a[2], wc, "profileId")
-        if pid not in profiles:
+        if pid not in cmds.profiles:
             raise MeasuredFormatError(f"{wc}: chirpCfg uses profile {pid}, which no profileCfg defines")
         profile_ids.add(pid)
         mask = _integer(a[7], wc, "txEnable")
         if mask & ~tx_mask:
             raise MeasuredFormatError(f"{wc}: chirpCfg txEnable=0b{mask:b} uses transmitters that channelCfg "
-                                      f"(line {found['channelCfg'][0]}) does not enable (0b{tx_mask:b})")
+                                      f"(line {cmds.single['channelCfg'][0]}) does not enable (0b{tx_mask:b})")
         chirps.append(TiChirp(tx_mask=mask, start_frequency_offset=_number(a[3], wc, "startFreqVar"),
                               slope_offset=_number(a[4], wc, "freqSlopeVar") * 1e9,
                               idle_time_offset=_number(a[5], wc, "idleTimeVar") / 1e6,
                               adc_start_time_offset=_number(a[6], wc, "adcStartTimeVar") / 1e6))
     if len(profile_ids) > 1:
-        raise MeasuredFormatError(f"{wf}: the frame's chirps use profiles {sorted(profile_ids)}; only one "
+        raise MeasuredFormatError(f"{frame.where}: the frame's chirps use profiles {sorted(profile_ids)}; only one "
                                   "profile per frame is supported")
-    lnp, p = profiles[profile_ids.pop()]
+    return tuple(chirps), profile_ids.pop()
+
+
+def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> ParsedSdkCfg:
+    """Parse an mmWave SDK 3.x ``.cfg`` into a :class:`TiChirpConfig`.
+
+    Parameters
+    ----------
+    text : str
+        The file's content: one ``command arg arg …`` per line; ``%`` starts a comment.
+    source : str
+        Name used in error messages.
+    strict : bool, default True
+        Unknown commands raise (they usually mean another SDK or a typo); with ``False`` they are
+        skipped and listed in :attr:`ParsedSdkCfg.skipped`.
+
+    Returns
+    -------
+    ParsedSdkCfg
+        The configuration in SI units (Hz, s, Hz/s), the skipped commands and ``source``.
+
+    Raises
+    ------
+    MeasuredFormatError
+        A missing required command, a wrong argument count, a non-numeric field, an unknown
+        command (``strict``), or inconsistent commands; the message names the line.
+    """
+    cmds = _command_lines(text, source, strict)
+    _check_required(cmds)
+    rx_mask, tx_mask = _channel_masks(cmds)
+    adc_bits, adc_format, iq_swap = _adc_format(cmds)
+    frame = _frame_command(cmds)
+    chirps, profile_id = _loop_chirps(cmds, frame, tx_mask)
+    lnp, p = cmds.profiles[profile_id]
     wp = f"{source}:{lnp}"
     try:
         config = TiChirpConfig(
@@ -260,12 +335,12 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
             num_samples=_integer(p[9], wp, "numAdcSamples"),
             sample_rate=_number(p[10], wp, "digOutSampleRate") * 1e3,
             rx_gain_db=_number(p[13], wp, "rxGain"),
-            rx_mask=rx_mask, tx_mask=tx_mask, chirps=tuple(chirps), num_loops=num_loops,
-            num_frames=num_frames, frame_periodicity=period, adc_bits=(12, 14, 16)[bits_code],
+            rx_mask=rx_mask, tx_mask=tx_mask, chirps=chirps, num_loops=frame.num_loops,
+            num_frames=frame.num_frames, frame_periodicity=frame.period, adc_bits=adc_bits,
             adc_format=adc_format, iq_swap=iq_swap)
     except MeasuredFormatError as exc:
         raise MeasuredFormatError(f"{wp}: profileCfg: {exc}") from None
-    return ParsedSdkCfg(config=config, skipped=tuple(skipped), source=source)
+    return ParsedSdkCfg(config=config, skipped=cmds.skipped, source=source)
 
 
 def _g(value: float) -> str:

@@ -1,6 +1,6 @@
-"""Measured vs ray-traced: the numbers behind ``risloc compare`` (the page is :mod:`.compare_report`).
+"""Measured vs ray-traced: the numbers behind ``risloc compare`` (the page is :mod:`.comparison_page`).
 
-The simulated side is the traced hall (:mod:`.hall_model`) at the capture's radar position,
+The simulated side is the traced hall (:mod:`.traced_hall`) at the capture's radar position,
 synthesised with eq. (1) for the capture's radar, sweep and RIS (calibrated when a calibration is
 given: τ_RB, ζ, range offset), scaled to ADC counts by the receiver gain G (the calibration's
 power offset; without one, ``G = (mean|y|² − σ²)/mean|s|²``, the measured signal power over the
@@ -28,14 +28,15 @@ import scipy.signal
 
 from dsp import delay_doppler_map
 
-from ..hall.path_table import apparent_distance
-from ..io.report import process_capture
-from ..model.beat import beat_cube
-from ..model.capture import Capture
-from ..model.ris import ris_response
-from .calibration import Calibration, apply_to_scenario, calibration_delay
-from .emulate_recording import shift_paths
-from .hall_model import HallModel
+from ...hall.path_table import apparent_distance
+from ...io.report import process_capture
+from ...model.beat import beat_cube
+from ...model.capture import Capture
+from ...model.paths import shift_paths
+from ...model.ris import ris_response
+from ..sweep.leakage import apply_range_gate, range_gate_basis
+from .calibration_file import Calibration, apply_to_scenario, calibration_delay
+from .traced_hall import HallModel
 
 __all__ = ["Comparison", "compare_capture"]
 
@@ -114,7 +115,6 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
     sim = sim + math.sqrt(noise / 2) * (rng.standard_normal(sim.shape) + 1j * rng.standard_normal(sim.shape))
     leak = capture.provenance.get("leakage") or {}
     if leak.get("method") == "gate":
-        from .leakage import apply_range_gate, range_gate_basis
         sim = apply_range_gate(sim, range_gate_basis(radar, float(leak["gate_range"])))
     simulated = replace(capture, cube=sim, ris=ris, provenance={"source": "simulation", "scene": str(model.scenario.scene_xml)})
     loc_m, _ = process_capture(capture)

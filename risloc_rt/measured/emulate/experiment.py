@@ -34,14 +34,15 @@ import numpy as np
 
 from dsp import RadarConfig, db_to_linear
 
-from ..model.capture import Capture
-from .emulate_raw import AdcImpairments, EmulatedCapture, Recording, write_raw_capture
-from .errors import MeasuredFormatError
-from .sweep_schedule import SweepSchedule, write_sweep_schedule
-from .ti_config import TiChirpConfig, slope_step
+from ...model.capture import Capture
+from ..errors import MeasuredFormatError
+from ..sweep.schedule import SweepSchedule, write_sweep_schedule
+from ..ti.chirp_config import TiChirpConfig, slope_step
+from .raw_files import AdcImpairments, EmulatedCapture, Recording, write_raw_capture
 
-__all__ = ["FULL_SCALE_OVER_NOISE", "ADC_START_TIME", "RAMP_MARGIN", "MIN_IDLE", "EmulatedExperiment",
-           "dca1000_radar", "full_scale", "emulate_capture", "check_folder", "write_frames", "schedule_fields"]
+__all__ = ["ADC_START_TIME", "FULL_SCALE_OVER_NOISE", "MIN_IDLE", "PREFIX", "RAMP_MARGIN", "SCHEDULE_NAME",
+           "EmulatedExperiment", "check_folder", "dca1000_radar", "emulate_capture", "full_scale", "schedule_fields",
+           "sweep_schedule_of", "write_frames"]
 
 FULL_SCALE_OVER_NOISE = 1e4
 """Input amplitude of the top ADC code, in units of the nominal noise rms."""
@@ -147,7 +148,7 @@ def write_frames(frames: np.ndarray, radar: RadarConfig, folder: Path, *, adc_bi
                                        ramp_margin=RAMP_MARGIN, num_frames=frames.shape[0],
                                        adc_bits=adc_bits, adc_format="complex1x")
     except MeasuredFormatError as exc:
-        raise MeasuredFormatError(f"{exc} (simulate with risloc_rt.measured.emulate_capture.dca1000_radar(radar))") \
+        raise MeasuredFormatError(f"{exc} (simulate with risloc_rt.measured.dca1000_radar(radar))") \
             from None
     fs = full_scale(radar) / 10.0 ** (power_offset_db / 20.0)
     counts = 2.0 ** (adc_bits - 1) / fs

@@ -19,20 +19,20 @@ import scipy.signal
 
 from dsp.flags import Flag
 
-from .dca1000 import Form, iter_frames, open_raw
-from .errors import MeasuredFormatError
-from .layout import RawLayout
-from .sdk_cfg import read_sdk_cfg
-from .studio_json import read_studio_json
-from .ti_config import TiChirpConfig
+from ...plotting import new_figure, save_figure
+from ..errors import MeasuredFormatError
+from ..ti.chirp_config import TiChirpConfig
+from ..ti.config_file import load_config
+from .raw_layout import RawLayout
+from .reader import CaptureInfo, Form, iter_frames, open_raw
+
+__all__ = ["CaptureInspection", "Peak", "inspect_capture", "plot_inspection"]
+
 
 def _db(x):
     """10·log10(x) [dB]."""
     with np.errstate(divide="ignore"):
         return 10.0 * np.log10(x)
-
-
-__all__ = ["CaptureInspection", "Peak", "inspect_capture", "load_config", "plot_inspection"]
 
 
 @dataclass(frozen=True)
@@ -143,16 +143,123 @@ class CaptureInspection:
         return json.dumps(self.to_dict(), indent=indent)
 
 
-def load_config(path: str | Path, *, strict: bool = True) -> tuple[TiChirpConfig, int | None]:
-    """A ``.cfg`` (mmWave SDK) or ``.json`` (mmWave Studio) file → (config, LVDS lanes or None)."""
-    path = Path(path)
-    if path.suffix.lower() == ".json":
-        parsed = read_studio_json(path)
-        return parsed.config, parsed.lanes
-    if path.suffix.lower() == ".cfg":
-        return read_sdk_cfg(path, strict=strict).config, None
-    raise MeasuredFormatError(f"{path}: unknown config type {path.suffix!r}; give an mmWave SDK .cfg or an "
-                              "mmWave Studio .json export")
+def _layout_of(config: str | Path | TiChirpConfig | RawLayout, lanes: int | None,
+               iq_swap: bool) -> tuple[RawLayout, TiChirpConfig | None]:
+    """The file's layout and the configuration (None for a bare layout) of :func:`inspect_capture`'s ``config``."""
+    if isinstance(config, RawLayout):
+        layout = config if lanes is None and not iq_swap else RawLayout(
+            config.num_samples, config.num_rx, config.chirps_per_loop, config.num_loops, config.adc_format,
+            lanes or config.lanes, iq_swap)
+        return layout, None
+    file_lanes = None
+    if isinstance(config, TiChirpConfig):
+        cfg = config
+    else:
+        cfg, file_lanes = load_config(config)
+    return RawLayout.from_config(cfg, lanes=lanes or file_lanes or 2, iq_swap=iq_swap), cfg
+
+
+@dataclass(frozen=True)
+class _CaptureSums:
+    """One pass over a capture: the range–Doppler power and the sums the I/Q statistics need.
+
+    ``range_doppler [K, N]``: mean power per cell over the frames read and the channels, window
+    normalised, Doppler ascending [counts²]; ``s1 = (Σ I, Σ Q)``, ``s2 = (Σ I², Σ Q², Σ I·Q)``
+    over ``count`` samples [counts, counts²]; ``words``: I/Q words per sample (2 complex, 1 real).
+    """
+
+    range_doppler: np.ndarray
+    s1: np.ndarray
+    s2: np.ndarray
+    count: int
+    words: int
+    clipped: int
+    frames_read: int
+    dropped: int
+    damaged: tuple[int, ...]
+
+
+def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, frames_per_block: int,
+                 max_frames: int | None) -> _CaptureSums:
+    """Stream the capture once: range–Doppler power (eq. (2DDFT)), I/Q sums, rail hits, lost packets."""
+    N, K = layout.num_samples, layout.num_loops
+    lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    wn = scipy.signal.get_window(window, N, fftbins=True)
+    wk = scipy.signal.get_window(window, K, fftbins=True)
+    gain = (wn.sum() * wk.sum()) ** 2
+    rd = np.zeros((K, N))
+    s1 = np.zeros(2)
+    s2 = np.zeros(3)                                  # Σ I², Σ Q², Σ I·Q
+    count = clipped = frames_read = dropped = 0
+    damaged: list[int] = []
+    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=max_frames):
+        y = block.cube                                # complex64 [f, K, V, N], paper convention
+        i_hw, q_hw = y.real.astype(np.float64), -y.imag.astype(np.float64)
+        s1 += (i_hw.sum(), q_hw.sum())
+        s2 += ((i_hw * i_hw).sum(), (q_hw * q_hw).sum(), (i_hw * q_hw).sum())
+        count += i_hw.size
+        words = (i_hw, q_hw) if layout.is_complex else (i_hw,)
+        clipped += sum(int(np.count_nonzero((w <= lo) | (w >= hi))) for w in words)
+        # eq. (2DDFT) sign: e^{+j2πpn/N}, e^{+j2πqk/K} (numpy's ifft times the length)
+        z = np.fft.ifft(np.fft.ifft(y * wn, axis=-1) * wk[:, None, None], axis=1) * (N * K)
+        rd += (np.abs(z) ** 2).sum(axis=(0, 2)) / gain
+        frames_read += len(y)
+        dropped += sum(d.count for d in block.dropped)
+        damaged += [block.first_frame + int(i) for i in np.flatnonzero(block.damaged)]
+    if frames_read == 0:
+        raise MeasuredFormatError("no frame to inspect (max_frames=0?)")
+    rd /= frames_read * layout.num_virtual
+    rd = np.fft.fftshift(rd, axes=0)
+    return _CaptureSums(range_doppler=rd, s1=s1, s2=s2, count=count, words=2 if layout.is_complex else 1,
+                        clipped=clipped, frames_read=frames_read, dropped=dropped, damaged=tuple(damaged))
+
+
+def _iq_statistics(sums: _CaptureSums, profile: np.ndarray,
+                   is_complex: bool) -> tuple[complex, float, float, float]:
+    """(DC offset [counts], I/Q gain imbalance [dB], I/Q phase imbalance [rad], positive-frequency excess [dB])."""
+    N = profile.size
+    count = sums.count
+    mean_i, mean_q = sums.s1 / count
+    var_i, var_q = sums.s2[0] / count - mean_i ** 2, sums.s2[1] / count - mean_q ** 2
+    cov = sums.s2[2] / count - mean_i * mean_q
+    if is_complex and var_i > 0 and var_q > 0:
+        g_db = float(10 * np.log10(var_q / var_i))
+        phase = float(np.arcsin(np.clip(cov / np.sqrt(var_i * var_q), -1, 1)))
+        pos, neg = profile[1:N // 2].sum(), profile[N // 2 + 1:].sum()
+        excess = float(_db(pos / max(neg, 1e-300)))
+    else:
+        g_db, phase, excess = 0.0, 0.0, float("nan")
+    return complex(mean_i, mean_q), g_db, phase, excess
+
+
+def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig | None, bits: int, dc: complex,
+                      g_db: float, phase: float, excess: float, peak_bin: int, min_range_bin: int) -> tuple[Flag, ...]:
+    """Each problem the inspection found as a flag with its remedy (codes: ``dsp.INSPECTION_CODES``)."""
+    full = 2.0 ** (bits - 1)
+    dropped, damaged = sums.dropped, list(sums.damaged)
+    flags = []
+    if dropped:
+        flags.append(Flag("dropped-packets", f"{dropped} packets lost; frames {damaged[:10]}"
+                          f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
+    if info.truncated_bytes:
+        flags.append(Flag("truncated-frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
+    if sums.clipped:
+        flags.append(Flag("clipping", f"{sums.clipped} of {sums.count * sums.words} ADC words at a rail: lower the "
+                          "Rx gain (profileCfg rxGain) or move away from strong reflectors"))
+    if abs(dc) > 0.01 * full:
+        flags.append(Flag("dc-offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
+    if abs(g_db) > 1.0 or abs(phase) > np.deg2rad(5):
+        flags.append(Flag("iq-imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
+                          "of strong targets appear mirrored in range"))
+    if not np.isnan(excess) and excess < 0:
+        flags.append(Flag("iq-order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
+                          "probably swapped (iq_swap=True) or the lane interleave is wrong (lanes=)"))
+    if peak_bin <= 1 and min_range_bin == 0:
+        flags.append(Flag("peak-at-dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
+                          "pass min_range_bin="))
+    if cfg is not None:
+        flags += [Flag("device-timing", msg) for msg in cfg.device_issues()]
+    return tuple(flags)
 
 
 def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig | RawLayout, *,
@@ -183,52 +290,23 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         Ignore range bins below this when finding the peak (Tx→Rx leakage, DC).
     frames_per_block : int, default 4
         Frames decoded at a time (sets the memory used).
+
+    Returns
+    -------
+    CaptureInspection
+        Counts, the peak (bins; metres and m/s with a configuration), the range profile and
+        range–Doppler map [counts²], clipping, DC offset [counts], I/Q imbalance [dB, rad] and
+        the flags.
     """
-    cfg: TiChirpConfig | None = None
-    if isinstance(config, RawLayout):
-        layout = config if lanes is None and not iq_swap else RawLayout(
-            config.num_samples, config.num_rx, config.chirps_per_loop, config.num_loops, config.adc_format,
-            lanes or config.lanes, iq_swap)
-    else:
-        file_lanes = None
-        if isinstance(config, TiChirpConfig):
-            cfg = config
-        else:
-            cfg, file_lanes = load_config(config)
-        layout = RawLayout.from_config(cfg, lanes=lanes or file_lanes or 2, iq_swap=iq_swap)
+    layout, cfg = _layout_of(config, lanes, iq_swap)
     info = open_raw(raw, layout, form=form, payload_size=payload_size,
                     expected_frames=cfg.num_frames if cfg is not None else None)
     N, K = layout.num_samples, layout.num_loops
     if not 0 <= min_range_bin < N:
         raise MeasuredFormatError(f"min_range_bin={min_range_bin} must be in [0, {N})")
     bits = cfg.adc_bits if cfg is not None else 16
-    lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
-    wn = scipy.signal.get_window(window, N, fftbins=True)
-    wk = scipy.signal.get_window(window, K, fftbins=True)
-    gain = (wn.sum() * wk.sum()) ** 2
-    rd = np.zeros((K, N))
-    s1 = np.zeros(2)
-    s2 = np.zeros(3)                                  # Σ I², Σ Q², Σ I·Q
-    count = clipped = frames_read = dropped = 0
-    damaged: list[int] = []
-    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=max_frames):
-        y = block.cube                                # complex64 [f, K, V, N], paper convention
-        i_hw, q_hw = y.real.astype(np.float64), -y.imag.astype(np.float64)
-        s1 += (i_hw.sum(), q_hw.sum())
-        s2 += ((i_hw * i_hw).sum(), (q_hw * q_hw).sum(), (i_hw * q_hw).sum())
-        count += i_hw.size
-        words = (i_hw, q_hw) if layout.is_complex else (i_hw,)
-        clipped += sum(int(np.count_nonzero((w <= lo) | (w >= hi))) for w in words)
-        # eq. (2DDFT) sign: e^{+j2πpn/N}, e^{+j2πqk/K} (numpy's ifft times the length)
-        z = np.fft.ifft(np.fft.ifft(y * wn, axis=-1) * wk[:, None, None], axis=1) * (N * K)
-        rd += (np.abs(z) ** 2).sum(axis=(0, 2)) / gain
-        frames_read += len(y)
-        dropped += sum(d.count for d in block.dropped)
-        damaged += [block.first_frame + int(i) for i in np.flatnonzero(block.damaged)]
-    if frames_read == 0:
-        raise MeasuredFormatError("no frame to inspect (max_frames=0?)")
-    rd /= frames_read * layout.num_virtual
-    rd = np.fft.fftshift(rd, axes=0)
+    sums = _stream_sums(info, layout, bits, window, frames_per_block, max_frames)
+    rd = sums.range_doppler
     doppler_bins = np.arange(K) - K // 2
     profile = rd.mean(axis=0)
     p = min_range_bin + int(np.argmax(profile[min_range_bin:]))
@@ -239,70 +317,36 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         radar = cfg.to_radar_config()
         rng_m = float(p * radar.range_resolution)
         vel = float(q / (K * radar.carrier_frequency * radar.chirp_interval) * scipy.constants.c / 2)
-
-    mean_i, mean_q = s1 / count
-    var_i, var_q = s2[0] / count - mean_i ** 2, s2[1] / count - mean_q ** 2
-    cov = s2[2] / count - mean_i * mean_q
-    if layout.is_complex and var_i > 0 and var_q > 0:
-        g_db = float(10 * np.log10(var_q / var_i))
-        phase = float(np.arcsin(np.clip(cov / np.sqrt(var_i * var_q), -1, 1)))
-        pos, neg = profile[1:N // 2].sum(), profile[N // 2 + 1:].sum()
-        excess = float(_db(pos / max(neg, 1e-300)))
-    else:
-        g_db, phase, excess = 0.0, 0.0, float("nan")
-    dc = complex(mean_i, mean_q)
-    full = 2.0 ** (bits - 1)
-    flags = []
-    if dropped:
-        flags.append(Flag("dropped-packets", f"{dropped} packets lost; frames {damaged[:10]}"
-                          f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
-    if info.truncated_bytes:
-        flags.append(Flag("truncated-frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
-    if clipped:
-        flags.append(Flag("clipping", f"{clipped} of {count * len(words)} ADC words at a rail: lower the Rx gain "
-                          "(profileCfg rxGain) or move away from strong reflectors"))
-    if abs(dc) > 0.01 * full:
-        flags.append(Flag("dc-offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
-    if abs(g_db) > 1.0 or abs(phase) > np.deg2rad(5):
-        flags.append(Flag("iq-imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
-                          "of strong targets appear mirrored in range"))
-    if not np.isnan(excess) and excess < 0:
-        flags.append(Flag("iq-order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
-                          "probably swapped (iq_swap=True) or the lane interleave is wrong (lanes=)"))
-    if p <= 1 and min_range_bin == 0:
-        flags.append(Flag("peak-at-dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
-                          "pass min_range_bin="))
-    if cfg is not None:
-        flags += [Flag("device-timing", msg) for msg in cfg.device_issues()]
+    dc, g_db, phase, excess = _iq_statistics(sums, profile, layout.is_complex)
+    flags = _inspection_flags(sums, info, cfg, bits, dc, g_db, phase, excess, p, min_range_bin)
     peak = Peak(range_bin=p, doppler_bin=q, snr_db=snr_db, range=rng_m, velocity=vel)
     return CaptureInspection(
         files=info.files, form=info.form, layout=layout, config=cfg, frames=info.num_frames,
-        frames_read=frames_read, truncated_bytes=info.truncated_bytes, dropped_packets=dropped,
-        damaged_frames=tuple(damaged), peak=peak, range_profile=profile, range_doppler=rd,
-        doppler_bins=doppler_bins, clipped_words=clipped, clipped_fraction=clipped / (count * len(words)),
+        frames_read=sums.frames_read, truncated_bytes=info.truncated_bytes, dropped_packets=sums.dropped,
+        damaged_frames=sums.damaged, peak=peak, range_profile=profile, range_doppler=rd,
+        doppler_bins=doppler_bins, clipped_words=sums.clipped, clipped_fraction=sums.clipped / (sums.count * sums.words),
         dc_offset=dc, iq_gain_imbalance_db=g_db, iq_phase_imbalance=phase, positive_frequency_excess_db=excess,
-        flags=tuple(flags), notes=info.notes)
+        flags=flags, notes=info.notes)
 
 
 def plot_inspection(result: CaptureInspection, path: str | Path | None = None, *, dynamic_range_db: float = 60.0):
-    """Range profile and range–Doppler map of an inspection (matplotlib imported here only).
+    """Range profile and range–Doppler map of an inspection (:mod:`risloc_rt.plotting`; matplotlib loaded here only).
 
     Parameters
     ----------
     result : CaptureInspection
     path : path, optional
-        Write the figure there (PNG, PDF, … by suffix).
+        Write the figure there atomically (PNG, PDF, … by suffix; PNG when there is none).
     dynamic_range_db : float, default 60
         Colour range of the map below its maximum [dB].
 
     Returns
     -------
     matplotlib.figure.Figure
+        On its own Agg canvas (pyplot's state and the backend are left alone).
     """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(10, 4), layout="constrained")
-    ax1, ax2 = fig.subplots(1, 2)
+    fig, (ax1, ax2) = new_figure(figsize=(10, 4), nrows=1, ncols=2)
+    fig.set_layout_engine("constrained")
     prof_db = _db(np.maximum(result.range_profile, 1e-30))
     ax1.plot(np.arange(prof_db.size), prof_db)
     ax1.axvline(result.peak.range_bin, color="r", ls=":", label=f"peak bin {result.peak.range_bin}")
@@ -317,5 +361,5 @@ def plot_inspection(result: CaptureInspection, path: str | Path | None = None, *
     ax2.set(xlabel="range bin", ylabel="Doppler bin (+ receding)", title="range-Doppler map")
     fig.colorbar(im, ax=ax2, label="dB")
     if path is not None:
-        fig.savefig(path)
+        save_figure(fig, path, tight=False)
     return fig

@@ -1,0 +1,29 @@
+"""A measured capture against the ray-traced hall: the hall model, calibration (file and fit), comparison (numbers, page).
+
+Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``hall``, ``io`` and ``model``):
+
+- :mod:`.traced_hall`: the traced hall for a capture's radar, sweep, RIS and position;
+- :mod:`.calibration_file`: calibration files (range offset, τ_RB, ζ, noise, power offset) and applying them;
+- :mod:`.calibration_fit`: those five fitted to a capture against the model's paths;
+- :mod:`.comparison`: measured vs traced: peaks, residuals (``comparison.json``);
+- :mod:`.comparison_page`: the ``risloc compare`` folder (``index.html``, PNG figures).
+
+The names load on first use: ``import risloc_rt.measured.compare`` loads neither the hall nor ``io``.
+"""
+
+from ..._lazy import lazy_exports
+
+_EXPORTS = {
+    "HallModel": "traced_hall", "hall_model": "traced_hall", "ue_position_of": "traced_hall",
+    "Calibration": "calibration_file", "adc_power_offset_db": "calibration_file", "apply_to_capture": "calibration_file",
+    "apply_to_scenario": "calibration_file", "calibrated_paths": "calibration_file",
+    "calibration_delay": "calibration_file", "read_calibration": "calibration_file",
+    "write_calibration": "calibration_file",
+    "calibrate_capture": "calibration_fit",
+    "Comparison": "comparison", "compare_capture": "comparison",
+    "FIGURES": "comparison_page", "write_comparison": "comparison_page",
+}
+
+__all__ = sorted(_EXPORTS)
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

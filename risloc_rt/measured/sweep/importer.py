@@ -1,0 +1,304 @@
+"""A raw DCA1000 recording of a RIS sweep + its radar configuration + a sweep schedule → a ``Capture``.
+
+The one bridge from measured data to the DSP: ``risloc capture import`` writes the result with
+``save_capture`` and ``risloc locate`` processes it like a simulated capture.
+
+Frame selection: with a manual ``first_frame``, beam m is recorded frame ``first_frame +
+m·frames_per_beam`` (the **first** frame of each beam; the others are skipped); with
+``first_frame = "auto"`` the RIS program is fitted to the recording (:mod:`.alignment`: sync frames,
+the beam-dependent power, a dwell that is not a whole number of frames, a drifting RIS clock) and
+each beam gets the frame most probably wholly inside it. One virtual channel
+(``schedule.channel``), or several combined (maximal ratio), gives a cube ``[M, K, N]``
+complex128 in ADC counts with the project's sign convention (``I − jQ``,
+``docs/measured-captures.md``); then the self-interference is removed (:mod:`.leakage`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.fft
+
+from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose
+
+from ...model.capture import Capture, provenance
+from ...model.ris import RisConfig
+from ...model.scenario import Truth
+from ..dca1000.channels import combine_channels, mrc_weights
+from ..dca1000.raw_layout import RawLayout
+from ..dca1000.reader import CaptureInfo, iter_frames, open_raw
+from ..errors import MeasuredFormatError
+from ..ti.chirp_config import TiChirpConfig
+from ..ti.config_file import load_config
+from .alignment import SweepAlignment, fit_alignment, manual_alignment, ris_power_series
+from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
+from .ris_timing import chirp_fractions
+from .schedule import SweepSchedule, format_sweep_schedule, read_sweep_schedule
+
+__all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture"]
+
+DEFAULT_LEAKAGE = "gate"
+"""Self-interference removal on import (chosen by the measurements in docs/measured-captures.md)."""
+
+
+def default_processing(num_samples: int, num_chirps: int) -> ProcessingConfig:
+    """The processing an imported capture recommends: ``n_dft = 2N − 1`` (the paper's), ``k_dft =
+    next_fast_len(4K)`` (4× Doppler zero padding rounded up to a fast FFT length), other fields default."""
+    return ProcessingConfig(n_dft=2 * int(num_samples) - 1, k_dft=scipy.fft.next_fast_len(4 * int(num_chirps)))
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 22), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _ris(schedule: SweepSchedule) -> RisConfig:
+    pose = RisPose.facing(np.asarray(schedule.ris_position, float), np.asarray(schedule.ris_facing, float),
+                          yaw=float(np.deg2rad(schedule.yaw_deg)))
+    extra: dict[str, Any] = {}
+    if schedule.ris_element_spacing is not None:
+        extra["element_spacing"] = schedule.ris_element_spacing
+    return RisConfig(pose=pose, num_rows=schedule.ris_rows, num_columns=schedule.ris_columns,
+                     loopback_delay=schedule.loopback_delay_ns * 1e-9, mode=schedule.ris_mode,
+                     relay_rx_angle=np.deg2rad(np.asarray(schedule.relay_rx_angle_deg, float)), **extra)
+
+
+def _truth(schedule: SweepSchedule, ris: RisConfig) -> Truth | None:
+    if schedule.truth_ue_position is None:
+        return None
+    ue = np.asarray(schedule.truth_ue_position, float)
+    return Truth(ue_position=ue, ue_velocity=np.zeros(3), distance=float(np.linalg.norm(ue - ris.pose.position)),
+                 velocity=0.0, aod=np.asarray(ris.pose.angles_to(ue), float))
+
+
+def _channels(channels: Sequence[int] | None, sched: SweepSchedule, cfg: TiChirpConfig) -> tuple[int, ...]:
+    chans = (sched.channel,) if channels is None else tuple(int(c) for c in channels)
+    if not chans or len(set(chans)) != len(chans):
+        raise MeasuredFormatError(f"channels {list(chans)} must be distinct virtual channel indices, e.g. 0,1,2,3")
+    for c in chans:
+        if not 0 <= c < cfg.num_virtual:
+            where = "sweep schedule channel" if channels is None else "channel"
+            raise MeasuredFormatError(
+                f"{where} = {c} but the configuration has {cfg.num_virtual} virtual channel(s) ({cfg.chirps_per_loop} "
+                f"chirp(s) per loop x {cfg.num_rx} rx); give channel = 0 … {cfg.num_virtual - 1}")
+    return chans
+
+
+def _configuration(config: str | Path | TiChirpConfig) -> tuple[TiChirpConfig, int | None, Path | None, str | None]:
+    """(configuration, LVDS lanes its file gives, its path, its text); path and text None for a ``TiChirpConfig``."""
+    if isinstance(config, TiChirpConfig):
+        return config, None, None, None
+    config_path = Path(config)
+    if not config_path.is_file():
+        raise MeasuredFormatError(f"radar configuration {config_path} does not exist; give the mmWave SDK .cfg "
+                                  "or mmWave Studio .json the capture was recorded with")
+    cfg, cfg_lanes = load_config(config_path)
+    return cfg, cfg_lanes, config_path, config_path.read_text(encoding="utf-8", errors="replace")
+
+
+def _first_frame(first_frame: int | str | None, sched: SweepSchedule) -> int | str:
+    """The recorded frame of beam 0 (an int >= 0) or ``"auto"``: the override, else the schedule's."""
+    if first_frame is None:
+        first_frame = "auto" if sched.first_frame is None else sched.first_frame
+    if first_frame != "auto" and (isinstance(first_frame, bool) or not isinstance(first_frame, (int, np.integer))
+                                  or first_frame < 0):
+        raise MeasuredFormatError(f"first frame {first_frame!r} must be an integer >= 0 or 'auto'")
+    return first_frame
+
+
+def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, first_frame: int | str,
+               chans: tuple[int, ...], *, frames_per_block: int, gate_range: float,
+               min_confidence: float) -> SweepAlignment:
+    """Which recorded frame holds each beam: fitted (``"auto"``, refused below ``min_confidence``) or the schedule's."""
+    program = sched.program
+    fractions = chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval)
+    if first_frame == "auto":
+        def blocks():
+            return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
+        series = ris_power_series(blocks, radar, min_range=gate_range)
+        align = fit_alignment(series, program, fractions=fractions, max_drift=sched.max_clock_drift,
+                              frame_width=radar.frame_duration / radar.frame_interval)
+        if align.confidence < min_confidence:
+            runner = align.runner_up or {}
+            raise MeasuredFormatError(
+                f"{info.files[0]}: the sweep start could not be found reliably (confidence {align.confidence:.2f} < "
+                f"{min_confidence:g}; best first frame {align.first_frame}, runner-up {runner.get('first_frame')}; RIS "
+                f"return at {align.feature.get('range', float('nan')):.2f} m, {align.feature.get('snr_db', 0):.1f} dB); "
+                "give first_frame in the sweep schedule (or --first-frame N), add the RIS's [sync] pattern, or "
+                "lower --min-confidence")
+        return align
+    align = manual_alignment(program, int(first_frame), num_frames=info.num_frames, fractions=fractions)
+    needed = int(align.frame_index[-1]) + 1
+    if info.num_frames < needed:
+        raise MeasuredFormatError(
+            f"{info.files[0]}: the recording holds {info.num_frames} whole frame(s) but the sweep schedule needs "
+            f"{needed} (first_frame {first_frame} + ({sched.num_beams} beams - 1) x frames_per_beam "
+            f"{sched.frames_per_beam} + 1); check first_frame, frames_per_beam and the sweep's beam count, or "
+            "whether the recording stopped early")
+    return align
+
+
+@dataclass(frozen=True)
+class _BeamFrames:
+    """The recorded frames a sweep uses, read in one pass.
+
+    ``cube [M, K, V, N]``: each beam's frame, the selected channels [ADC counts]; ``background
+    [K, V, N]``: the sum of the RIS-off frames read (background subtraction); the reader's lost
+    packets and packet issues (plain dicts) and the beams whose frame holds zero-filled bytes.
+    """
+
+    cube: np.ndarray
+    background: np.ndarray
+    damaged_beams: tuple[int, ...]
+    dropped: tuple[dict[str, Any], ...]
+    issues: tuple[dict[str, Any], ...]
+
+
+def _read_beams(info: CaptureInfo, wanted: np.ndarray, off: set[int], chans: tuple[int, ...], cfg: TiChirpConfig,
+                *, frames_per_block: int) -> _BeamFrames:
+    """Stream the recording up to the last frame needed, keeping the beams' frames and summing the off frames."""
+    last = max([int(wanted.max())] + list(off)) + 1
+    M, K, N, V = len(wanted), cfg.num_loops, cfg.num_samples, len(chans)
+    cube4 = np.empty((M, K, V, N), np.complex128)
+    background = np.zeros((K, V, N), np.complex128)
+    beams_of: dict[int, list[int]] = {}
+    for m, f in enumerate(wanted):
+        beams_of.setdefault(int(f), []).append(m)
+    damaged_beams: list[int] = []
+    dropped: list[dict[str, Any]] = []
+    issues: list[dict[str, Any]] = []
+    for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=last):
+        dropped.extend(asdict(d) for d in block.dropped)
+        issues.extend(asdict(i) for i in block.issues)
+        for j in range(block.cube.shape[0]):
+            f = block.first_frame + j
+            frame = block.cube[j][:, list(chans), :]
+            for m in beams_of.get(f, ()):
+                cube4[m] = frame
+                if block.damaged[j]:
+                    damaged_beams.append(m)
+            if f in off:
+                background += frame
+    return _BeamFrames(cube=cube4, background=background, damaged_beams=tuple(damaged_beams), dropped=tuple(dropped),
+                       issues=tuple(issues))
+
+
+def _combined_cube(beams: _BeamFrames, radar: RadarConfig, leakage: str, gate_range: float,
+                   off_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(cube [M, K, N], weights [V])``: the channels combined (one as is, several by MRC), the leakage removed."""
+    cube4 = beams.cube
+    if cube4.shape[2] == 1:
+        weights = np.ones(1, complex)
+        cube = cube4[:, :, 0, :]
+    else:
+        weights = mrc_weights(cube4, radar, gate_range)
+        cube = combine_channels(cube4, channels=list(range(cube4.shape[2])), weights=weights)
+    if leakage == "gate":
+        cube = apply_range_gate(cube, range_gate_basis(radar, gate_range))
+    elif leakage == "background":
+        bg = np.einsum("kvn,v->kn", beams.background / off_count, weights / np.sum(np.abs(weights)))
+        cube = subtract_background(cube, bg)
+    return cube, weights
+
+
+def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
+                   schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool = False,
+                   form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
+                   leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
+                   channels: Sequence[int] | None = None, min_confidence: float = 0.5) -> Capture:
+    """Import a recorded RIS sweep as a :class:`~risloc_rt.model.capture.Capture`.
+
+    Parameters
+    ----------
+    raw : path or sequence of paths
+        ``adc_data_Raw_0.bin`` (split siblings are collected) or the files in order.
+    config : path or TiChirpConfig
+        mmWave SDK ``.cfg`` or mmWave Studio ``.json`` (its lane count is used when ``lanes`` is None).
+    schedule : path or SweepSchedule
+        The sweep schedule (TOML, ``docs/formats.md``).
+    lanes : {2, 4}, optional
+        LVDS lanes (default: the Studio JSON's, else 2).
+    iq_swap : bool
+        The file stores Q before I.
+    form : {"auto", "raw", "packets"}
+        Plain samples or packet-recorded (``"auto"`` detects it).
+    frames_per_block : int
+        Frames decoded at a time (sets the memory used).
+    first_frame : int, "auto" or None
+        Overrides the schedule's ``first_frame``: an int is the manual alignment (beam m at
+        ``first_frame + m·frames_per_beam``), ``"auto"`` finds the sweep (:mod:`.alignment`).
+    leakage : {"gate", "background", "none"}
+        Self-interference removal (:mod:`.leakage`); ``gate_range`` [m] for the gate.
+    gate_range : float
+        Range gate [m]; also the nearest range the alignment and the MRC weights look at.
+    channels : sequence of int, optional
+        Virtual channels to use (default: the schedule's ``channel``); several are combined by
+        maximal-ratio combining on the RIS return (weights ``conj(h_v)·h_0/|h_0|``, h_v its complex
+        amplitude in channel v at the strongest beam and range bin; output ``Σ w_v y_v / Σ |w_v|``).
+    min_confidence : float
+        ``"auto"`` refuses an alignment whose confidence is below this.
+
+    Returns
+    -------
+    Capture
+        ``cube`` complex128 ``[M, K, N]`` [ADC counts]; ``radar = config.to_radar_config()`` with the
+        schedule's ``frames_per_beam``; the schedule's sweep and RIS; :func:`default_processing`;
+        ``frame_index`` the recorded frame of each beam; provenance ``source="measurement"`` with the
+        sha256 of every file, the config text, the schedule, the alignment, the leakage removal, the
+        channels and the reader's issues; ``truth`` from the schedule's ``[truth]`` or None.
+
+    Raises
+    ------
+    MeasuredFormatError
+        Bad files or options, a channel the configuration does not have, a recording with too
+        few frames for the schedule, or an ``"auto"`` alignment below ``min_confidence``.
+    """
+    if leakage not in LEAKAGE_METHODS:
+        raise MeasuredFormatError(f"leakage = {leakage!r} must be one of {', '.join(LEAKAGE_METHODS)}")
+    cfg, cfg_lanes, config_path, config_text = _configuration(config)
+    sched = schedule if isinstance(schedule, SweepSchedule) else read_sweep_schedule(schedule)
+    chans = _channels(channels, sched, cfg)
+    first_frame = _first_frame(first_frame, sched)
+    lanes = lanes or cfg_lanes or 2
+    layout = RawLayout.from_config(cfg, lanes=lanes, iq_swap=iq_swap)
+    info = open_raw(raw, layout, form=form, expected_frames=cfg.num_frames or None)
+    radar = replace(cfg.to_radar_config(), frames_per_beam=sched.frames_per_beam)
+    align = _alignment(info, radar, sched, first_frame, chans, frames_per_block=frames_per_block,
+                       gate_range=gate_range, min_confidence=min_confidence)
+    wanted = align.frame_index
+    off = set(int(f) for f in align.off_frames) if leakage == "background" else set()
+    if leakage == "background" and not off:
+        raise MeasuredFormatError(
+            f"{info.files[0]}: leakage removal 'background' needs frames with the RIS off, and the alignment leaves "
+            "none (record frames before or after the sweep, or describe the [sync] pattern); use --leakage gate")
+    beams = _read_beams(info, wanted, off, chans, cfg, frames_per_block=frames_per_block)
+    cube, weights = _combined_cube(beams, radar, leakage, gate_range, len(off))
+    sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
+    ris = _ris(sched)
+    prov = provenance(
+        "measurement",
+        device="TI DCA1000",
+        raw_files=[{"path": str(p), "sha256": _sha256(p), "bytes": p.stat().st_size} for p in info.files],
+        config={"path": None if config_path is None else str(config_path),
+                "sha256": None if config_path is None else _sha256(config_path), "text": config_text},
+        schedule=format_sweep_schedule(sched),
+        alignment=align.to_dict(),
+        leakage={"method": leakage, "gate_range": gate_range if leakage == "gate" else None,
+                 "background_frames": len(off)},
+        channels={"channels": list(chans), "combine": "single" if len(chans) == 1 else "mrc",
+                  "weights": [[float(w.real), float(w.imag)] for w in weights]},
+        reader={"form": info.form, "lanes": lanes, "iq_swap": bool(iq_swap), "channel": chans[0],
+                "frames_recorded": info.num_frames, "truncated_bytes": info.truncated_bytes,
+                "notes": list(info.notes), "dropped_packets": list(beams.dropped), "packet_issues": list(beams.issues),
+                "damaged_beams": sorted(set(beams.damaged_beams))},
+    )
+    return Capture(cube=np.ascontiguousarray(cube, np.complex128), sweep=sweep, radar=radar, ris=ris,
+                   processing=default_processing(cfg.num_samples, cfg.num_loops),
+                   frame_index=np.asarray(wanted, np.int64), provenance=prov, truth=_truth(sched, ris))
