@@ -1,8 +1,11 @@
-"""Monte Carlo studies (``risloc study sweep``) and floor maps (``risloc study map``), floor 5.
+"""Monte Carlo studies (``risloc study sweep``), floor maps (``risloc study map``) and the speed
+study (``risloc speed``), floor 5.
 
 ``StudySpec`` says what to vary; ``run_study`` runs it resumably (an append-only run log,
 ``runs.parquet``, ``summary.json``, a figure in the paper's style) on local processes or a Dask
-cluster. See ``docs/studies.md``.
+cluster; :mod:`risloc_rt.studies.floor_map` runs a hall's floor grid on the same engine (its own
+point preparer), :mod:`risloc_rt.studies.speed` times estimators and trace settings. See
+``docs/studies.md`` (the module layout is at its end).
 """
 
 from .engine import StudyError
