@@ -16,7 +16,7 @@ __all__ = ["add_parser"]
 def _run(args: argparse.Namespace) -> int:
     capture = load_capture(args.capture)
     if args.calibration is not None:
-        from ..measured.calibration import apply_to_capture, read_calibration
+        from ..measured.compare.calibration_file import apply_to_capture, read_calibration
 
         capture = apply_to_capture(capture, read_calibration(args.calibration))
     processing = processing_overrides(args, capture.processing)
@@ -30,7 +30,14 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``locate`` to an ``add_subparsers()`` object."""
+    """Add ``locate`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     loc = sub.add_parser("locate", help="run the DSP on a capture file",
                          description="Detect the RIS return in a capture and localize the radar, with 1-sigma "
                                      "uncertainties and flags (docs/flags.md). Exit status 0 with a position, "
