@@ -12,6 +12,19 @@ __all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
+    """``risloc calibrate``: fit the calibration against the traced hall, write ``-o``, print the five values [SI].
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (CAPTURE, --scene, --ue [m], -o, --force, --max-range-offset [m], trace flags).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the file is written;
+        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    """
     from ..io.capture_file import load_capture
     from ..measured.compare.calibration_file import write_calibration
     from ..measured.compare.calibration_fit import calibrate_capture
@@ -40,7 +53,14 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``calibrate`` to an ``add_subparsers()`` object."""
+    """Add ``calibrate`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     cal = sub.add_parser("calibrate", help="fit range offset, tau_RB, zeta, noise floor and power offset of a capture "
                                            "against a ray-traced hall",
                          description="Fit the radar's internal range offset, the RIS's loop-back delay and "

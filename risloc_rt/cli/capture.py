@@ -16,6 +16,18 @@ __all__ = ["add_parser"]
 
 
 def _layout_or_config(args: argparse.Namespace):
+    """What ``capture inspect`` reads the file with: the ``--config`` path, or a ``RawLayout`` from ``--layout``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``config``, ``layout`` (``SAMPLES,RX,CHIRPS_PER_LOOP,LOOPS``), ``adc_format``, ``lanes``, ``iq_swap``.
+
+    Returns
+    -------
+    str or RawLayout
+        The configuration file's path (mmWave SDK ``.cfg`` or Studio ``.json``), or the bare layout.
+    """
     if args.config is not None:
         if args.layout is not None:
             raise CliError("give --config CFG or --layout, not both")
@@ -35,6 +47,19 @@ def _layout_or_config(args: argparse.Namespace):
 
 
 def _inspect(args: argparse.Namespace) -> int:
+    """``risloc capture inspect``: print the inspection (or ``--json``), write ``--plot``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (RAW, --config or --layout, --json, --plot, ...).
+
+    Returns
+    -------
+    int
+        The exit status: 0 after printing;
+        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    """
     from ..measured import inspect_capture, plot_inspection
 
     result = inspect_capture(args.raw, _layout_or_config(args), lanes=args.lanes, iq_swap=args.iq_swap,
@@ -62,6 +87,19 @@ def _inspect(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
+    """``risloc capture import``: a recorded RIS sweep → a capture file (``-o``), with a summary line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (RAW, --config, --sweep, -o, --first-frame, --leakage, --channels, ...).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the capture file is written;
+        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    """
     from pathlib import Path
 
     from ..io.capture_file import save_capture
@@ -115,7 +153,14 @@ def _import(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``capture`` (with ``inspect``) to an ``add_subparsers()`` object."""
+    """Add ``capture`` (with ``inspect`` and ``import``) to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     capture = sub.add_parser("capture", help="measured TI DCA1000 captures: inspect raw data, import a RIS sweep",
                              description="Measured captures (docs/measured-captures.md).")
     verbs = capture.add_subparsers(dest="capture_command", required=True, metavar="{inspect,import}")

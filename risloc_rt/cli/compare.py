@@ -13,6 +13,19 @@ _OWN = ("index.html", "comparison.json", "range_profiles.png", "delay_doppler.pn
 
 
 def _run(args: argparse.Namespace) -> int:
+    """``risloc compare``: the comparison page of a capture against the traced hall in ``-o``, and a summary line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (CAPTURE, --scene, --ue [m], --calibration, -o, --force, trace flags).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the page is written;
+        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    """
     from ..io.capture_file import load_capture
     from ..io.report import process_capture
     from ..measured.compare.calibration_file import read_calibration
@@ -58,7 +71,14 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``compare`` to an ``add_subparsers()`` object."""
+    """Add ``compare`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     p = sub.add_parser("compare", help="compare a measured capture with the ray-traced hall (HTML page, figures, JSON)",
                        description="Measured vs ray-traced: range profiles, delay-Doppler maps and the sweep power, "
                                    "every measured peak associated with a traced path (docs/measured-captures.md).")

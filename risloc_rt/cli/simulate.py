@@ -18,6 +18,17 @@ __all__ = ["add_parser"]
 
 
 def _scenario_from_args(args: argparse.Namespace) -> Scenario:
+    """The analytic scenario of ``--case`` with ``--ue`` [m], ``--ue-velocity`` [m/s], ``--tx-power-dbm`` [dBm].
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``--distance``/``--aod`` hand over to :func:`_placed_scenario`).
+
+    Returns
+    -------
+    Scenario
+    """
     if args.distance is not None or args.aod is not None:
         return _placed_scenario(args)
     scenario = paper_scenario(args.case, mode=args.mode or "relay")
@@ -31,7 +42,17 @@ def _scenario_from_args(args: argparse.Namespace) -> Scenario:
 
 
 def _placed_scenario(args: argparse.Namespace) -> Scenario:
-    """--distance and --aod: the UE placed in the RIS frame of the --case's RIS."""
+    """--distance [m] and --aod [deg]: the UE placed in the RIS frame of the --case's RIS.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    Scenario
+    """
     if args.ue is not None:
         raise CliError("--ue and --distance/--aod both place the UE; give one of them")
     if args.distance is None or args.aod is None:
@@ -46,6 +67,19 @@ def _placed_scenario(args: argparse.Namespace) -> Scenario:
 
 
 def _run(args: argparse.Namespace) -> int:
+    """``risloc simulate``: a capture file of the analytic scenario or a traced hall (``--format dca1000``: a folder).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (-o, --scene, --case, --ue [m], --calibration, --format, ...).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the capture is written;
+        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    """
     cal = None
     if args.calibration is not None:
         from ..measured.compare.calibration_file import apply_to_scenario, calibrated_paths, read_calibration
@@ -100,7 +134,20 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _write_dca1000(args: argparse.Namespace, capture) -> int:
-    """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate.experiment)."""
+    """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate.experiment).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``--adc-bits``, ``--dc-offset`` [LSB], ``--iq-gain-db`` [dB], ...).
+    capture : Capture
+        The simulated capture (its radar made TI-compatible with ``dca1000_radar``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the folder is written.
+    """
     from ..measured.emulate.experiment import emulate_capture
 
     dc = 0j
@@ -133,7 +180,14 @@ def _write_dca1000(args: argparse.Namespace, capture) -> int:
 
 
 def add_parser(sub) -> None:
-    """Add ``simulate`` to an ``add_subparsers()`` object."""
+    """Add ``simulate`` to an ``add_subparsers()`` object.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
+        ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
+    """
     sim = sub.add_parser("simulate", help="simulate a capture file: the paper scenario, or a ray-traced hall with --scene")
     sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz), or with --format dca1000 "
                                                            "the folder")

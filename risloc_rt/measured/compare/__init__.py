@@ -1,4 +1,4 @@
-"""A measured capture against the ray-traced hall: the hall model, calibration (file and fit), comparison (numbers, page).
+"""A measured capture against the ray-traced hall: the hall model, calibration (file, fit), comparison (numbers, page).
 
 Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``hall``, ``io`` and ``model``):
 
@@ -15,8 +15,8 @@ from ..._lazy import lazy_exports
 
 _EXPORTS = {
     "HallModel": "traced_hall", "hall_model": "traced_hall", "ue_position_of": "traced_hall",
-    "Calibration": "calibration_file", "adc_power_offset_db": "calibration_file", "apply_to_capture": "calibration_file",
-    "apply_to_scenario": "calibration_file", "calibrated_paths": "calibration_file",
+    "Calibration": "calibration_file", "adc_power_offset_db": "calibration_file",
+    "apply_to_capture": "calibration_file", "apply_to_scenario": "calibration_file", "calibrated_paths": "calibration_file",
     "calibration_delay": "calibration_file", "read_calibration": "calibration_file",
     "write_calibration": "calibration_file",
     "calibrate_capture": "calibration_fit",

@@ -22,11 +22,13 @@ default) has the same gate applied to the model. The leakage must have been remo
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.optimize
 
+from dsp import RadarConfig
 from dsp.radar import SPEED_OF_LIGHT
 
 from ...model.capture import Capture
@@ -41,11 +43,97 @@ __all__ = ["calibrate_capture"]
 _PS = 1e-12
 
 
-def _tones(radar, delays: np.ndarray) -> np.ndarray:
-    """``e^{−j2π S τ n T_s}`` [L, N]."""
+def _tones(radar: RadarConfig, delays: np.ndarray) -> np.ndarray:
+    """``e^{−j2π S τ n T_s}`` [L, N] for the delays τ [s] (cycle counts reduced before the exponential)."""
     n = np.arange(radar.num_samples)
     cycles = np.mod(np.outer(radar.slope * delays * radar.sample_period, n), 1.0)
     return np.exp(-2j * np.pi * cycles)
+
+
+@dataclass(frozen=True)
+class _BeamModel:
+    """The model's chirp-mean beams as columns of delays: static paths and the RIS's paths at the beams used.
+
+    ``t_static`` [S] and ``t_ris`` [Lr] are the model's delays [s], ``g_ris [B, Lr]`` the RIS paths'
+    gains times the RIS response at each beam used [√W]; ``gate [N, T]`` the capture's range gate
+    (None without one), applied to every column as it was to the capture; ``data [B·N]`` the
+    measured chirp means of those beams [ADC counts].
+    """
+
+    radar: RadarConfig
+    gate: np.ndarray | None
+    t_static: np.ndarray
+    t_ris: np.ndarray
+    g_ris: np.ndarray
+    data: np.ndarray
+
+    def project(self, cols: np.ndarray) -> np.ndarray:
+        """``cols`` without the gated band (along the last axis)."""
+        return cols if self.gate is None else cols - (cols @ self.gate) @ self.gate.T
+
+    def static_cols(self, off: float) -> np.ndarray:
+        """The static paths' tones delayed by the range offset's ``off`` [s]: ``[S, N]``."""
+        return self.project(_tones(self.radar, self.t_static + off))
+
+    def ris_cols(self, off: float, delta: float) -> np.ndarray:
+        """The RIS sum of each beam used, delayed by ``off + delta`` [s]: ``[B, N]``."""
+        return self.project(self.g_ris @ _tones(self.radar, self.t_ris + off + delta))
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        """Real and imaginary misfit [ADC counts] at ``theta = (off, delta)`` [ps], amplitudes projected out."""
+        off, delta = theta[0] * _PS, theta[1] * _PS
+        S = self.static_cols(off)
+        B = self.g_ris.shape[0]
+        N = self.radar.num_samples
+        A = np.zeros((B * N, S.shape[0] + 1), complex)
+        A[:, :-1] = np.tile(S.T, (B, 1))
+        A[:, -1] = self.ris_cols(off, delta).ravel()
+        coef, *_ = np.linalg.lstsq(A, self.data, rcond=None)
+        r = self.data - A @ coef
+        return np.concatenate([r.real, r.imag])
+
+
+def _fit_delays(model: _BeamModel, mean: np.ndarray, *, max_range_offset: float,
+                max_delay_error: float) -> tuple[float, float, float, float, float, bool]:
+    """``(off, delta, std_off, std_delta, s2, converged)``: the range offset's delay and the τ_RB correction [s],
+    their 1σ [s], the residual variance per real dof [counts²] and whether the least squares converged.
+
+    Coarse: τ_off on the beam-mean ``mean [N]`` (static dominates), then δ with τ_off fixed; then
+    nonlinear least squares on both (module docstring).
+    """
+    radar = model.radar
+    step = 0.25 / radar.bandwidth
+    offs = np.arange(-2 * max_range_offset / SPEED_OF_LIGHT, 2 * max_range_offset / SPEED_OF_LIGHT + step / 2, step)
+    cost = [np.linalg.norm(mean - model.static_cols(o).T @ np.linalg.lstsq(model.static_cols(o).T, mean,
+                                                                             rcond=None)[0])
+            for o in offs]
+    off0 = float(offs[int(np.argmin(cost))])
+    deltas = np.arange(-max_delay_error, max_delay_error + step / 2, step)
+    cost = [np.sum(model.residual(np.array([off0, d]) / _PS) ** 2) for d in deltas]
+    delta0 = float(deltas[int(np.argmin(cost))])
+    fit = scipy.optimize.least_squares(model.residual, np.array([off0, delta0]) / _PS, x_scale=np.array([1.0, 1.0]),
+                                       diff_step=1e-4, method="trf")
+    off, delta = fit.x * _PS
+    dof = max(fit.fun.size - (2 + 2 * (len(model.t_static) + 1)), 1)
+    s2 = float(np.sum(fit.fun ** 2) / dof)
+    try:
+        cov = s2 * np.linalg.inv(fit.jac.T @ fit.jac) * _PS ** 2
+        std_off, std_delta = (math.sqrt(max(v, 0.0)) for v in np.diag(cov))
+    except np.linalg.LinAlgError:
+        std_off = std_delta = math.nan
+    return off, delta, std_off, std_delta, s2, bool(fit.success)
+
+
+def _fit_scales(model: _BeamModel, g_static: np.ndarray, off: float, delta: float,
+                sigma_z2: float) -> tuple[complex, complex, float, float]:
+    """``(α, β, σ_α/|α|, σ_β/|β|)``: one complex scale of the model's static sum and one of its RIS sum, with the
+    delays fixed; ``sigma_z2`` is the noise variance of a chirp mean [counts²]."""
+    static_sum = np.tile(g_static @ model.static_cols(off), model.g_ris.shape[0])
+    ris_sum = model.ris_cols(off, delta).ravel()
+    A = np.stack([static_sum, ris_sum], axis=1)
+    (alpha, beta), *_ = np.linalg.lstsq(A, model.data, rcond=None)
+    cov_ab = sigma_z2 * np.linalg.inv((A.conj().T @ A)).real
+    return alpha, beta, math.sqrt(cov_ab[0, 0]) / abs(alpha), math.sqrt(cov_ab[1, 1]) / abs(beta)
 
 
 def calibrate_capture(capture: Capture, paths: PathSet, *, max_range_offset: float = 0.3,
@@ -65,6 +153,12 @@ def calibrate_capture(capture: Capture, paths: PathSet, *, max_range_offset: flo
         τ_RB errors searched, ±[s].
     beam_span_db : float
         Beams whose modelled RIS power is within this of the best one are used [dB].
+
+    Returns
+    -------
+    Calibration
+        Range offset [m], τ_RB [s], ζ [dB], noise power [dBm], power offset [dB], each with its 1σ,
+        and the fit's details (beams used, path counts, noise [counts²], residual rms [counts]).
     """
     radar, ris = capture.radar, capture.ris
     y = np.asarray(capture.cube)
@@ -87,71 +181,17 @@ def calibrate_capture(capture: Capture, paths: PathSet, *, max_range_offset: flo
     if gate is not None:                        # the gate took gate.shape[1] of the N noise dimensions with it
         noise *= N / (N - gate.shape[1])
     zb = z[beams]                                                                         # [B, N]
-    t_static, g_static = paths.delay[~via], paths.gain[~via]
-    t_ris, g_ris = paths.delay[via], ris_gain[beams]                                      # [Lr], [B, Lr]
-
-    def project(cols: np.ndarray) -> np.ndarray:                                          # along the last axis
-        return cols if gate is None else cols - (cols @ gate) @ gate.T
-
-    def static_cols(off: float) -> np.ndarray:
-        return project(_tones(radar, t_static + off))                                     # [S, N]
-
-    def ris_cols(off: float, delta: float) -> np.ndarray:
-        return project(g_ris @ _tones(radar, t_ris + off + delta))                        # [B, N]
-
-    def design(off: float, delta: float) -> np.ndarray:
-        S = static_cols(off)
-        B = len(beams)
-        A = np.zeros((B * N, S.shape[0] + 1), complex)
-        A[:, :-1] = np.tile(S.T, (B, 1))
-        A[:, -1] = ris_cols(off, delta).ravel()
-        return A
-
-    data = zb.ravel()
-
-    def residual(theta: np.ndarray) -> np.ndarray:
-        A = design(theta[0] * _PS, theta[1] * _PS)
-        coef, *_ = np.linalg.lstsq(A, data, rcond=None)
-        r = data - A @ coef
-        return np.concatenate([r.real, r.imag])
-
-    # Coarse: tau_off on the beam-mean (static dominates), then delta with tau_off fixed.
-    step = 0.25 / radar.bandwidth
-    mean = zb.mean(axis=0)
-    offs = np.arange(-2 * max_range_offset / SPEED_OF_LIGHT, 2 * max_range_offset / SPEED_OF_LIGHT + step / 2, step)
-    cost = [np.linalg.norm(mean - static_cols(o).T @ np.linalg.lstsq(static_cols(o).T, mean, rcond=None)[0])
-            for o in offs]
-    off0 = float(offs[int(np.argmin(cost))])
-    deltas = np.arange(-max_delay_error, max_delay_error + step / 2, step)
-    cost = [np.sum(residual(np.array([off0, d]) / _PS) ** 2) for d in deltas]
-    delta0 = float(deltas[int(np.argmin(cost))])
-    fit = scipy.optimize.least_squares(residual, np.array([off0, delta0]) / _PS, x_scale=np.array([1.0, 1.0]),
-                                       diff_step=1e-4, method="trf")
-    off, delta = fit.x * _PS
-    dof = max(fit.fun.size - (2 + 2 * (len(t_static) + 1)), 1)
-    s2 = float(np.sum(fit.fun ** 2) / dof)
-    try:
-        cov = s2 * np.linalg.inv(fit.jac.T @ fit.jac) * _PS ** 2
-        std_off, std_delta = (math.sqrt(max(v, 0.0)) for v in np.diag(cov))
-    except np.linalg.LinAlgError:
-        std_off = std_delta = math.nan
-
-    # Powers: one scale for the model's static sum, one for its RIS sum.
-    static_sum = np.tile(g_static @ static_cols(off), len(beams))
-    ris_sum = (g_ris @ _tones(radar, t_ris + off + delta))
-    ris_sum = project(ris_sum).ravel()
-    A = np.stack([static_sum, ris_sum], axis=1)
-    (alpha, beta), *_ = np.linalg.lstsq(A, data, rcond=None)
-    sigma_z2 = noise / K
-    cov_ab = sigma_z2 * np.linalg.inv((A.conj().T @ A)).real
-    rel_a = math.sqrt(cov_ab[0, 0]) / abs(alpha)
-    rel_b = math.sqrt(cov_ab[1, 1]) / abs(beta)
+    model = _BeamModel(radar=radar, gate=gate, t_static=paths.delay[~via], t_ris=paths.delay[via],
+                       g_ris=ris_gain[beams], data=zb.ravel())
+    off, delta, std_off, std_delta, s2, converged = _fit_delays(
+        model, zb.mean(axis=0), max_range_offset=max_range_offset, max_delay_error=max_delay_error)
+    alpha, beta, rel_a, rel_b = _fit_scales(model, paths.gain[~via], off, delta, noise / K)
     gain = abs(alpha) ** 2                                                                 # counts² per W
     dof_noise = M * (K - 1) * N
     details: dict[str, Any] = {
-        "beams_used": [int(b) for b in beams], "static_paths": int(len(t_static)), "ris_paths": int(len(t_ris)),
-        "noise_counts2": noise, "residual_rms_counts": math.sqrt(s2), "gate": gate is not None,
-        "converged": bool(fit.success)}
+        "beams_used": [int(b) for b in beams], "static_paths": int(len(model.t_static)),
+        "ris_paths": int(len(model.t_ris)), "noise_counts2": noise, "residual_rms_counts": math.sqrt(s2),
+        "gate": gate is not None, "converged": converged}
     return Calibration(
         range_offset=float(off * SPEED_OF_LIGHT / 2), range_offset_std=float(std_off * SPEED_OF_LIGHT / 2),
         loopback_delay=float(ris.loopback_delay + delta), loopback_delay_std=float(std_delta),

@@ -32,8 +32,8 @@ from ...hall.path_table import apparent_distance
 from ...io.report import process_capture
 from ...model.beat import beat_cube
 from ...model.capture import Capture
-from ...model.paths import shift_paths
-from ...model.ris import ris_response
+from ...model.paths import PathSet, shift_paths
+from ...model.ris import RisConfig, ris_response
 from ..sweep.leakage import apply_range_gate, range_gate_basis
 from .calibration_file import Calibration, apply_to_scenario, calibration_delay
 from .traced_hall import HallModel
@@ -88,14 +88,26 @@ def _interp(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]
     return float(distance[i]), float(db[i])
 
 
-def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibration | None = None,
-                    rng: np.random.Generator | None = None, prominence_db: float = 6.0,
-                    floor_db: float = 12.0) -> Comparison:
-    """Compare ``capture`` with the traced hall ``model`` (module docstring)."""
-    rng = np.random.default_rng(0) if rng is None else rng
+@dataclass(frozen=True)
+class _SimulatedSide:
+    """The traced hall synthesised for the capture: the capture with the simulated cube, the paths and RIS used
+    (calibrated when a calibration is given), the measured noise [counts² per sample] and the gain G [counts² per W]."""
+
+    capture: Capture
+    paths: PathSet
+    ris: RisConfig
+    noise: float
+    gain: float
+    gain_source: str
+
+
+def _simulated_side(capture: Capture, model: HallModel, calibration: Calibration | None,
+                    rng: np.random.Generator) -> _SimulatedSide:
+    """eq. (1) of the traced paths for the capture's radar, sweep and RIS, scaled by G, with the measured noise floor,
+    range-gated as the capture was (module docstring)."""
     y = np.asarray(capture.cube)
     M, K, N = y.shape
-    radar, processing = capture.radar, capture.processing
+    radar = capture.radar
     scenario = model.scenario.base
     paths = model.traced.paths
     ris = scenario.ris
@@ -116,26 +128,25 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
     leak = capture.provenance.get("leakage") or {}
     if leak.get("method") == "gate":
         sim = apply_range_gate(sim, range_gate_basis(radar, float(leak["gate_range"])))
-    simulated = replace(capture, cube=sim, ris=ris, provenance={"source": "simulation", "scene": str(model.scenario.scene_xml)})
-    loc_m, _ = process_capture(capture)
-    loc_s, _ = process_capture(simulated)
-    beam = int(loc_m.beam_index)
-    ddm_m = delay_doppler_map(y[beam], radar, processing)
-    ddm_s = delay_doppler_map(sim[beam], radar, processing)
-    dist = ddm_m.distance
-    prof_m, prof_s = ddm_m.profile(0.0), ddm_s.profile(0.0)
-    mean_m = np.mean([delay_doppler_map(y[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
-    mean_s = np.mean([delay_doppler_map(sim[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+    simulated = replace(capture, cube=sim, ris=ris,
+                        provenance={"source": "simulation", "scene": str(model.scenario.scene_xml)})
+    return _SimulatedSide(capture=simulated, paths=paths, ris=ris, noise=noise, gain=gain, gain_source=gain_source)
 
-    db_m, db_s = _db(prof_m), _db(prof_s)
+
+def _peak_table(capture: Capture, side: _SimulatedSide, beam: int, dist: np.ndarray, db_m: np.ndarray,
+                db_s: np.ndarray, *, prominence_db: float, floor_db: float) -> list[dict[str, Any]]:
+    """The measured profile's peaks [m, dB], strongest first, each with its traced path and simulated counterpart
+    (module docstring, "Peaks")."""
+    radar, paths = capture.radar, side.paths
+    leak = capture.provenance.get("leakage") or {}
     gate = float(leak.get("gate_range") or 0.0) + 2 * radar.range_resolution
     found, _ = scipy.signal.find_peaks(db_m, prominence=prominence_db, height=np.median(db_m) + floor_db)
     found = [int(i) for i in found if gate <= dist[i] < radar.max_range - gate]
     app = apparent_distance(paths, radar)
     contribution = np.abs(paths.gain) ** 2
     if paths.via_ris.any():
-        r = ris_response(ris, capture.sweep, paths.ris_incidence[paths.via_ris], paths.ris_departure[paths.via_ris],
-                         wavelength=radar.wavelength)[beam]
+        r = ris_response(side.ris, capture.sweep, paths.ris_incidence[paths.via_ris],
+                         paths.ris_departure[paths.via_ris], wavelength=radar.wavelength)[beam]
         contribution = contribution.copy()
         contribution[paths.via_ris] *= np.abs(r) ** 2
     cell = radar.range_resolution
@@ -157,6 +168,50 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
             entry.update(label="unexplained", explained=False, path_distance_m=None, simulated_distance_m=None,
                          simulated_power_db=None, delay_residual_mm=None, power_residual_db=None)
         peaks.append(entry)
+    return peaks
+
+
+def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibration | None = None,
+                    rng: np.random.Generator | None = None, prominence_db: float = 6.0,
+                    floor_db: float = 12.0) -> Comparison:
+    """Compare ``capture`` with the traced hall ``model`` (module docstring).
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture [ADC counts].
+    model : HallModel
+        The traced hall at the capture's radar position (:func:`~.traced_hall.hall_model`).
+    calibration : Calibration, optional
+        Applied to the simulated side (τ_RB, ζ, range offset; its power offset as G).
+    rng : numpy.random.Generator, optional
+        The simulated side's noise (default: seed 0).
+    prominence_db, floor_db : float
+        A measured peak stands this far above its surroundings and above the profile's median [dB].
+
+    Returns
+    -------
+    Comparison
+        Both captures, the best beam's and the sweep-mean zero-Doppler profiles [counts²] on
+        ``distance`` [m], the delay-Doppler maps, P_ave of both, the peak table and the summary.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    y = np.asarray(capture.cube)
+    M = y.shape[0]
+    radar, processing = capture.radar, capture.processing
+    side = _simulated_side(capture, model, calibration, rng)
+    simulated, sim = side.capture, side.capture.cube
+    loc_m, _ = process_capture(capture)
+    loc_s, _ = process_capture(simulated)
+    beam = int(loc_m.beam_index)
+    ddm_m = delay_doppler_map(y[beam], radar, processing)
+    ddm_s = delay_doppler_map(sim[beam], radar, processing)
+    dist = ddm_m.distance
+    prof_m, prof_s = ddm_m.profile(0.0), ddm_s.profile(0.0)
+    mean_m = np.mean([delay_doppler_map(y[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+    mean_s = np.mean([delay_doppler_map(sim[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+    peaks = _peak_table(capture, side, beam, dist, _db(prof_m), _db(prof_s), prominence_db=prominence_db,
+                        floor_db=floor_db)
     explained = [p for p in peaks if p["explained"]]
     rms = (lambda xs: float(np.sqrt(np.mean(np.square(xs)))) if xs else None)
     pave_m, pave_s = loc_m.scan.average_power, loc_s.scan.average_power
@@ -167,7 +222,7 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
         "power_residual_mean_db": float(np.mean([p["power_residual_db"] for p in explained])) if explained else None,
         "pave_rms_difference_db": float(np.sqrt(np.mean((_db(pave_m) - _db(pave_s)) ** 2))),
         "pave_peak_beam_measured": int(np.argmax(pave_m)), "pave_peak_beam_simulated": int(np.argmax(pave_s)),
-        "noise_counts2": noise, "gain_db": float(10 * np.log10(gain)), "gain_source": gain_source,
+        "noise_counts2": side.noise, "gain_db": float(10 * np.log10(side.gain)), "gain_source": side.gain_source,
         "estimate_position_m": None if loc_m.position is None else [float(v) for v in loc_m.position],
         "estimate_distance_m": None if loc_m.distance is None else float(loc_m.distance),
     }

@@ -324,7 +324,8 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         files=info.files, form=info.form, layout=layout, config=cfg, frames=info.num_frames,
         frames_read=sums.frames_read, truncated_bytes=info.truncated_bytes, dropped_packets=sums.dropped,
         damaged_frames=sums.damaged, peak=peak, range_profile=profile, range_doppler=rd,
-        doppler_bins=doppler_bins, clipped_words=sums.clipped, clipped_fraction=sums.clipped / (sums.count * sums.words),
+        doppler_bins=doppler_bins, clipped_words=sums.clipped,
+        clipped_fraction=sums.clipped / (sums.count * sums.words),
         dc_offset=dc, iq_gain_imbalance_db=g_db, iq_phase_imbalance=phase, positive_frequency_excess_db=excess,
         flags=flags, notes=info.notes)
 

@@ -10,8 +10,8 @@ switches the RIS between two of its chirps, as a free-running RIS does.
 
 It also injects what a calibration must find (:mod:`risloc_rt.measured.compare.calibration_file`):
 the radar's internal range offset (every delay longer by ``2·range_offset/c``), a receiver gain
-the model does not know (``power_offset_db``), and the RIS's true τ_RB and ζ (give them in ``scenario.ris``; the schedule
-written states ``nominal_ris``'s).
+the model does not know (``power_offset_db``), and the RIS's true τ_RB and ζ (give them in
+``scenario.ris``; the schedule written states ``nominal_ris``'s).
 """
 
 from __future__ import annotations

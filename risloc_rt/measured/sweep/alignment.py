@@ -261,28 +261,10 @@ def _evaluate(s: np.ndarray, program: RisProgram, starts: np.ndarray, dwell: flo
     return out
 
 
-def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray,
-                  frame_width: float, max_drift: float = 0.02) -> SweepAlignment:
-    """Fit the RIS program to the per-frame RIS power (module docstring).
-
-    Parameters
-    ----------
-    series : RisPowerSeries or float array [F]
-    program : RisProgram
-    fractions : float array [Kc]
-        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`).
-    frame_width : float
-        Part of the frame interval the chirps occupy [frames] (1 for back-to-back frames).
-    max_drift : float
-        Largest RIS clock rate error searched, |d| [unitless, e.g. 0.02 = 2 %].
-    """
-    s = np.asarray(series.power if isinstance(series, RisPowerSeries) else series, float)
+def _candidates(s: np.ndarray, program: RisProgram, times: np.ndarray, *, max_drift: float,
+                frame_width: float) -> np.ndarray:
+    """The refined alignments ``[C, 3]``: (start [frames], dwell [frames], RSS) (module docstring, "Search")."""
     F, M, P = s.size, program.num_beams, program.frames_per_beam
-    if not 0 <= max_drift < 0.5:
-        raise MeasuredFormatError(f"max_clock_drift = {max_drift!r} must lie in [0, 0.5), e.g. 0.02 (2 %)")
-    sub = fractions if fractions.size <= _SUB_CHIRPS else fractions[np.unique(np.round(
-        np.linspace(0, fractions.size - 1, _SUB_CHIRPS)).astype(int))]
-    times = _frame_times(F, sub)
     step_d = 0.25 / (M * P)
     n_d = min(int(np.ceil(max_drift / step_d)), 400) if max_drift > 0 else 0
     drifts = np.linspace(-max_drift, max_drift, 2 * n_d + 1) if n_d else np.zeros(1)
@@ -319,32 +301,78 @@ def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, f
             dw = dwell + P * dd
             if abs(dw / P - 1) <= max_drift + 1e-12:
                 run(t0 + np.arange(-10, 11) * 0.025, dw, exact=True)
-    cand = np.array([(t, d, r) for (t, d), r in fine.items()])                  # [C, 3]
+    return np.array([(t, d, r) for (t, d), r in fine.items()])                  # [C, 3]
+
+
+def _beam_frames(cand: np.ndarray, weight: np.ndarray, best_i: int, num_beams: int, *, frame_width: float,
+                 num_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(frame_index [M], ok [C], mixed [M])``: each beam's frame most probably among its best, whether candidate
+    c agrees on every beam, and whether the best fit leaves a beam's frame mixed (module docstring, "Confidence")."""
+    t0, dwell = cand[best_i, 0], cand[best_i, 1]
+    m = np.arange(num_beams)
+    options = np.floor(t0 + m * dwell)[:, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, :]     # [M, O]
+    lo = cand[:, 0][:, None, None] + m[None, :, None] * cand[:, 1][:, None, None]                     # [C, M, 1]
+    hi = lo + cand[:, 1][:, None, None]
+    share = np.clip(np.minimum(options[None] + frame_width, hi) - np.maximum(options[None], lo), 0, None) / frame_width
+    share = np.where((options[None] >= 0) & (options[None] < num_frames), share, -1.0)              # [C, M, O]
+    good = share >= share.max(axis=2, keepdims=True) - MIX_TOLERANCE
+    p_good = np.einsum("c,cmo->mo", weight, good)
+    pick = np.argmax(p_good + 1e-9 * np.arange(options.shape[1], 0, -1)[None, :], axis=1)
+    idx = options[m, pick].astype(np.int64)
+    ok = good[:, m, pick].all(axis=1)                                                               # [C]
+    mixed = share[best_i, m, pick] < 1 - MIX_TOLERANCE
+    return idx, ok, mixed
+
+
+def _no_ris_probability(s: np.ndarray, rss0: float, levels: int) -> float:
+    """p-value of the F-test of the fitted program (``levels`` free levels) against one constant level."""
+    F = s.size
+    root = np.sqrt(np.maximum(s, 0))
+    rss_null = float(np.sum((root - root.mean()) ** 2))
+    dof = max(F - levels - 2, 1)
+    stat = ((rss_null - rss0) / (levels - 1)) / (rss0 / dof) if rss0 > 0 else np.inf
+    return float(scipy.stats.f.sf(stat, levels - 1, dof))
+
+
+def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray,
+                  frame_width: float, max_drift: float = 0.02) -> SweepAlignment:
+    """Fit the RIS program to the per-frame RIS power (module docstring).
+
+    Parameters
+    ----------
+    series : RisPowerSeries or float array [F]
+        The RIS return's power per recorded frame [ADC counts²].
+    program : RisProgram
+        The RIS's program in nominal frames (sync, gap, beams).
+    fractions : float array [Kc]
+        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`).
+    frame_width : float
+        Part of the frame interval the chirps occupy [frames] (1 for back-to-back frames).
+    max_drift : float
+        Largest RIS clock rate error searched, |d| [unitless, e.g. 0.02 = 2 %].
+
+    Returns
+    -------
+    SweepAlignment
+        ``method="auto"``: start and dwell [frames], each beam's frame, the mixed beams, the
+        RIS-off frames, the confidence, the runner-up and the feature used.
+    """
+    s = np.asarray(series.power if isinstance(series, RisPowerSeries) else series, float)
+    F, M, P = s.size, program.num_beams, program.frames_per_beam
+    if not 0 <= max_drift < 0.5:
+        raise MeasuredFormatError(f"max_clock_drift = {max_drift!r} must lie in [0, 0.5), e.g. 0.02 (2 %)")
+    sub = fractions if fractions.size <= _SUB_CHIRPS else fractions[np.unique(np.round(
+        np.linspace(0, fractions.size - 1, _SUB_CHIRPS)).astype(int))]
+    cand = _candidates(s, program, _frame_times(F, sub), max_drift=max_drift, frame_width=frame_width)
     best_i = int(np.argmin(cand[:, 2]))
     t0, dwell, rss0 = cand[best_i]
     J = M + (2 if program.has_sync else 1)
     sigma2 = max(rss0 / max(F - J - 2, 1), 1e-30)
     weight = np.exp(-0.5 * (cand[:, 2] - rss0) / sigma2)
     weight /= weight.sum()
-    # For each beam the frame most probably among its best (MIX_TOLERANCE of the largest share of the beam).
-    m = np.arange(M)
-    options = np.floor(t0 + m * dwell)[:, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, :]     # [M, O]
-    lo = cand[:, 0][:, None, None] + m[None, :, None] * cand[:, 1][:, None, None]                     # [C, M, 1]
-    hi = lo + cand[:, 1][:, None, None]
-    share = np.clip(np.minimum(options[None] + frame_width, hi) - np.maximum(options[None], lo), 0, None) / frame_width
-    share = np.where((options[None] >= 0) & (options[None] < F), share, -1.0)                       # [C, M, O]
-    good = share >= share.max(axis=2, keepdims=True) - MIX_TOLERANCE
-    p_good = np.einsum("c,cmo->mo", weight, good)
-    pick = np.argmax(p_good + 1e-9 * np.arange(options.shape[1], 0, -1)[None, :], axis=1)
-    idx = options[m, pick].astype(np.int64)
-    ok = good[:, m, pick].all(axis=1)                                                               # [C]
+    idx, ok, mixed = _beam_frames(cand, weight, best_i, M, frame_width=frame_width, num_frames=F)
     confidence = float(np.sum(weight[ok]))
-    # Is there a RIS at all? F-test of the fitted program against one constant level (noise alone).
-    root = np.sqrt(np.maximum(s, 0))
-    rss_null = float(np.sum((root - root.mean()) ** 2))
-    dof = max(F - J - 2, 1)
-    stat = ((rss_null - rss0) / (J - 1)) / (rss0 / dof) if rss0 > 0 else np.inf
-    p_null = float(scipy.stats.f.sf(stat, J - 1, dof))
+    p_null = _no_ris_probability(s, rss0, J)         # is there a RIS at all? (F-test against noise alone)
     if p_null > NULL_P:
         confidence = 0.0
     runner = None
@@ -353,7 +381,6 @@ def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, f
         r_idx, _ = select_frames(program, cand[j, 0], cand[j, 1], frame_width=frame_width)
         runner = {"first_frame": int(r_idx[0]), "start": float(cand[j, 0]), "dwell": float(cand[j, 1]),
                   "delta_rss": float((cand[j, 2] - rss0) / sigma2)}
-    mixed = share[best_i, m, pick] < 1 - MIX_TOLERANCE
     feature: dict[str, Any] = {}
     if isinstance(series, RisPowerSeries):
         top = float(np.percentile(s, 99))

@@ -231,13 +231,8 @@ def _angles(sweep: dict[str, Any], source: str) -> tuple[tuple[tuple[float, floa
     return tuple((float(a), elevation) for a in az), (start, stop, step, elevation)
 
 
-def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> SweepSchedule:
-    """Parse the TOML text of a sweep schedule (see the module docstring)."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MeasuredFormatError(f"{source}: not valid TOML ({exc}); check quotes, brackets and '=' signs") from None
-    _check_keys(doc, _TOP, source, "")
+def _frame_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
+    """``frames_per_beam``, ``first_frame`` (None for ``"auto"``) and ``channel`` of the document's top level."""
     if "frames_per_beam" not in doc:
         raise MeasuredFormatError(f"{source}: frames_per_beam is missing; add e.g. frames_per_beam = 1 (recorded "
                                   "frames per RIS beam)")
@@ -254,11 +249,11 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
                      fix="give the index of the sweep's first frame in the recording (0-based), or \"auto\"")
     channel = _int(doc.get("channel", 0), source, "channel", minimum=0,
                    fix="give the virtual channel index v = chirp·num_rx + rx used for localization, e.g. channel = 0")
+    return {"frames_per_beam": fpb, "first_frame": first, "channel": channel}
 
-    sweep = _table(doc, "sweep", source, required=True)
-    _check_keys(sweep, _SWEEP, source, "sweep.")
-    angles, grid = _angles(sweep, source)
 
+def _ris_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
+    """The ``[ris]`` table: pose [m], τ_RB [ns], mode, element grid and pitch [m], relay Rx beam and yaw [deg]."""
     ris = _table(doc, "ris", source, required=True)
     _check_keys(ris, _RIS, source, "ris.")
     for key in ("position", "facing", "loopback_delay_ns"):
@@ -286,7 +281,13 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
     rx = _vector(ris.get("relay_rx_angle_deg", [0.0, 0.0]), source, "ris.relay_rx_angle_deg", 2,
                  fix="give the relay Rx beam [az, el] in degrees")
     yaw = _float(ris.get("yaw_deg", 0.0), source, "ris.yaw_deg", fix="give the panel yaw in degrees")
+    return {"ris_position": position, "ris_facing": facing, "loopback_delay_ns": delay, "ris_mode": mode,
+            "ris_rows": rows, "ris_columns": columns, "ris_element_spacing": spacing,
+            "relay_rx_angle_deg": (rx[0], rx[1]), "yaw_deg": yaw}
 
+
+def _sync_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
+    """``max_clock_drift`` [fraction] and the ``[sync]`` table's on/off/cycles/gap [nominal frames] (0 without it)."""
     drift = _float(doc.get("max_clock_drift", 0.02), source, "max_clock_drift", minimum=0.0,
                    fix="give the largest RIS clock rate error to search as a fraction, e.g. 0.02 (2 %), below 0.5")
     if drift >= 0.5:
@@ -302,21 +303,56 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
         if sync_values["cycles"] and not sync_values["on_frames"]:
             raise MeasuredFormatError(f"{source}: sync.cycles = {sync_values['cycles']} needs sync.on_frames >= 1 "
                                       "(the frames the RIS is on in each cycle)")
+    return {"max_clock_drift": drift, "sync_on_frames": sync_values["on_frames"],
+            "sync_off_frames": sync_values["off_frames"], "sync_cycles": sync_values["cycles"],
+            "sync_gap_frames": sync_values["gap_frames"]}
+
+
+def _truth_position(doc: dict[str, Any], source: str) -> tuple[float, ...] | None:
+    """The ``[truth]`` table's ``ue_position`` [m], or None without the table."""
     truth = _table(doc, "truth", source, required=False)
-    ue = None
-    if truth is not None:
-        _check_keys(truth, _TRUTH, source, "truth.")
-        if "ue_position" not in truth:
-            raise MeasuredFormatError(f"{source}: [truth] needs ue_position = [x, y, z] [m]; add it or remove [truth]")
-        ue = _vector(truth["ue_position"], source, "truth.ue_position", 3,
-                     fix="give the radar's true position [x, y, z] in metres")
-    return SweepSchedule(angles_deg=angles, frames_per_beam=fpb, first_frame=first, ris_position=position,
-                         ris_facing=facing, loopback_delay_ns=delay, ris_mode=mode, ris_rows=rows,
-                         ris_columns=columns, channel=channel, ris_element_spacing=spacing,
-                         relay_rx_angle_deg=(rx[0], rx[1]), yaw_deg=yaw, grid=grid, truth_ue_position=ue,
-                         sync_on_frames=sync_values["on_frames"], sync_off_frames=sync_values["off_frames"],
-                         sync_cycles=sync_values["cycles"], sync_gap_frames=sync_values["gap_frames"],
-                         max_clock_drift=drift)
+    if truth is None:
+        return None
+    _check_keys(truth, _TRUTH, source, "truth.")
+    if "ue_position" not in truth:
+        raise MeasuredFormatError(f"{source}: [truth] needs ue_position = [x, y, z] [m]; add it or remove [truth]")
+    return _vector(truth["ue_position"], source, "truth.ue_position", 3,
+                   fix="give the radar's true position [x, y, z] in metres")
+
+
+def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> SweepSchedule:
+    """Parse the TOML text of a sweep schedule (see the module docstring).
+
+    Parameters
+    ----------
+    text : str
+        The file's content (TOML).
+    source : str
+        The name the messages give (the file's path).
+
+    Returns
+    -------
+    SweepSchedule
+        Angles [deg], positions [m], τ_RB [ns], frame counts, as in the file.
+
+    Raises
+    ------
+    MeasuredFormatError
+        Invalid TOML, an unknown or missing key, or a bad value; the message names the key and the fix.
+    """
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MeasuredFormatError(f"{source}: not valid TOML ({exc}); check quotes, brackets and '=' signs") from None
+    _check_keys(doc, _TOP, source, "")
+    frames = _frame_fields(doc, source)
+    sweep = _table(doc, "sweep", source, required=True)
+    _check_keys(sweep, _SWEEP, source, "sweep.")
+    angles, grid = _angles(sweep, source)
+    ris = _ris_fields(doc, source)
+    sync = _sync_fields(doc, source)
+    return SweepSchedule(angles_deg=angles, grid=grid, truth_ue_position=_truth_position(doc, source), **frames,
+                         **ris, **sync)
 
 
 def read_sweep_schedule(path: str | Path) -> SweepSchedule:

@@ -199,7 +199,7 @@ def _channel_masks(cmds: _CfgCommands) -> tuple[int, int]:
 
 
 def _adc_format(cmds: _CfgCommands) -> tuple[int, str, bool]:
-    """``adcCfg`` and ``adcbufCfg``: (ADC bits, ADC format, I/Q swap flag), the two commands checked against each other."""
+    """``adcCfg`` and ``adcbufCfg``, checked against each other: (ADC bits, ADC format, I/Q swap flag)."""
     ln, args = cmds.single["adcCfg"]
     w = cmds.where("adcCfg")
     bits_code, fmt_code = _integer(args[0], w, "numADCBits"), _integer(args[1], w, "adcOutputFmt")
