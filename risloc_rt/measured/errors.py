@@ -21,7 +21,19 @@ class MeasuredFormatError(ValueError):
 def read_text_file(path: Path, what: str, missing: str) -> str:
     """The UTF-8 text of ``path``; a missing, unreadable or binary file is one :class:`MeasuredFormatError`.
 
-    ``what`` names the file's role ("sweep schedule"); ``missing`` says how to get one.
+    Parameters
+    ----------
+    path : Path
+        The file.
+    what : str
+        The file's role in messages ("sweep schedule").
+    missing : str
+        How to get one, appended to the message for a missing file.
+
+    Returns
+    -------
+    str
+        The file's text.
     """
     try:
         return path.read_text(encoding="utf-8")

@@ -205,7 +205,17 @@ class PathFrames:
                    labels=paths.labels, times=times)
 
     def frame(self, m: int) -> PathSet:
-        """The paths of frame ``m`` as a :class:`PathSet`."""
+        """The paths of frame ``m`` as a :class:`PathSet`.
+
+        Parameters
+        ----------
+        m : int
+            Frame (beam) index.
+
+        Returns
+        -------
+        PathSet
+        """
         return PathSet(gain=self.gain[m], delay=self.delay[m], delay_rate=self.delay_rate[m],
                        ris_incidence=self.ris_incidence[m], ris_departure=self.ris_departure[m],
                        labels=self.labels)

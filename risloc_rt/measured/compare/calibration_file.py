@@ -66,7 +66,14 @@ class Calibration:
             raise MeasuredFormatError(f"calibration loopback_delay = {self.loopback_delay!r} s must be >= 0")
 
     def to_document(self) -> dict[str, Any]:
-        """The file's content (nested dict; ns for τ_RB, std as ``<key>_std``)."""
+        """The file's content.
+
+        Returns
+        -------
+        dict
+            ``format``, ``version``, the ``radar`` and ``ris`` tables (τ_RB in ns, the rest SI; std as
+            ``<key>_std`` when known) and the fit's details.
+        """
         doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "radar": {}, "ris": {}}
         for name, (table, key, unit) in _FILE_KEYS.items():
             doc[table][key] = float(getattr(self, name)) / unit
@@ -98,7 +105,19 @@ def _toml(doc: dict[str, Any]) -> str:
 
 
 def write_calibration(calibration: Calibration, path: str | Path) -> Path:
-    """Write ``.toml`` (default) or ``.json`` atomically; returns the path."""
+    """Write ``.toml`` (default) or ``.json`` atomically.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    path : path
+        A ``.json`` suffix writes JSON, any other TOML.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     doc = calibration.to_document()
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n" if path.suffix == ".json" else _toml(doc)
@@ -106,7 +125,18 @@ def write_calibration(calibration: Calibration, path: str | Path) -> Path:
 
 
 def read_calibration(path: str | Path) -> Calibration:
-    """Read a calibration file (``.toml`` or ``.json``); every problem is one line naming the file and key."""
+    """Read a calibration file (``.toml`` or ``.json``); every problem is one line naming the file and key.
+
+    Parameters
+    ----------
+    path : path
+        A file written by ``risloc calibrate``.
+
+    Returns
+    -------
+    Calibration
+        SI units (τ_RB [s], range offset [m], dB, dBm), each with its 1σ (NaN when unknown).
+    """
     path = Path(path)
     text = read_text_file(path, "calibration file",
                           "write one with 'risloc calibrate CAPTURE --scene HALL -o calibration.toml'")
@@ -134,12 +164,35 @@ def read_calibration(path: str | Path) -> Calibration:
 
 
 def calibration_delay(calibration: Calibration) -> float:
-    """The delay every measured path gains from the range offset: ``2·range_offset/c`` [s]."""
+    """The delay every measured path gains from the range offset: ``2·range_offset/c``.
+
+    Parameters
+    ----------
+    calibration : Calibration
+
+    Returns
+    -------
+    float
+        [s].
+    """
     return 2.0 * calibration.range_offset / SPEED_OF_LIGHT
 
 
 def apply_to_capture(capture: Capture, calibration: Calibration) -> Capture:
-    """For localization: the capture's τ_RB becomes ``τ_RB + 2·range_offset/c`` (distance = (τ̂ − that)·c/2)."""
+    """For localization: the capture's τ_RB becomes ``τ_RB + 2·range_offset/c`` (distance = (τ̂ − that)·c/2).
+
+    Parameters
+    ----------
+    capture : Capture
+        A measured capture.
+    calibration : Calibration
+
+    Returns
+    -------
+    Capture
+        Its RIS with the calibrated τ_RB (+ the range offset's delay) [s] and ζ [dB]; the
+        calibration recorded in the provenance.
+    """
     ris = replace(capture.ris, loopback_delay=calibration.loopback_delay + calibration_delay(calibration),
                   amplification_db=calibration.amplification_db)
     prov = dict(capture.provenance)
@@ -152,6 +205,16 @@ def apply_to_scenario(scenario: Scenario, calibration: Calibration) -> Scenario:
 
     The range offset is applied to the paths (:func:`risloc_rt.model.paths.shift_paths` by
     :func:`calibration_delay`), the power offset by the ADC emulation (``power_offset_db``).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    calibration : Calibration
+
+    Returns
+    -------
+    Scenario
+        τ_RB [s], ζ [dB] and ``noise_power_dbm`` [dBm] replaced.
     """
     ris = replace(scenario.ris, loopback_delay=calibration.loopback_delay,
                   amplification_db=calibration.amplification_db)
@@ -160,18 +223,53 @@ def apply_to_scenario(scenario: Scenario, calibration: Calibration) -> Scenario:
 
 
 def calibrated_paths(scenario: Scenario, paths: PathSet | None, calibration: Calibration) -> PathSet:
-    """``paths`` (default: the scenario's analytic ones, frozen geometry) longer by :func:`calibration_delay`."""
+    """``paths`` (default: the scenario's analytic ones, frozen geometry) longer by :func:`calibration_delay`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its radar's carrier [Hz] turns the gains with the delay.
+    paths : PathSet or None
+        None: :func:`~risloc_rt.model.scenario.analytic_paths` of the scenario.
+    calibration : Calibration
+
+    Returns
+    -------
+    PathSet
+    """
     base = analytic_paths(scenario) if paths is None else paths
     return shift_paths(base, calibration_delay(calibration), scenario.radar.carrier_frequency)
 
 
 def adc_power_offset_db(calibration: Calibration, full_scale_counts_per_unit: float) -> float:
-    """The emulator's ``power_offset_db`` that gives the calibration's ADC counts² per W [dB]."""
+    """The emulator's ``power_offset_db`` that gives the calibration's ADC counts² per W.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    full_scale_counts_per_unit : float
+        The emulator's ADC counts per √W without an offset (``2^(b−1)/full_scale``).
+
+    Returns
+    -------
+    float
+        [dB].
+    """
     return calibration.power_offset_db - 20 * math.log10(full_scale_counts_per_unit)
 
 
 def as_dict(calibration: Calibration) -> dict[str, Any]:
-    """Plain JSON of the values and their std."""
+    """Plain JSON of the values and their std.
+
+    Parameters
+    ----------
+    calibration : Calibration
+
+    Returns
+    -------
+    dict
+        SI units, the fit's details left out.
+    """
     out = asdict(calibration)
     out.pop("details", None)
     return out

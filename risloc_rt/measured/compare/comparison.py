@@ -64,7 +64,14 @@ class Comparison:
     info: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        """The ``comparison.json`` document (``docs/formats.md``)."""
+        """The ``comparison.json`` document (``docs/formats.md``).
+
+        Returns
+        -------
+        dict
+            The peak table and summary (distances m, residuals mm and dB, powers dB of counts²), the
+            best beam and its angle [deg], P_ave of both sides per beam [dB].
+        """
         return {"format": FORMAT, "version": 1, **self.info, "best_beam": self.beam,
                 "best_beam_angle_deg": np.rad2deg(self.measured.sweep.angles[self.beam]).tolist(),
                 "peaks": self.peaks, "summary": self.summary,

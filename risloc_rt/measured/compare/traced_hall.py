@@ -34,7 +34,21 @@ class HallModel:
 
 
 def ue_position_of(capture: Capture, ue: Any = None, *, estimate: Any = None) -> tuple[np.ndarray, str]:
-    """The radar position to model: ``ue`` if given, else the capture's truth, else ``estimate``; and which."""
+    """The radar position to model: ``ue`` if given, else the capture's truth, else ``estimate``; and which.
+
+    Parameters
+    ----------
+    capture : Capture
+    ue : array [3], optional
+        Given position [m].
+    estimate : array [3], optional
+        The localization's estimate [m], the last resort.
+
+    Returns
+    -------
+    (float array [3], str)
+        The position [m] and ``"given"``, ``"truth"`` or ``"estimate"``.
+    """
     if ue is not None:
         return np.asarray(ue, float), "given"
     if capture.truth is not None:
@@ -47,7 +61,30 @@ def ue_position_of(capture: Capture, ue: Any = None, *, estimate: Any = None) ->
 
 def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, ue_source: str = "given",
                ris: RisConfig | None = None, trace: Any = None, cache: Any = None) -> HallModel:
-    """Trace ``scene`` for the capture's radar, sweep and RIS (or ``ris``) with the radar at ``ue_position``."""
+    """Trace ``scene`` for the capture's radar, sweep and RIS (or ``ris``) with the radar at ``ue_position``.
+
+    Parameters
+    ----------
+    capture : Capture
+        Its radar, sweep, processing and RIS.
+    scene : str or path
+        A scene name in ``scenes/`` or a folder; its RIS must be within 5 cm of the capture's.
+    ue_position : array [3]
+        The radar's position [m].
+    ue_source : str
+        Where the position came from (``"given"``, ``"truth"``, ``"estimate"``).
+    ris : RisConfig, optional
+        Replaces the capture's RIS (e.g. calibrated τ_RB and ζ).
+    trace : TraceSettings, optional
+        Ray-tracing settings.
+    cache : TraceCache, optional
+        Reuse traced paths.
+
+    Returns
+    -------
+    HallModel
+        The hall scenario and its kept paths (√W, delays with τ_RB [s]).
+    """
     hs = hall_scenario(scene, radar=capture.radar, sweep=capture.sweep, processing=capture.processing,
                        ue_position=ue_position, ue_velocity=np.zeros(3), trace=trace)
     ris = capture.ris if ris is None else ris

@@ -118,7 +118,13 @@ class CaptureInspection:
     notes: tuple[str, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON summary (no arrays): counts, peak, impairments, flags. SI units, radians."""
+        """Plain-JSON summary (no arrays): counts, peak, impairments, flags.
+
+        Returns
+        -------
+        dict
+            SI units (m, m/s), radians, dB and ADC counts, as the attributes say.
+        """
         lay = self.layout
         return {
             "files": [str(f) for f in self.files], "form": self.form,
@@ -139,7 +145,17 @@ class CaptureInspection:
         }
 
     def to_json(self, *, indent: int | None = 2) -> str:
-        """:meth:`to_dict` as JSON text."""
+        """:meth:`to_dict` as JSON text.
+
+        Parameters
+        ----------
+        indent : int or None, default 2
+            ``json.dumps``'s indent; None for one line.
+
+        Returns
+        -------
+        str
+        """
         return json.dumps(self.to_dict(), indent=indent)
 
 

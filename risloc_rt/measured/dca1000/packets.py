@@ -64,7 +64,20 @@ class PacketIssue:
 
 
 def pack_header(sequence: int, byte_count: int) -> bytes:
-    """The 10-byte header: ``<u4`` sequence number, 48-bit little-endian byte count."""
+    """The 10-byte header: ``<u4`` sequence number, 48-bit little-endian byte count.
+
+    Parameters
+    ----------
+    sequence : int
+        Sequence number (1 for a capture's first packet).
+    byte_count : int
+        Bytes of ADC data sent before this packet [bytes].
+
+    Returns
+    -------
+    bytes
+        The header, 10 bytes.
+    """
     return int(sequence).to_bytes(4, "little") + int(byte_count).to_bytes(6, "little")
 
 
@@ -79,6 +92,16 @@ def detect_payload_size(head: bytes) -> int | None:
     next one (and the third, when ``head`` holds it) ``byte_count = (sequence − 1)·P`` with a
     larger sequence number, for one even P ≤ 1462. Plain sample data passes this by chance with
     negligible probability.
+
+    Parameters
+    ----------
+    head : bytes
+        The capture's first bytes (three packets' worth decides best).
+
+    Returns
+    -------
+    int or None
+        The payload size P [bytes], or None for plain samples.
     """
     if len(head) < HEADER_BYTES:
         return None
@@ -108,6 +131,18 @@ def packet_stream_length(files: Sequence[Path], payload_size: int) -> int:
 
     Reads only the last header of the last file (every file holds whole packets of
     ``payload_size`` bytes, the capture's final packet may be shorter).
+
+    Parameters
+    ----------
+    files : sequence of Path
+        The split files in stream order.
+    payload_size : int
+        Bytes per payload [bytes].
+
+    Returns
+    -------
+    int
+        The stream's length including zero-filled gaps [bytes].
     """
     rec = HEADER_BYTES + payload_size
     last = Path(files[-1])
@@ -167,9 +202,21 @@ def iter_packet_stream(files: Sequence[Path], payload_size: int, *, block_packet
                        ) -> Iterator[tuple[np.ndarray, DroppedPackets | PacketIssue | None]]:
     """The sample stream of a packet-recorded capture, with lost packets zero-filled.
 
-    Yields ``(data, event)``: ``data`` is the next contiguous piece of the stream (uint8; zeros
-    for a gap), ``event`` a :class:`DroppedPackets` for a gap, a :class:`PacketIssue` for a late,
-    duplicated or inconsistent packet (then ``data`` is empty), else None.
+    Parameters
+    ----------
+    files : sequence of Path
+        The split files in stream order.
+    payload_size : int
+        Bytes per payload [bytes].
+    block_packets : int, default 2048
+        Packets read at a time (sets the memory used).
+
+    Yields
+    ------
+    (ndarray of uint8, DroppedPackets or PacketIssue or None)
+        The next contiguous piece of the stream (zeros for a gap) and its event: a
+        :class:`DroppedPackets` for a gap, a :class:`PacketIssue` for a late, duplicated or
+        inconsistent packet (then the data is empty), else None.
     """
     pos, expected = 0, None
     for path in files:
@@ -255,7 +302,13 @@ class PacketRecorder:
         self._sent += len(payload)
 
     def write(self, data: bytes | memoryview | np.ndarray) -> None:
-        """Append stream bytes; full packets are emitted as they fill."""
+        """Append stream bytes; full packets are emitted as they fill.
+
+        Parameters
+        ----------
+        data : bytes, memoryview or ndarray
+            The next bytes of the sample stream.
+        """
         self._pending += memoryview(data).cast("B")
         p = self.payload_size
         n = len(self._pending) // p
@@ -266,7 +319,13 @@ class PacketRecorder:
         del self._pending[:n * p]
 
     def close(self) -> tuple[Path, ...]:
-        """Emit the last (short) packet and close the files."""
+        """Emit the last (short) packet and close the files.
+
+        Returns
+        -------
+        tuple of Path
+            The split files written, in order.
+        """
         if self._pending:
             self._emit(memoryview(bytes(self._pending)))
             self._pending.clear()

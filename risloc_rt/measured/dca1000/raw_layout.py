@@ -112,11 +112,26 @@ class RawLayout:
         return self.frame_bytes // 2
 
     def cube_shape(self, num_frames: int) -> tuple[int, int, int, int]:
-        """``(F, K, V, N)``."""
+        """The decoded cube's shape ``(F, K, V, N)``.
+
+        Parameters
+        ----------
+        num_frames : int
+            F, frames.
+
+        Returns
+        -------
+        tuple of 4 int
+        """
         return (num_frames, self.num_loops, self.num_virtual, self.num_samples)
 
     def describe(self) -> str:
-        """One line, e.g. ``256 complex1x samples x 4 rx x 3 chirps/loop x 64 loops, 2 lanes``."""
+        """One line, e.g. ``256 complex1x samples x 4 rx x 3 chirps/loop x 64 loops, 2 lanes = … bytes/frame``.
+
+        Returns
+        -------
+        str
+        """
         return (f"{self.num_samples} {self.adc_format} samples x {self.num_rx} rx x {self.chirps_per_loop} "
                 f"chirps/loop x {self.num_loops} loops, {self.lanes} lanes{', I/Q swapped' if self.iq_swap else ''}"
                 f" = {self.frame_bytes} bytes/frame")
@@ -150,6 +165,11 @@ def decode_frames(words: np.ndarray, layout: RawLayout, *, convention: Conventio
         ``−Sτ``; ``"ti"``: ``I + jQ`` as TI's tools show it. Real data has Q = 0.
     out : ndarray of complex64, optional
         Destination ``[F, K, V, N]``.
+
+    Returns
+    -------
+    ndarray of complex64, [F, K, V, N]
+        ADC counts (``out`` when given).
     """
     words = np.asarray(words)
     if words.dtype != np.dtype("<i2"):

@@ -168,6 +168,11 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     expected_frames : int, optional
         Frames the configuration asked for (``frameCfg`` numFrames; 0 or None: unknown).
 
+    Returns
+    -------
+    CaptureInfo
+        The files, form, payload size, stream length [bytes], complete frames and notes.
+
     Raises
     ------
     MeasuredFormatError
@@ -303,6 +308,29 @@ def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
 
     Lost packets are zero-filled in place and listed; a truncated final frame is dropped and noted
     in ``info.notes``. For files larger than memory use :func:`iter_frames`.
+
+    Parameters
+    ----------
+    path : path or sequence of paths
+        A file (``…_Raw_0.bin`` collects its split siblings) or the files in order.
+    layout : RawLayout
+        From the configuration (:meth:`RawLayout.from_config`).
+    form : {"auto", "raw", "packets"}, default "auto"
+        Plain samples or packet-recorded; ``"auto"`` detects it.
+    payload_size : int, optional
+        Packet payload [bytes]; detected when not given.
+    expected_frames : int, optional
+        Frames the configuration asked for (``frameCfg`` numFrames; 0 or None: unknown).
+    convention : {"paper", "ti"}, default "paper"
+        Sign of Q (:func:`~.raw_layout.decode_frames`).
+    max_frames : int, optional
+        Read only the first frames.
+
+    Returns
+    -------
+    RawCapture
+        ``cube`` complex64 ``[F, K, V, N]`` [ADC counts], the capture's info, damaged frames, lost
+        packets and packet issues.
     """
     info = open_raw(path, layout, form=form, payload_size=payload_size, expected_frames=expected_frames)
     nf = info.num_frames if max_frames is None else min(info.num_frames, max_frames)

@@ -21,7 +21,19 @@ _SPLIT = re.compile(r"^(?P<stem>.*_Raw_)(?P<index>\d+)(?P<suffix>\.bin)$")
 
 
 def split_name(prefix: str, index: int) -> str:
-    """File name of split ``index``: ``f"{prefix}_Raw_{index}.bin"``."""
+    """File name of split ``index``: ``f"{prefix}_Raw_{index}.bin"``.
+
+    Parameters
+    ----------
+    prefix : str
+        The capture's prefix (Studio: ``adc_data``).
+    index : int
+        0 for the first file.
+
+    Returns
+    -------
+    str
+    """
     return f"{prefix}_Raw_{index}.bin"
 
 
@@ -33,6 +45,11 @@ def capture_files(path: str | Path | Sequence[str | Path]) -> tuple[Path, ...]:
     path : path or sequence of paths
         One file: if its name is ``…_Raw_<i>.bin``, the siblings ``…_Raw_<j>.bin`` are collected
         and ordered by j, which must run 0, 1, 2, … without a gap. A sequence is taken as given.
+
+    Returns
+    -------
+    tuple of Path
+        The files in stream order.
 
     Raises
     ------
@@ -70,7 +87,20 @@ def capture_files(path: str | Path | Sequence[str | Path]) -> tuple[Path, ...]:
 
 
 def iter_file_bytes(files: Sequence[Path], block: int) -> Iterator[memoryview]:
-    """Bytes of ``files`` concatenated, in blocks of at most ``block`` bytes (one reused buffer)."""
+    """Bytes of ``files`` concatenated, in blocks of at most ``block`` bytes (one reused buffer).
+
+    Parameters
+    ----------
+    files : sequence of Path
+        In stream order.
+    block : int
+        Largest block [bytes].
+
+    Yields
+    ------
+    memoryview
+        The next bytes; valid until the next one is read.
+    """
     buf = bytearray(block)
     view = memoryview(buf)
     for path in files:
@@ -136,7 +166,15 @@ class SplitWriter:
         self._size = 0
 
     def write(self, data: bytes | memoryview, *, whole: bool = False) -> None:
-        """Append ``data``; with ``whole`` (a packet) it is never cut across two files."""
+        """Append ``data``; with ``whole`` (a packet) it is never cut across two files.
+
+        Parameters
+        ----------
+        data : bytes or memoryview
+            The next bytes of the stream.
+        whole : bool, default False
+            Keep ``data`` in one file (a packet of the packet-recorded form).
+        """
         if self._fh is None:
             self._open_next()
         data = memoryview(data).cast("B")
@@ -161,7 +199,13 @@ class SplitWriter:
             data = data[len(part):]
 
     def close(self) -> tuple[Path, ...]:
-        """Finish: every split file is renamed into place; returns them."""
+        """Finish: every split file is renamed into place.
+
+        Returns
+        -------
+        tuple of Path
+            The split files, in order.
+        """
         if self._fh is None:
             self._open_next()
         self._stack.close()

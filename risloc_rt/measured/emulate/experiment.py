@@ -75,7 +75,20 @@ class EmulatedExperiment:
 
 
 def dca1000_radar(radar: RadarConfig) -> RadarConfig:
-    """``radar`` with a chirp period a TI device can run and its slope on the device's step (see the module doc)."""
+    """``radar`` with a chirp period a TI device can run and its slope on the device's step (see the module doc).
+
+    Parameters
+    ----------
+    radar : RadarConfig
+        The radar to simulate.
+
+    Returns
+    -------
+    RadarConfig
+        The slope rounded to :func:`~risloc_rt.measured.ti.chirp_config.slope_step` [Hz/s] (bandwidth
+        adjusted); the chirp period lengthened to ramp + 3 µs idle, rounded up to a whole µs [s], when
+        the ramp does not fit (and the frame period with it).
+    """
     step = slope_step(radar.carrier_frequency)
     slope = round(radar.slope / step) * step
     out = replace(radar, bandwidth=slope * radar.chirp_duration)
@@ -88,12 +101,35 @@ def dca1000_radar(radar: RadarConfig) -> RadarConfig:
 
 
 def full_scale(radar: RadarConfig) -> float:
-    """Input amplitude of the top ADC code: ``FULL_SCALE_OVER_NOISE`` × √(noise power) [√W]."""
+    """Input amplitude of the top ADC code: ``FULL_SCALE_OVER_NOISE`` × √(noise power) [√W].
+
+    Parameters
+    ----------
+    radar : RadarConfig
+        Its ``noise_power_dbm`` [dBm] sets the nominal noise.
+
+    Returns
+    -------
+    float
+        The full scale [√W].
+    """
     return FULL_SCALE_OVER_NOISE * math.sqrt(db_to_linear(radar.noise_power_dbm - 30.0))
 
 
 def sweep_schedule_of(angles_deg: np.ndarray, **fields) -> SweepSchedule:
-    """The schedule, as an azimuth grid (start/stop/step) when the sweep is one, else the explicit list."""
+    """The schedule, as an azimuth grid (start/stop/step) when the sweep is one, else the explicit list.
+
+    Parameters
+    ----------
+    angles_deg : float array [M, 2]
+        Each beam's (az, el) [deg].
+    **fields
+        The schedule's other attributes (``frames_per_beam``, ``first_frame``, the RIS, ...).
+
+    Returns
+    -------
+    SweepSchedule
+    """
     az, el = angles_deg[:, 0], angles_deg[:, 1]
     if len(az) >= 2 and np.ptp(el) < 1e-9:
         step = (az[-1] - az[0]) / (len(az) - 1)
@@ -107,7 +143,20 @@ def sweep_schedule_of(angles_deg: np.ndarray, **fields) -> SweepSchedule:
 
 
 def schedule_fields(ris, truth) -> dict:
-    """The sweep schedule's RIS and truth fields of a ``RisConfig`` and a ``Truth`` (or None)."""
+    """The sweep schedule's RIS and truth fields of a ``RisConfig`` and a ``Truth`` (or None).
+
+    Parameters
+    ----------
+    ris : RisConfig
+        Pose [m], τ_RB [s], mode, element grid and pitch [m], relay Rx beam [rad].
+    truth : Truth or None
+        Its ``ue_position`` [m].
+
+    Returns
+    -------
+    dict
+        ``SweepSchedule`` keyword arguments (positions [m], τ_RB [ns], angles [deg]).
+    """
     return dict(
         ris_position=tuple(float(x) for x in ris.pose.position),
         ris_facing=tuple(float(x) for x in ris.pose.position + ris.pose.normal),
@@ -118,7 +167,17 @@ def schedule_fields(ris, truth) -> dict:
 
 
 def check_folder(folder: str | Path) -> Path:
-    """``folder`` as a Path, refused when it is a file or already holds ``adc_data*`` files or ``sweep.toml``."""
+    """``folder`` as a Path, refused when it is a file or already holds ``adc_data*`` files or ``sweep.toml``.
+
+    Parameters
+    ----------
+    folder : path
+        The experiment's folder (it need not exist yet).
+
+    Returns
+    -------
+    Path
+    """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise MeasuredFormatError(f"{folder} is a file; give a folder for the DCA1000 capture (-o FOLDER)")
@@ -136,8 +195,30 @@ def write_frames(frames: np.ndarray, radar: RadarConfig, folder: Path, *, adc_bi
                  rng: np.random.Generator | None = None) -> tuple[EmulatedCapture, float, float]:
     """Write ``frames: complex [F, K, N]`` [√W] as one-Rx DCA1000 raw files + ``.cfg`` into ``folder``.
 
-    Returns the raw capture, the full scale [√W] and the ADC counts per √W. ``power_offset_db``
-    raises the counts per √W by that many dB (a receiver gain the model does not know).
+    Parameters
+    ----------
+    frames : complex array [F, K, N]
+        Beat samples at the ADC input [√W].
+    radar : RadarConfig
+        Must fit a TI chirp (:func:`dca1000_radar`).
+    folder : Path
+        Created when missing.
+    adc_bits : {12, 14, 16}
+    dropped_packets_rate : float
+        Probability of losing each UDP packet, in [0, 1); > 0 writes the packet-recorded form.
+    dc_offset : complex
+        ADC DC offset [LSB counts].
+    iq_gain_db : float
+        Q/I gain imbalance [dB].
+    power_offset_db : float
+        Raises the ADC counts per √W by that many dB (a receiver gain the model does not know).
+    rng : numpy.random.Generator, optional
+        Needed when packets are dropped.
+
+    Returns
+    -------
+    (EmulatedCapture, float, float)
+        The raw capture, the full scale [√W] and the ADC counts per √W.
     """
     if adc_bits not in (12, 14, 16):
         raise MeasuredFormatError(f"adc_bits={adc_bits} must be 12, 14 or 16 (the xWR ADC's resolutions)")
@@ -183,6 +264,12 @@ def emulate_capture(capture: Capture, folder: str | Path, *, adc_bits: int = 16,
         Receiver gain the model does not know: ADC counts per √W raised by it [dB].
     rng : numpy.random.Generator, optional
         Needed when packets are dropped.
+
+    Returns
+    -------
+    EmulatedExperiment
+        The folder, the raw capture, the schedule (and its path), the full scale [√W] and the ADC
+        counts per √W.
     """
     if capture.radar.frames_per_beam != 1:
         raise MeasuredFormatError(f"the capture has frames_per_beam={capture.radar.frames_per_beam}; the emulator "

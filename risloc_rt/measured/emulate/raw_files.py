@@ -142,7 +142,18 @@ class QuantizedCube:
     adc_bits: int
 
     def as_complex(self, convention: Convention = "paper") -> np.ndarray:
-        """The codes as the reader returns them: complex64 ``I ∓ jQ`` (paper: −, ti: +)."""
+        """The codes as the reader returns them: complex64 ``I ∓ jQ`` (paper: −, ti: +).
+
+        Parameters
+        ----------
+        convention : {"paper", "ti"}, default "paper"
+            Sign of Q.
+
+        Returns
+        -------
+        ndarray of complex64, [F, K, V, N]
+            ADC counts.
+        """
         out = self.i.astype(np.complex64)
         if self.q is not None:
             out.imag = -self.q if convention == "paper" else self.q
@@ -165,6 +176,11 @@ def quantize_cube(cube: np.ndarray, *, adc_bits: int = 16, real: bool = False,
     convention : {"paper", "ti"}
     rng : numpy.random.Generator, optional
         Needed when ``impairments.noise_rms > 0``.
+
+    Returns
+    -------
+    QuantizedCube
+        The int16 I and Q codes ``[F, K, V, N]`` [ADC counts] and the count of words at a rail.
     """
     if adc_bits not in (12, 14, 16):
         raise MeasuredFormatError(f"adc_bits={adc_bits!r} must be 12, 14 or 16")
@@ -256,6 +272,12 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
         Needed for noise or random packet loss.
     overwrite : bool, default False
         Replace existing split files (and the ``.cfg``) of the same names.
+
+    Returns
+    -------
+    EmulatedCapture
+        The files written, the ``.cfg`` path, the configuration (``num_frames`` = F), the layout,
+        the codes before the losses, the packets left out and the stream's length [bytes].
     """
     folder = Path(folder)
     if not folder.is_dir():

@@ -96,11 +96,33 @@ class RecordingPlan:
             raise MeasuredFormatError(f"tail_frames={self.tail_frames} must be >= 0")
 
     def program(self, num_beams: int) -> RisProgram:
+        """The RIS's program for ``num_beams`` beams, in nominal frames.
+
+        Parameters
+        ----------
+        num_beams : int
+            M, beams of the sweep.
+
+        Returns
+        -------
+        RisProgram
+        """
         return RisProgram(num_beams=num_beams, frames_per_beam=self.frames_per_beam, sync_on=self.sync_on,
                           sync_off=self.sync_off, sync_cycles=self.sync_cycles, sync_gap=self.sync_gap)
 
     def start(self, program: RisProgram) -> float:
-        """Radar time the first beam starts [frames]."""
+        """Radar time the first beam starts [frames]: the lead frames plus the stretched sync pattern.
+
+        Parameters
+        ----------
+        program : RisProgram
+            From :meth:`program`.
+
+        Returns
+        -------
+        float
+            [frames from the recording's first frame].
+        """
         return self.lead_frames + program.sync_length * (1 + self.clock_drift)
 
     @property
@@ -144,6 +166,12 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
         Add the receiver noise (``radar.noise_power``).
     adc_bits, dc_offset, iq_gain_db, dropped_packets_rate
         As :func:`~.experiment.emulate_capture` (dc_offset in LSB counts).
+
+    Returns
+    -------
+    EmulatedRecording
+        The experiment written, the true start [frames] and dwell [frames per beam], the frame that
+        holds each beam and the frames recorded.
     """
     folder = check_folder(folder)
     radar = dca1000_radar(scenario.radar)

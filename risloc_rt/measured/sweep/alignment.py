@@ -114,7 +114,13 @@ class SweepAlignment:
         return self.dwell / self.frames_per_beam - 1.0
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON (for the capture's provenance)."""
+        """Plain JSON (for the capture's provenance).
+
+        Returns
+        -------
+        dict
+            Start and dwell [frames], drift [unitless and ppm], confidence, frames, runner-up, feature.
+        """
         return {"method": self.method, "first_frame": self.first_frame, "start": float(self.start),
                 "dwell": float(self.dwell), "frames_per_beam": self.frames_per_beam, "drift": float(self.drift),
                 "drift_ppm": float(self.drift * 1e6), "confidence": self.confidence,
@@ -139,6 +145,22 @@ def select_frames(program: RisProgram, start: float, dwell: float, *, frame_widt
     (its chirps). The frame with the largest margin ``min(f − start_m, end_m − f − frame_width)``
     is used (the earliest of equals: with a whole dwell and start, the beam's first frame); it
     lies wholly inside the beam when the margin is >= 0, else the beam is *mixed*.
+
+    Parameters
+    ----------
+    program : RisProgram
+        Its M beams.
+    start : float
+        Radar time the first beam starts [frames].
+    dwell : float
+        Radar frames per beam D [frames].
+    frame_width : float
+        Part of the frame interval the chirps occupy [frames].
+
+    Returns
+    -------
+    (int array [M], bool array [M])
+        Each beam's frame and whether it is mixed.
     """
     m = np.arange(program.num_beams)
     lo, hi = start + m * dwell, start + (m + 1) * dwell
@@ -160,7 +182,24 @@ def _off_frames(program: RisProgram, start: float, dwell: float, num_frames: int
 
 
 def manual_alignment(program: RisProgram, first_frame: int, *, num_frames: int, fractions: np.ndarray) -> SweepAlignment:
-    """The schedule's own alignment: beam m at frame ``first_frame + m·frames_per_beam``."""
+    """The schedule's own alignment: beam m at frame ``first_frame + m·frames_per_beam``.
+
+    Parameters
+    ----------
+    program : RisProgram
+        The beams and frames per beam (the RIS-off frames follow from its sync pattern).
+    first_frame : int
+        The recorded frame of beam 0.
+    num_frames : int
+        Frames in the recording.
+    fractions : float array [K]
+        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`).
+
+    Returns
+    -------
+    SweepAlignment
+        ``method="manual"``, no confidence.
+    """
     idx = first_frame + program.frames_per_beam * np.arange(program.num_beams, dtype=np.int64)
     return SweepAlignment(method="manual", start=float(first_frame), dwell=float(program.frames_per_beam),
                           frames_per_beam=program.frames_per_beam, frame_index=idx,
@@ -184,6 +223,11 @@ def ris_power_series(blocks: Callable[[], Iterable[np.ndarray]], radar: RadarCon
     gate : array [N, T], optional
         Range-gate basis applied to each frame first; default: the gate at ``min_range``
         (:func:`.leakage.range_gate_basis`), which removes the leakage's phase-noise skirt too.
+
+    Returns
+    -------
+    RisPowerSeries
+        ``power [F]`` [ADC counts²], its range bin and range [m], the noise level [counts²].
     """
     N = radar.num_samples
     if gate is None:

@@ -46,8 +46,22 @@ DEFAULT_LEAKAGE = "gate"
 
 
 def default_processing(num_samples: int, num_chirps: int) -> ProcessingConfig:
-    """The processing an imported capture recommends: ``n_dft = 2N − 1`` (the paper's), ``k_dft =
-    next_fast_len(4K)`` (4× Doppler zero padding rounded up to a fast FFT length), other fields default."""
+    """The processing an imported capture recommends.
+
+    ``n_dft = 2N − 1`` (the paper's), ``k_dft = next_fast_len(4K)`` (4× Doppler zero padding
+    rounded up to a fast FFT length), other fields default.
+
+    Parameters
+    ----------
+    num_samples : int
+        N, samples per chirp.
+    num_chirps : int
+        K, chirps per frame.
+
+    Returns
+    -------
+    ProcessingConfig
+    """
     return ProcessingConfig(n_dft=2 * int(num_samples) - 1, k_dft=scipy.fft.next_fast_len(4 * int(num_chirps)))
 
 

@@ -57,6 +57,11 @@ def range_gate_basis(radar: RadarConfig, gate_range: float = DEFAULT_GATE_RANGE)
         Slope S [Hz/s], sample rate f_s [Hz], N samples.
     gate_range : float
         r_gate [m]; beat frequencies ``|f| ≤ 2·S·r_gate/c`` are removed.
+
+    Returns
+    -------
+    float array [N, T]
+        Orthonormal columns (T tapers) spanning the gated beat frequencies.
     """
     if not np.isfinite(gate_range) or gate_range <= 0:
         raise MeasuredFormatError(f"gate range {gate_range!r} must be a positive number of metres, e.g. 0.5")
@@ -74,13 +79,38 @@ def range_gate_basis(radar: RadarConfig, gate_range: float = DEFAULT_GATE_RANGE)
 
 
 def apply_range_gate(cube: np.ndarray, basis: np.ndarray) -> np.ndarray:
-    """``y − (y V) Vᵀ`` along the last (sample) axis: ``cube [..., N]`` without the gated band."""
+    """``y − (y V) Vᵀ`` along the last (sample) axis: ``cube [..., N]`` without the gated band.
+
+    Parameters
+    ----------
+    cube : array [..., N]
+        Chirps [ADC counts or √W].
+    basis : float array [N, T]
+        From :func:`range_gate_basis`.
+
+    Returns
+    -------
+    ndarray [..., N]
+        In the cube's unit.
+    """
     y = np.asarray(cube)
     return y - (y @ basis) @ basis.T
 
 
 def subtract_background(cube: np.ndarray, background: np.ndarray) -> np.ndarray:
-    """``cube [M, K, N] − background [K, N]`` (the coherent mean of the RIS-off frames)."""
+    """``cube [M, K, N] − background [K, N]`` (the coherent mean of the RIS-off frames).
+
+    Parameters
+    ----------
+    cube : array [M, K, N]
+        The sweep's frames [ADC counts].
+    background : array [K, N]
+        The mean of the RIS-off frames [ADC counts].
+
+    Returns
+    -------
+    ndarray [M, K, N]
+    """
     y = np.asarray(cube)
     b = np.asarray(background)
     if b.shape != y.shape[-2:]:

@@ -86,8 +86,22 @@ def chirp_fractions(num_chirps: int, chirp_interval: float, frame_interval: floa
                     count: int | None = None) -> np.ndarray:
     """Start times of the chirps within a frame [frames]: ``k·T_c/T_f`` for k = 0 … K−1.
 
-    ``count`` keeps that many evenly spaced chirps (the aligner's sub-sampling; the first and
-    last chirp always included).
+    Parameters
+    ----------
+    num_chirps : int
+        K, chirps per frame.
+    chirp_interval : float
+        T_c [s].
+    frame_interval : float
+        T_f [s].
+    count : int, optional
+        Keep that many evenly spaced chirps (the aligner's sub-sampling; the first and last chirp
+        always included).
+
+    Returns
+    -------
+    float array [K] (or [count])
+        [frames].
     """
     k = np.arange(num_chirps, dtype=float)
     if count is not None and count < num_chirps:
@@ -99,8 +113,22 @@ def chirp_states(program: RisProgram, times: np.ndarray, *, start: float | np.nd
                  dwell: float | np.ndarray) -> np.ndarray:
     """RIS state at radar times ``times`` [frames]: beam index m >= 0, :data:`OFF` or :data:`SYNC`.
 
-    ``start`` (the first beam's switch-on) and ``dwell`` (radar frames per beam) may be arrays
-    that broadcast against ``times`` (the aligner evaluates many candidates at once).
+    Parameters
+    ----------
+    program : RisProgram
+        In nominal frames.
+    times : float array
+        Radar times [frames from the recording's first frame].
+    start : float or array
+        The first beam's switch-on [frames]; may broadcast against ``times`` (the aligner
+        evaluates many candidates at once).
+    dwell : float or array
+        Radar frames per beam [frames]; broadcasts likewise.
+
+    Returns
+    -------
+    int64 array
+        The broadcast shape of the three.
     """
     t = np.asarray(times, float)
     rate = np.asarray(dwell, float) / program.frames_per_beam        # radar frames per nominal frame

@@ -128,7 +128,12 @@ class SweepSchedule:
         return len(self.angles_deg)
 
     def frame_indices(self) -> np.ndarray:
-        """Recorded frame of each beam: ``first_frame + m·frames_per_beam`` [M] (int64)."""
+        """Recorded frame of each beam: ``first_frame + m·frames_per_beam``.
+
+        Returns
+        -------
+        int64 array [M]
+        """
         if self.first_frame is None:
             raise MeasuredFormatError(
                 "first_frame = \"auto\" is found from the recording on import (import_capture); give the first sweep "
@@ -141,7 +146,13 @@ class SweepSchedule:
         return int(self.frame_indices()[-1]) + 1
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON dictionary in the file's own layout (for provenance)."""
+        """Plain-JSON dictionary in the file's own layout (for provenance).
+
+        Returns
+        -------
+        dict
+            Degrees, metres and nanoseconds, as in the file.
+        """
         return _as_document(self)
 
 
@@ -356,7 +367,17 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
 
 
 def read_sweep_schedule(path: str | Path) -> SweepSchedule:
-    """Read a sweep schedule file (TOML); errors name the file and the key."""
+    """Read a sweep schedule file (TOML); errors name the file and the key.
+
+    Parameters
+    ----------
+    path : path
+        The ``sweep.toml``.
+
+    Returns
+    -------
+    SweepSchedule
+    """
     path = Path(path)
     text = read_text_file(path, "sweep schedule",
                           'give the .toml written with the recording (docs/formats.md, "Sweep schedule files")')
@@ -409,7 +430,18 @@ def _toml_value(v: Any) -> str:
 
 
 def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None) -> str:
-    """The TOML text of ``schedule``; ``parse_sweep_schedule(format_sweep_schedule(s)) == s``."""
+    """The TOML text of ``schedule``; ``parse_sweep_schedule(format_sweep_schedule(s)) == s``.
+
+    Parameters
+    ----------
+    schedule : SweepSchedule
+    comment : str, optional
+        Lines written first, each after ``#`` (default: a one-line header).
+
+    Returns
+    -------
+    str
+    """
     doc = _as_document(schedule)
     lines = [f"# {line}" for line in (comment or "risloc sweep schedule (docs/formats.md)").splitlines()]
     for key in ("frames_per_beam", "first_frame", "channel", "max_clock_drift"):
@@ -424,5 +456,19 @@ def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None
 
 
 def write_sweep_schedule(schedule: SweepSchedule, path: str | Path, *, comment: str | None = None) -> Path:
-    """Write :func:`format_sweep_schedule` to ``path`` atomically; returns the path."""
+    """Write :func:`format_sweep_schedule` to ``path`` atomically.
+
+    Parameters
+    ----------
+    schedule : SweepSchedule
+    path : path
+        The ``.toml`` to write (replaced when it exists).
+    comment : str, optional
+        As :func:`format_sweep_schedule`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write_bytes(path, format_sweep_schedule(schedule, comment=comment).encode("utf-8"))

@@ -35,12 +35,33 @@ def slope_step(start_frequency: float) -> float:
 
     ``f_ref·900/2^26`` per µs with f_ref = 2.7 GHz for 60 GHz parts (36.21 kHz/µs) and 3.6 GHz
     for 77 GHz parts (48.28 kHz/µs), the LSB of mmWaveLink's ``freqSlopeConst``.
+
+    Parameters
+    ----------
+    start_frequency : float
+        The profile's start frequency f_0 [Hz]; below 70 GHz a 60 GHz part, else a 77 GHz part.
+
+    Returns
+    -------
+    float
+        The slope step [Hz/s].
     """
     return _band_reference(start_frequency) * 900.0 / 2**26 * 1e6
 
 
 def start_frequency_step(start_frequency: float) -> float:
-    """Programmable start-frequency step ``f_ref/2^26`` [Hz] (40.2 Hz at 60 GHz, 53.6 Hz at 77 GHz)."""
+    """Programmable start-frequency step ``f_ref/2^26`` [Hz] (40.2 Hz at 60 GHz, 53.6 Hz at 77 GHz).
+
+    Parameters
+    ----------
+    start_frequency : float
+        The profile's start frequency f_0 [Hz] (it tells the band).
+
+    Returns
+    -------
+    float
+        The start-frequency step [Hz].
+    """
     return _band_reference(start_frequency) / 2**26
 
 
@@ -251,7 +272,14 @@ class TiChirpConfig:
         return round(self.slope / step) * step
 
     def device_issues(self) -> tuple[str, ...]:
-        """Timing a real device would refuse or that makes the data suspect (empty when none)."""
+        """Timing a real device would refuse or that makes the data suspect (empty when none).
+
+        Returns
+        -------
+        tuple of str
+            One sentence per issue: an ADC window longer than the ramp, a sweep outside the device's
+            band, a frame longer than its period, varying chirps, chirps that are not plain TDM.
+        """
         issues = []
         window = self.ramp_end_time - self.adc_start_time
         if self.adc_sampling_time > window * (1 + 1e-9):
@@ -356,5 +384,15 @@ class TiChirpConfig:
                    adc_bits=adc_bits, adc_format=adc_format)
 
     def with_frames(self, num_frames: int) -> "TiChirpConfig":
-        """A copy with another ``num_frames``."""
+        """A copy with another ``num_frames``.
+
+        Parameters
+        ----------
+        num_frames : int
+            Frames to transmit; 0 means until stopped.
+
+        Returns
+        -------
+        TiChirpConfig
+        """
         return replace(self, num_frames=num_frames)

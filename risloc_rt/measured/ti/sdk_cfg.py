@@ -82,7 +82,20 @@ def _integer(tok: str, where: str, field: str) -> int:
 
 
 def read_sdk_cfg(path: str | Path, *, strict: bool = True) -> ParsedSdkCfg:
-    """:func:`parse_sdk_cfg` of a file (UTF-8 or ASCII)."""
+    """:func:`parse_sdk_cfg` of a file (UTF-8 or ASCII).
+
+    Parameters
+    ----------
+    path : path
+        The mmWave SDK ``.cfg``.
+    strict : bool, default True
+        Unknown commands raise; with ``False`` they are skipped and listed.
+
+    Returns
+    -------
+    ParsedSdkCfg
+        The configuration in SI units, the skipped commands and the file name the errors quote.
+    """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
@@ -356,6 +369,18 @@ def format_sdk_cfg(config: TiChirpConfig, *, comment: str | None = None) -> str:
     ``adcbufCfg -1 …``, ``lowPower 0 0``, ``profileCfg 0 …``, one ``chirpCfg`` per chirp of the
     loop, ``frameCfg`` and ``sensorStart``; ``comment`` lines go first, after ``%``.
     Transmit power, phase shifter and HPF corners are written as 0.
+
+    Parameters
+    ----------
+    config : TiChirpConfig
+        SI units inside; written in the file's units (GHz, µs, MHz/µs, ksps, ms).
+    comment : str, optional
+        Lines written first, each after ``%``.
+
+    Returns
+    -------
+    str
+        The file's text, one command per line, ending with a newline.
     """
     c = config
     lines = [f"% {ln}" for ln in (comment or "").splitlines()]

@@ -94,7 +94,20 @@ class _Node:
 
 
 def read_studio_json(path: str | Path, *, device_index: int = 0) -> ParsedStudioJson:
-    """:func:`parse_studio_json` of a file."""
+    """:func:`parse_studio_json` of a file.
+
+    Parameters
+    ----------
+    path : path
+        The mmWave Studio JSON export.
+    device_index : int, default 0
+        Device of ``mmWaveDevices`` to read.
+
+    Returns
+    -------
+    ParsedStudioJson
+        The configuration in SI units, the LVDS lanes (or None), the device read and the file name.
+    """
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -116,6 +129,11 @@ def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int =
         Name used in error messages.
     device_index : int, default 0
         Device of ``mmWaveDevices`` to read (cascade boards list several).
+
+    Returns
+    -------
+    ParsedStudioJson
+        The configuration in SI units (Hz, s, Hz/s), the LVDS lanes (or None), the device read, ``source``.
 
     Raises
     ------
