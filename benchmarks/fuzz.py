@@ -24,13 +24,11 @@ import contextlib
 import io
 import json
 import multiprocessing
-import os
 import resource
 import signal
 import sys
 import tempfile
 import time
-import zipfile
 import zlib
 from pathlib import Path
 from typing import Any, Callable
@@ -232,14 +230,14 @@ def gen_cli(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
 
 def run_cli(inp: tuple[str, Any], ws: Workspace) -> str:
     """Parse only (the verbs are not run: each would trace or simulate); errors must be one line, exit 2."""
-    from risloc_rt.cli import build_parser, join_negative_values, _value_options
+    from risloc_rt.cli import build_parser, join_negative_values, value_options
     from risloc_rt.cli.common import CliError, vector
 
     parser = build_parser()
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         try:
-            args = parser.parse_args(join_negative_values(inp[1], _value_options(parser)))
+            args = parser.parse_args(join_negative_values(inp[1], value_options(parser)))
         except SystemExit as exc:
             lines = err.getvalue().strip().splitlines()
             return "error" if exc.code == 2 and len(lines) == 1 else "wrong"

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Any, Callable, Literal
 
 import numpy as np
-import scipy.special
 
 from .validation import as_finite_array, fields_equal, positive, positive_int
 from .pattern import BeamPattern

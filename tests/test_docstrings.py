@@ -1,4 +1,4 @@
-"""numpydoc on the public surface of ``risloc_rt.studies`` and the ``risloc`` verbs' modules.
+"""numpydoc on the public surface of ``risloc_rt.studies``, ``risloc_rt.measured`` and every ``risloc`` verb's module.
 
 Every public function and method (defined in the module, name without a leading underscore) has a
 docstring; one that takes arguments has a ``Parameters`` section naming each of them, and one
@@ -18,7 +18,21 @@ MODULES = ["risloc_rt.studies.engine", "risloc_rt.studies.figures", "risloc_rt.s
            "risloc_rt.studies.speed", "risloc_rt.studies.store", "risloc_rt.studies.summary",
            "risloc_rt.studies.sweep",
            "risloc_rt.cli", "risloc_rt.cli.common", "risloc_rt.cli.demo", "risloc_rt.cli.locate",
-           "risloc_rt.cli.trace", "risloc_rt.cli.scene", "risloc_rt.cli.speed", "risloc_rt.cli.study"]
+           "risloc_rt.cli.trace", "risloc_rt.cli.scene", "risloc_rt.cli.speed", "risloc_rt.cli.study",
+           "risloc_rt.cli.capture", "risloc_rt.cli.calibrate", "risloc_rt.cli.compare", "risloc_rt.cli.simulate",
+           "risloc_rt.model.paths",
+           "risloc_rt.measured.compare.calibration_file", "risloc_rt.measured.compare.calibration_fit",
+           "risloc_rt.measured.compare.comparison", "risloc_rt.measured.compare.comparison_page",
+           "risloc_rt.measured.compare.traced_hall", "risloc_rt.measured.dca1000.channels",
+           "risloc_rt.measured.dca1000.inspection", "risloc_rt.measured.dca1000.packets",
+           "risloc_rt.measured.dca1000.raw_layout", "risloc_rt.measured.dca1000.reader",
+           "risloc_rt.measured.dca1000.split_files", "risloc_rt.measured.emulate.experiment",
+           "risloc_rt.measured.emulate.raw_files", "risloc_rt.measured.emulate.recording",
+           "risloc_rt.measured.errors", "risloc_rt.measured.sweep.alignment",
+           "risloc_rt.measured.sweep.importer", "risloc_rt.measured.sweep.leakage",
+           "risloc_rt.measured.sweep.ris_timing", "risloc_rt.measured.sweep.schedule",
+           "risloc_rt.measured.ti.chirp_config", "risloc_rt.measured.ti.config_file",
+           "risloc_rt.measured.ti.sdk_cfg", "risloc_rt.measured.ti.studio_json"]
 
 
 def _section(doc: str, title: str) -> str | None:

@@ -19,7 +19,6 @@ import re
 import subprocess
 import sys
 import textwrap
-import warnings
 from pathlib import Path
 
 import pytest
@@ -216,7 +215,7 @@ import risloc_rt
 from risloc_rt.authoring import show_scene
 from risloc_rt.io import plots
 
-drawn, notes = [], []
+drawn = []
 # a small synthetic sweep: a tone with the relay pattern's beam dependence, in unit noise
 radar = dsp.RadarConfig(num_samples=64, num_chirps=16)
 processing = dsp.ProcessingConfig(n_dft=127, k_dft=64)
@@ -243,37 +242,32 @@ profile = SimpleNamespace(distance=ddm.distance, power=ddm.power[0], peaks=[int(
 drawn.append(plots.plot_labelled_profile(profile, out / "labelled.png"))
 drawn.append(show_scene(Path(sys.argv[3]) / "scenes" / "paper_hall", out / "hall.png").path)
 
-try:
-    import risloc_rt.measured as measured
-except ImportError as exc:
-    measured = None
-    notes.append(f"risloc_rt.measured does not import ({exc}): plot_inspection not drawn")
-plot_inspection = getattr(measured, "plot_inspection", None)
-if measured is not None and plot_inspection is None:
-    notes.append("risloc_rt.measured has no plot_inspection: not drawn")
-elif plot_inspection is not None:
-    rd = np.abs(rng.standard_normal((16, 64))) + 1.0
-    inspection = SimpleNamespace(range_profile=rd.mean(axis=0), range_doppler=rd, doppler_bins=np.arange(-8, 8),
-                                 peak=SimpleNamespace(range_bin=10, doppler_bin=0))
-    plot_inspection(inspection, out / "inspection.png")
-    drawn.append(out / "inspection.png")
+from risloc_rt.measured import plot_inspection
+rd = np.abs(rng.standard_normal((16, 64))) + 1.0
+inspection = SimpleNamespace(range_profile=rd.mean(axis=0), range_doppler=rd, doppler_bins=np.arange(-8, 8),
+                             peak=SimpleNamespace(range_bin=10, doppler_bin=0))
+plot_inspection(inspection, out / "inspection.png")
+drawn.append(out / "inspection.png")
 
 import risloc_rt.studies as studies
-plot_summary = getattr(studies, "plot_summary", None)
-if plot_summary is None:
-    notes.append("risloc_rt.studies exports no plot_summary: drawn from risloc_rt.studies.figures instead")
-    from risloc_rt.studies.figures import plot_summary
+from risloc_rt.authoring.spec import load_spec
+from risloc_rt.studies.figures import plot_map, plot_summary
+from risloc_rt.studies.floor_map import MapSettings
 name = next(p for p, spec in studies.PARAMETERS.items() if spec.kind == "float")
 q = {"distance": 0.01, "angle": 0.001, "position": 0.02}
 points = [{"params": {name: x, "estimator": "paper"}, "runs": 3, "mae": q, "crb": q,
            "mae_ci95": {key: [0.5 * v, 2 * v] for key, v in q.items()}} for x in (1.0, 2.0)]
 summary = {"x": name, "study": {"name": "state", "vary": [name]}, "points": points}
 drawn.append(plot_summary(summary, out / "summary.png"))
+hall = load_spec(Path(sys.argv[3]) / "scenes" / "paper_hall" / "spec.toml")
+cells = [{"x": x, "y": y, "rmse_position": 0.01 * (1 + x), "detection_probability": 1.0, "peb": 0.005,
+          "dominant_flag": "elevation-assumed" if y < 2 else "none"} for x in (1.0, 2.0, 3.0) for y in (1.0, 2.0)]
+drawn.append(plot_map(hall, cells, MapSettings(spacing=1.0, runs=3), out / "map.png"))
 
 after = {"backend": matplotlib.get_backend(), "rc": {k: repr(v) for k, v in matplotlib.rcParams.items()}}
 pyplot = "matplotlib.pyplot" in sys.modules
 fignums = sys.modules["matplotlib.pyplot"].get_fignums() if pyplot else []
-print(json.dumps({"before": before, "after": after, "pyplot": pyplot, "fignums": fignums, "notes": notes,
+print(json.dumps({"before": before, "after": after, "pyplot": pyplot, "fignums": fignums,
                   "drawn": [str(p) for p in drawn]}))
 '''
 
@@ -285,8 +279,6 @@ def test_drawing_every_figure_leaves_matplotlib_global_state_alone(tmp_path: Pat
                          capture_output=True, text=True, cwd=REPO, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
     state = json.loads(run.stdout.strip().splitlines()[-1])
-    for note in state["notes"]:
-        warnings.warn(note, stacklevel=1)
     assert state["before"]["backend"] == backend  # the state the caller set, not a default
     assert state["after"]["backend"] == backend
     changed = {k for k in state["before"]["rc"] if state["before"]["rc"][k] != state["after"]["rc"].get(k)}
@@ -294,6 +286,6 @@ def test_drawing_every_figure_leaves_matplotlib_global_state_alone(tmp_path: Pat
     assert not state["pyplot"], "matplotlib.pyplot was imported by risloc_rt"
     assert state["fignums"] == []
     drawn = [Path(p) for p in state["drawn"]]
-    assert len(drawn) >= 6
+    assert len(drawn) == 8  # io.plots (4), show_scene, plot_inspection, plot_summary, plot_map
     for path in drawn:  # each figure was really drawn and written
         assert path.parent == tmp_path and path.stat().st_size > 5_000, path

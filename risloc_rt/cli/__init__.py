@@ -20,7 +20,8 @@ import re
 import sys
 from typing import Any, Sequence
 
-__all__ = ["build_parser", "main", "EXIT_BAD_INPUT", "EXIT_FAILURE", "EXIT_INTERRUPTED"]
+__all__ = ["build_parser", "main", "join_negative_values", "value_options", "EXIT_BAD_INPUT", "EXIT_FAILURE",
+           "EXIT_INTERRUPTED"]
 
 #: Exit status for bad input (arguments, files, values).
 EXIT_BAD_INPUT = 2
@@ -66,13 +67,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _value_options(parser: argparse.ArgumentParser) -> set[str]:
-    """Every option string (of ``parser`` and its sub-parsers) that takes exactly one value."""
+def value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option string (of ``parser`` and its sub-parsers) that takes exactly one value.
+
+    :func:`join_negative_values` needs them to keep ``--ue -1,2,1.2`` one value.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The ``risloc`` parser (:func:`build_parser`) or any of its sub-parsers.
+
+    Returns
+    -------
+    set of str
+        Option strings such as ``"--ue"`` and ``"-o"``.
+    """
     out: set[str] = set()
     for action in parser._actions:  # argparse has no public walk over its actions
         if isinstance(action, argparse._SubParsersAction):
             for child in action.choices.values():
-                out |= _value_options(child)
+                out |= value_options(child)
         elif action.option_strings and action.nargs is None:
             out.update(action.option_strings)
     return out
@@ -177,7 +191,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     raw = list(sys.argv[1:] if argv is None else argv)
     args = None
     try:
-        args = parser.parse_args(join_negative_values(raw, _value_options(parser)))
+        args = parser.parse_args(join_negative_values(raw, value_options(parser)))
         return int(args.func(args))
     except SystemExit as exc:  # argparse: --help (0) and usage errors (2, already printed as one line)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT

@@ -4,7 +4,6 @@ coordinates, unwritable outputs, absurd sizes."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from risloc_rt.cli import join_negative_values, main
 

@@ -15,8 +15,6 @@ import pytest
 
 from dsp.budget import BudgetError, check_memory, dsp_memory, parse_bytes
 from risloc_rt.io.capture_file import CaptureFormatError, load_capture, save_capture
-from risloc_rt.model.capture import Capture
-from risloc_rt.model.simulate import simulate
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32, np.int16, np.bool_])

@@ -9,7 +9,6 @@ fits against the hall traced with the nominal RIS. Tolerances in physical units:
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from risloc_rt.cli import main

@@ -20,7 +20,6 @@ def test_four_channels_combine_coherently_and_halve_the_noise(tmp_path):
                                  processing=ProcessingConfig(n_dft=255, k_dft=64))
     clean = simulate(scenario, rng=np.random.default_rng(0), noise=False)
     exp = emulate_capture(clean, tmp_path / "one")                        # for its sweep.toml
-    V = 4
     phase = np.exp(2j * np.pi * np.array([0.0, 0.31, 0.62, 0.17]))       # uncalibrated channel phases
     rng = np.random.default_rng(1)
     sigma = np.sqrt(radar.noise_power / 2)

@@ -80,7 +80,7 @@ def test_a_torn_last_line_is_cut_off_and_its_run_redone(small_spec, tmp_path):
     log.write_bytes(data[: len(data) - 40])  # a SIGKILL in the middle of the last write
     res = run_study(spec, tmp_path / "a", workers=1, quiet=True, figures=False)
     assert res.new_runs == 1
-    fresh = run_study(spec, tmp_path / "b", workers=1, quiet=True, figures=False)
+    run_study(spec, tmp_path / "b", workers=1, quiet=True, figures=False)
     assert _table(tmp_path / "a") == _table(tmp_path / "b")
 
 
@@ -92,7 +92,7 @@ def test_a_dead_worker_is_retried_and_reported(small_spec, tmp_path, monkeypatch
     assert (tmp_path / "died").exists()  # a worker did die
     assert any("worker process died" in m for m in res.summary["retried"])
     monkeypatch.delenv(DIE_ONCE)
-    ref = run_study(spec, tmp_path / "ref", workers=1, quiet=True, figures=False)
+    run_study(spec, tmp_path / "ref", workers=1, quiet=True, figures=False)
     assert _table(tmp_path / "s") == _table(tmp_path / "ref")  # nothing dropped, nothing changed
 
 

@@ -18,8 +18,7 @@ import numpy as np
 import pytest
 
 from risloc_rt.cli import main
-from risloc_rt.studies.speed import (MOVE_FRACTION, format_table, mechanism_verdicts, model_error_db, plot_tradeoff,
-                                     run_speed_study)
+from risloc_rt.studies.speed import (MOVE_FRACTION, format_table, mechanism_verdicts, model_error_db, run_speed_study)
 
 D1 = {"max_depth": 1, "samples_per_src": 10_000}
 GRID = (("d1 1e4", D1), ("+diffraction", {**D1, "diffraction": True}))

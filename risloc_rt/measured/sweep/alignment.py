@@ -49,7 +49,7 @@ from dsp.radar import SPEED_OF_LIGHT
 
 from ..errors import MeasuredFormatError
 from .leakage import range_gate_basis
-from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
+from .ris_timing import OFF, SYNC, RisProgram, chirp_states
 
 __all__ = ["MIX_TOLERANCE", "NULL_P", "RisPowerSeries", "SweepAlignment", "fit_alignment", "manual_alignment",
            "ris_power_series", "select_frames"]
