@@ -8,7 +8,8 @@
     5  compare    traced hall, calibration file and fit, comparison and its page
 
 A module may import its own room and the rooms before it (every ``import`` counts, at top level or
-inside a function); ``measured/__init__.py`` only re-exports.
+inside a function); ``measured/__init__.py`` only re-exports. Import cycles between modules are
+``tests/test_layering.py``'s (the whole repository).
 """
 
 from __future__ import annotations
@@ -93,32 +94,6 @@ def test_the_room_checker_catches_a_backward_import(tmp_path):
     assert room_violations(tmp_path) == [
         f"ti/probe.py:5 imports {PACKAGE}.sweep.schedule (room sweep) from room ti: rooms import only "
         "('errors', 'ti')"]
-
-
-def test_no_import_cycle_between_modules():
-    graph: dict[str, set[str]] = {}
-    for path in _sources(MEASURED):
-        here = _module(path, MEASURED)
-        graph[here] = set()
-        for _, target, names in _imports(path, MEASURED):
-            for candidate in [f"{target}.{n}" for n in names] + [target]:
-                if candidate != here and (MEASURED / Path(*candidate.split(".")[2:])).with_suffix(".py").is_file():
-                    graph[here].add(candidate)
-                    break
-    state: dict[str, int] = {}
-
-    def visit(node: str, trail: list[str]) -> None:
-        state[node] = 1
-        for nxt in sorted(graph.get(node, ())):
-            assert state.get(nxt) != 1, f"import cycle: {' -> '.join(trail + [node, nxt])}"
-            if nxt not in state:
-                visit(nxt, trail + [node])
-        state[node] = 2
-
-    for node in sorted(graph):
-        if node not in state:
-            visit(node, [])
-    assert len(graph) >= 25 and sum(len(v) for v in graph.values()) >= 50   # the graph is not empty
 
 
 def test_no_module_or_room_is_named_after_the_standard_library():
