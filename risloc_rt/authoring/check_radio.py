@@ -234,7 +234,7 @@ def range_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig) -> list[
             out.append(Issue(
                 "warning", "range.walls", name,
                 f"{name} is beyond the radar's {limit:.2f} m unambiguous range c/(2·S·T_s) from {name_list(idx)}: its "
-                f"echo folds back (from {d0:.2f} m to an apparent {d0 - limit:.2f} m for positions[{i0}]) unless "
+                f"echo folds back (from {d0:.2f} m to an apparent {d0 % limit:.2f} m, d mod {limit:.2f} m, for positions[{i0}]) unless "
                 "the IF filter removes it",
                 f"expected in a large hall ('risloc trace' reports how strong the folded echo is); to avoid it keep "
                 f"the radar within {limit:.2f} m of {name} or use a chirp with a longer unambiguous range"))
