@@ -5,8 +5,10 @@ paths: the scene's content hash (XML and mesh bytes), the radar and RIS position
 velocity, the frequency, the solver settings, the sionna-rt/mitsuba/drjit versions and the
 cache format. Every entry carries its own checksum (sha256 over the names, dtypes, shapes and
 bytes of its arrays, :func:`arrays_checksum`): a file that cannot be read (truncated, corrupt,
-another format) or whose arrays do not match their checksum (tampered, bit rot) counts as a miss
-with a :class:`TraceCacheWarning`, is re-traced, and is overwritten by the next store. Files are
+another format) or whose arrays do not match their checksum (damaged: bit rot, a partial copy, an
+edit that did not update the checksum) counts as a miss with a :class:`TraceCacheWarning`, is
+re-traced, and is overwritten by the next store. The checksum is unkeyed: it catches corruption,
+not tampering — whoever can write the cache folder can write a consistent entry with its checksum. Files are
 written to a unique temporary name and renamed, so a crash mid-write never leaves a half-written
 entry under the final name.
 """
@@ -155,7 +157,7 @@ class TraceCache:
                 arrays = {name: data[name] for name in data.files if name != "meta"}
                 unsigned = {k: v for k, v in meta.items() if k != "checksum"}
                 if _entry_checksum(arrays, unsigned) != meta.get("checksum"):
-                    raise ValueError("its arrays do not match the entry's checksum (tampered or damaged)")
+                    raise ValueError("its arrays do not match the entry's checksum (damaged)")
                 traced = [
                     TracedPaths.from_arrays({name.split("/", 1)[1]: arrays[name] for name in arrays
                                              if name.startswith(f"{prefix}/")})
@@ -170,7 +172,7 @@ class TraceCache:
                     settings=TraceSettings(**meta["settings"]),
                     radar_velocity=np.array([float(v) for v in meta["radar_velocity"]]),
                 )
-        except Exception as exc:  # corrupt, tampered or foreign file: a miss, overwritten by the next store
+        except Exception as exc:  # corrupt, damaged or foreign file: a miss, overwritten by the next store
             message = (f"ignoring trace cache file {path} ({type(exc).__name__}: {' '.join(str(exc).split())[:200]}); "
                        "tracing again")
             _log.debug(message)
