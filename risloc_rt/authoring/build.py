@@ -13,9 +13,11 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import sys
+import tempfile
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -145,7 +147,10 @@ def _sha256(data: bytes) -> str:
 
 
 def read_manifest(folder: str | Path) -> dict[str, Any] | None:
-    """The build manifest of ``folder`` (``{"spec_sha256", "files": {relpath: sha256}}``), or None.
+    """The build manifest of ``folder`` (``{"spec_sha256", "files": {relpath: sha256}, "pending": ...}``), or None.
+
+    ``"pending"`` (``{relpath: [sha256, ...]}``, empty after a completed build) lists the new
+    bytes of a build that was stopped while it moved its files into place.
 
     A missing, unreadable or foreign manifest is None: the folder then counts as not built by
     risloc (so nothing in it is overwritten unless its bytes already equal the build's).
@@ -159,7 +164,10 @@ def read_manifest(folder: str | Path) -> dict[str, Any] | None:
             or not isinstance(doc.get("files"), dict)):
         return None
     files = {k: v for k, v in doc["files"].items() if isinstance(k, str) and isinstance(v, str)}
-    return {**doc, "files": files}
+    raw_pending = doc.get("pending")
+    pending = {k: [d for d in v if isinstance(d, str)] for k, v in raw_pending.items()
+               if isinstance(k, str) and isinstance(v, list)} if isinstance(raw_pending, dict) else {}
+    return {**doc, "files": files, "pending": pending}
 
 
 def build_outputs(spec: HallSpec, out_dir: str | Path) -> dict[str, bytes]:
@@ -202,6 +210,63 @@ def build_outputs(spec: HallSpec, out_dir: str | Path) -> dict[str, bytes]:
     return files
 
 
+def _entry_path(out: Path, rel: str, where: str, fix: str, *, link_ok: bool = False) -> Path:
+    """``out / rel``, refused when ``rel`` leaves the folder ``out`` (``..``, absolute, a symlink out).
+
+    ``out`` is the resolved scene folder; ``where`` names what gave ``rel`` and ``fix`` the remedy,
+    for the one-line message. With ``link_ok`` only the folders on the way must stay inside
+    (a file the build replaces with ``os.replace`` replaces a symbolic link, never its target).
+    """
+    parts = PurePosixPath(rel).parts
+    if (not rel or "\\" in rel or "\0" in rel or PurePosixPath(rel).is_absolute()
+            or any(part in ("..", ".") for part in parts)):
+        raise SpecError("", f"{where} names {rel!r}, which is not a plain relative path inside the scene "
+                        f"folder {out}", fix)
+    target = out / rel
+    try:
+        real = target.parent.resolve() / target.name if link_ok else target.resolve()
+    except (OSError, RuntimeError) as exc:  # a symlink loop
+        raise SpecError("", f"{where} names {rel!r}, which cannot be resolved in the scene folder {out} ({exc})",
+                        fix) from None
+    if not real.is_relative_to(out):
+        raise SpecError("", f"{where} names {rel!r}, which resolves to {real} through a symbolic link, outside "
+                        f"the scene folder {out}", fix)
+    return target
+
+
+_move = os.replace  # one name for the swap's renames (tests interrupt it)
+
+#: Hidden suffix of the files a build stages before it moves them into place.
+_STAGE_SUFFIX = ".risloc-build.tmp"
+
+
+def _stage(target: Path, data: bytes) -> Path:
+    """Write ``data`` to a fresh hidden file beside ``target``; returns its path (nothing is replaced)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=_STAGE_SUFFIX)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    return Path(tmp)
+
+
+def _manifest_bytes(spec: HallSpec, files: dict[str, bytes], pending: dict[str, list[str]] | None = None,
+                    previous: dict[str, str] | None = None) -> bytes:
+    all_files = {rel: _sha256(data) for rel, data in sorted({**files, "spec.toml": spec.source}.items())}
+    doc: dict[str, Any] = {"format": _MANIFEST_FORMAT, "version": _MANIFEST_VERSION,
+                           "spec_sha256": _sha256(spec.source), "files": all_files}
+    if pending is not None:  # mid-swap: both the old and the new bytes of each file are the builder's
+        doc["files"] = dict(sorted((previous or {}).items()))
+        doc["pending"] = dict(sorted(pending.items()))
+    return (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8")
+
+
 def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool = False) -> BuiltScene:
     """Write the scene folder of ``spec``, touching only files the builder itself generated.
 
@@ -226,14 +291,23 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
     ------
     SpecError
         A file the build would write exists, differs, and is not the unchanged output of an
-        earlier build (its name and the fix in the message); nothing is written then.
+        earlier build (its name and the fix in the message); or an entry of the existing
+        manifest, or a path the build would write, leaves ``out_dir`` (``..``, an absolute
+        path, a symbolic link out). Nothing is written then.
 
     Notes
     -----
     Building twice gives bit-identical files (the manifest included). A file the previous build
     wrote and this one does not (a renamed object) is deleted only when its bytes are still the
-    ones the manifest records. Every file is written through a unique temporary file and
-    ``os.replace``; the manifest is written last.
+    ones the manifest records. Nothing outside ``out_dir`` is ever written, read as a build
+    output or deleted, whatever the manifest lists.
+
+    The build is staged: every new file is first written to a hidden temporary file beside its
+    target; an exception or Ctrl-C while staging removes them and leaves the folder as it was.
+    Then the manifest is rewritten to list both the old and the new bytes of every file
+    (``"pending"``), the staged files are renamed into place, stale files are deleted and the
+    final manifest is written. A build killed during that swap leaves a folder that the next
+    build, of either spec, takes over without a conflict.
     """
     if not isinstance(spec, HallSpec):
         spec = load_spec(spec)
@@ -241,6 +315,21 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
     files = build_outputs(spec, out)
     previous = read_manifest(out)
     before = previous["files"] if previous else {}
+    pending_before: dict[str, list[str]] = previous["pending"] if previous else {}
+    real_out = out.resolve()
+    for rel in sorted(set(before) | set(pending_before)):
+        _entry_path(real_out, rel, f"{out / MANIFEST_NAME}",
+                    f"the builder never deletes outside its folder: delete {MANIFEST_NAME} if you did not "
+                    "write this entry (the folder then counts as not built by risloc)",
+                    link_ok=rel == "spec.toml")  # never deleted; it may be the user's link to the spec
+    for rel in [*files, MANIFEST_NAME]:
+        _entry_path(real_out, rel, "the build output",
+                    "remove the symbolic link (the builder never writes outside its folder) or build elsewhere with -o",
+                    link_ok=True)
+
+    def ours(rel: str, digest: str) -> bool:
+        return before.get(rel) == digest or digest in pending_before.get(rel, ())
+
     writes: list[str] = []
     conflicts: list[str] = []
     for rel, data in files.items():
@@ -254,7 +343,7 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
         current = target.read_bytes()
         if current == data:
             continue
-        if force or before.get(rel) == _sha256(current):
+        if force or ours(rel, _sha256(current)):
             writes.append(rel)
         else:
             why = "was edited after the last build" if rel in before else "was not written by 'risloc scene build'"
@@ -263,19 +352,49 @@ def build_scene(spec: HallSpec | str | Path, out_dir: str | Path, *, force: bool
         raise SpecError("", f"building into {out} would overwrite {len(conflicts)} file(s) it did not generate: "
                         + "; ".join(conflicts[:5]) + (" ..." if len(conflicts) > 5 else ""),
                         "move them away, build into another folder with -o, or pass --force to replace them")
-    for rel in writes:
-        atomic_write_bytes(out / rel, files[rel])
-    for rel, digest in sorted(before.items()):
-        stale = out / rel
+    stale: list[Path] = []
+    for rel in sorted(set(before) | set(pending_before)):
+        path = out / rel
         if (rel in files or rel == "spec.toml" or rel == MANIFEST_NAME
-                or (spec.source_path is not None and stale.resolve() == spec.source_path)):
+                or (spec.source_path is not None and path.resolve() == spec.source_path)):
             continue  # never delete a spec, ours or the user's
-        if stale.is_file() and _sha256(stale.read_bytes()) == digest:
-            stale.unlink()
-    manifest = {"format": _MANIFEST_FORMAT, "version": _MANIFEST_VERSION,
-                "spec_sha256": _sha256(spec.source),
-                "files": {rel: _sha256(data) for rel, data in sorted({**files, "spec.toml": spec.source}.items())}}
-    atomic_write_bytes(out / MANIFEST_NAME, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+        if path.is_file() and not path.is_symlink() and ours(rel, _sha256(path.read_bytes())):
+            stale.append(path)
+    final_manifest = _manifest_bytes(spec, files)
+    manifest_path = out / MANIFEST_NAME
+    missing_dirs = [d for rel in writes for d in (out / rel).parents if d.is_relative_to(out) and not d.exists()]
+    if not out.exists():
+        missing_dirs.append(out)
+    staged: dict[str, Path] = {}
+    try:
+        for rel in writes:
+            staged[rel] = _stage(out / rel, files[rel])
+    except BaseException:
+        for tmp in staged.values():
+            tmp.unlink(missing_ok=True)
+        for d in sorted(set(missing_dirs), key=lambda p: len(p.parts), reverse=True):
+            try:
+                d.rmdir()  # only the empty folders this build created
+            except OSError:
+                pass
+        raise
+    if writes or stale or not manifest_path.is_file() or manifest_path.read_bytes() != final_manifest:
+        if writes or stale:
+            pending = {rel: set(digests) for rel, digests in pending_before.items()}
+            for rel in writes:
+                pending.setdefault(rel, set()).add(_sha256(files[rel]))
+            atomic_write_bytes(manifest_path, _manifest_bytes(
+                spec, files, pending={rel: sorted(d) for rel, d in pending.items()}, previous=before))
+        try:
+            for rel in writes:
+                _move(staged[rel], out / rel)
+                del staged[rel]
+        finally:  # stopped mid-swap: the "pending" manifest lets the next build take over; no leftovers
+            for tmp in staged.values():
+                tmp.unlink(missing_ok=True)
+        for path in stale:
+            path.unlink(missing_ok=True)
+        atomic_write_bytes(manifest_path, final_manifest)
     xml_path = out / "scene.xml"
     mesh_paths = tuple(out / rel for rel in files if rel.startswith("meshes/") and rel.endswith(".ply")
                        and rel[len("meshes/"):-len(".ply")] in spec.object_names)

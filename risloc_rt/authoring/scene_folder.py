@@ -40,6 +40,20 @@ def _parse_xml(xml_path: str) -> ET.Element:
         raise SceneError(f"scene file {xml_path} cannot be read: {exc}") from None
 
 
+def _check_inside(xml_path: str, folder: str, value: str, resolved: str) -> None:
+    """Refuse a reference that leaves the scene's folder (``..``, an absolute path, a symlink out)."""
+    real_folder = os.path.realpath(folder)
+    real = os.path.realpath(resolved)
+    if os.path.isabs(value) or os.path.commonpath([real_folder, real]) != real_folder:
+        how = ("is an absolute path" if os.path.isabs(value)
+               else f"resolves to {real}" + (" through a symbolic link" if real != resolved else ""))
+        raise SceneError(
+            f"scene file {xml_path} references {value!r}, which {how}, outside the scene folder {folder}; "
+            "a scene may only use files inside its own folder: copy the mesh into it (e.g. meshes/) "
+            "and reference it by a relative path"
+        )
+
+
 def scene_references(xml_path: str | os.PathLike[str]) -> list[tuple[str, str]]:
     """Files referenced by a Mitsuba XML scene, in document order.
 
@@ -58,8 +72,10 @@ def scene_references(xml_path: str | os.PathLike[str]) -> list[tuple[str, str]]:
     Raises
     ------
     SceneError
-        The XML is missing or malformed, a reference uses ``$parameter`` substitution, or a
-        referenced file does not exist.
+        The XML is missing or malformed, a reference uses ``$parameter`` substitution, a
+        referenced file does not exist, or a reference leaves the XML's folder (an absolute
+        path, ``..`` or a symbolic link resolving outside it): a scene never reads a file
+        outside its own folder.
     """
     xml_path = os.path.abspath(os.fspath(xml_path))
     root = _parse_xml(xml_path)
@@ -78,6 +94,7 @@ def scene_references(xml_path: str | os.PathLike[str]) -> list[tuple[str, str]]:
                     "risloc-rt cannot resolve to hash the scene; write the file name out"
                 )
             resolved = os.path.normpath(os.path.join(folder, value))
+            _check_inside(xml_path, folder, value, resolved)
             if not os.path.isfile(resolved):
                 raise SceneError(
                     f"scene file {xml_path} references {value!r}, but {resolved} does not exist; "

@@ -160,7 +160,7 @@ def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedS
     Parameters
     ----------
     xml_path : path-like
-        The scene's XML file; meshes are resolved relative to its folder.
+        The scene's XML file; meshes are resolved relative to its folder and must lie inside it.
     frequency : float
         Carrier frequency [Hz], > 0.
 
@@ -171,8 +171,9 @@ def load_scene(xml_path: str | os.PathLike[str], *, frequency: float) -> LoadedS
     Raises
     ------
     SceneError
-        Missing file, malformed XML, missing or corrupt mesh, unknown plugin or material type,
-        or a material not defined at ``frequency``.
+        Missing file, malformed XML, missing or corrupt mesh, a mesh reference leaving the
+        scene's folder (``..``, an absolute path, a symbolic link out; checked before sionna-rt
+        reads anything), unknown plugin or material type, or a material not defined at ``frequency``.
     """
     from .backend import ensure_backend
 
