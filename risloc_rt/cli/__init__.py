@@ -171,13 +171,38 @@ def _classify(exc: BaseException) -> tuple[int, str]:
                           "please report it with the output of RISLOC_DEBUG=1")
 
 
+def _redeliver_interrupt(previous: Any) -> Any:
+    """A ``sys.unraisablehook`` that re-delivers a Ctrl-C swallowed in a ``__del__`` or callback.
+
+    Python cannot raise an exception out of a finalizer: a ``KeyboardInterrupt`` that lands there
+    would print "Exception ignored ..." with a traceback and the run would go on. This hook prints
+    nothing for it and interrupts the main thread again, so the interrupt reaches :func:`main`.
+    """
+    import _thread
+
+    def hook(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            _thread.interrupt_main()
+        else:
+            previous(unraisable)
+
+    return hook
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``risloc``: parse, run the verb, turn every error into one line on stderr.
+
+    The console script calls this with nothing imported but this light module: every heavy import
+    (the verbs, NumPy, SciPy, the ray tracer) happens inside the handler, so Ctrl-C at any moment,
+    even during start-up, ends with one line on stderr and exit status 130, never a traceback.
 
     Parameters
     ----------
     argv : sequence of str, optional
-        The arguments (default: ``sys.argv[1:]``).
+        The arguments (default: ``sys.argv[1:]``). Without ``argv`` (``risloc`` as a program) a
+        second Ctrl-C after the first, or one while the process exits, is ignored, and a Ctrl-C
+        that lands in a finalizer is re-delivered; with ``argv`` (a call from Python) the
+        process's signal handling is left as it was.
 
     Returns
     -------
@@ -185,29 +210,45 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit status: 0, :data:`EXIT_FAILURE` (1), :data:`EXIT_BAD_INPUT` (2),
         :data:`EXIT_INTERRUPTED` (130), or a verb's own (``EXIT_NO_DETECTION``, 3).
     """
-    from .common import CliError
+    import signal
+    import threading
 
-    parser = build_parser()
-    raw = list(sys.argv[1:] if argv is None else argv)
-    args = None
+    program = argv is None and threading.current_thread() is threading.main_thread()
+    if program:
+        sys.unraisablehook = _redeliver_interrupt(sys.unraisablehook)
+    state: dict[str, Any] = {"args": None}
     try:
-        args = parser.parse_args(join_negative_values(raw, value_options(parser)))
-        return int(args.func(args))
+        return _main(list(sys.argv[1:] if argv is None else argv), state)
+    except KeyboardInterrupt:
+        if program:  # the one line below must not be cut by a second Ctrl-C
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        print(f"{_command(state['args'])}: interrupted; no partial output was left", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if program:  # Ctrl-C while the interpreter shuts down would print a traceback
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _main(raw: list[str], state: dict[str, Any]) -> int:
+    """:func:`main` without the Ctrl-C handling: imports the verbs, parses, runs, reports errors."""
+    try:
+        parser = build_parser()
+        state["args"] = parser.parse_args(join_negative_values(raw, value_options(parser)))
+        return int(state["args"].func(state["args"]))
     except SystemExit as exc:  # argparse: --help (0) and usage errors (2, already printed as one line)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print(f"{_command(args)}: interrupted; no partial output was left", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except CliError as exc:
-        print(f"{_command(args)}: error: {_one_line(exc)}", file=sys.stderr)
-        return EXIT_BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes one line
+        from .common import CliError
+
+        if isinstance(exc, CliError):
+            print(f"{_command(state['args'])}: error: {_one_line(exc)}", file=sys.stderr)
+            return EXIT_BAD_INPUT
         if os.environ.get("RISLOC_DEBUG"):
             import traceback
 
             traceback.print_exc()
         status, message = _classify(exc)
-        print(f"{_command(args)}: error: {message}", file=sys.stderr)
+        print(f"{_command(state['args'])}: error: {message}", file=sys.stderr)
         return status
 
 

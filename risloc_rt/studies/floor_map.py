@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import sys
 import time
 import warnings
 from collections import Counter
@@ -32,7 +33,7 @@ from .._files import atomic_write_bytes
 from .engine import default_workers, execute
 from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
-from .store import RunLog, StudyFolderError
+from .store import RunLog, StudyFolderError, keep_log
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "prepare_cell"]
 
@@ -304,8 +305,14 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     manifest = folder / "map-study.json"
     if manifest.exists():
         old = json.loads(manifest.read_text()).get("key")
-        if old != settings.key and not force:
-            raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or --force")
+        if old != settings.key:
+            if not force:
+                raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
+                                       f"--force (the old log is kept as runs-{old}.jsonl, or runs-{old}-N.jsonl)")
+            if (folder / "runs.jsonl").exists():  # its rows are another map's cells: keep them, never reuse them
+                kept = keep_log(folder / "runs.jsonl", str(old))
+                print(f"note: {str(folder)!r} held another floor map (key {old}); its run log is kept as "
+                      f"{str(kept)!r}", file=sys.stderr)
     elif folder.is_dir() and any(folder.iterdir()) and not force:
         raise StudyFolderError(f"{str(folder)!r} is not empty and holds no floor map; use a new --out folder")
     spec, cells, _ = grid_cells(settings)

@@ -7,8 +7,10 @@
     DIR/summary.json    per-point statistics (``summary.py``)
 
 Crash safety: a line is written whole with one ``write`` and then fsync'd; after a SIGKILL the
-log ends, at worst, in a torn last line, which :meth:`RunLog.open` cuts off before appending (it
-is the study's own file). A restart reads the finished (point, run) pairs and runs only the rest.
+log ends, at worst, in a torn last line (no newline), which :meth:`RunLog.open` cuts off before
+appending (it is the study's own file); any other bad line is an error and the file is left as it
+is. A restart reads the finished (point, run) pairs and runs only the rest. A kept log (``--force``
+on another study's folder) is never overwritten (:func:`keep_log`).
 """
 
 from __future__ import annotations
@@ -18,12 +20,12 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from .._files import atomic_write_bytes
 from .spec import StudySpec
 
-__all__ = ["RunLog", "StudyFolderError", "open_study_folder", "write_parquet", "read_runs_table"]
+__all__ = ["RunLog", "RunLogError", "StudyFolderError", "keep_log", "open_study_folder", "write_parquet", "read_runs_table"]
 
 MANIFEST = "study.json"
 LOG = "runs.jsonl"
@@ -33,6 +35,45 @@ SUMMARY = "summary.json"
 
 class StudyFolderError(ValueError):
     """The output folder belongs to something else (another study, or not a study at all)."""
+
+
+class RunLogError(ValueError):
+    """A line of ``runs.jsonl`` other than a torn last line is not a run row; the file is left as it is."""
+
+
+def keep_log(log: Path, key: str) -> Path:
+    """Move ``log`` aside as ``runs-<key>.jsonl`` in its folder, never over an existing file.
+
+    If that name is taken (the same study was kept before), ``runs-<key>-2.jsonl``, ``-3``, ... is
+    used: a kept log is never overwritten.
+
+    Parameters
+    ----------
+    log : Path
+        The run log to keep (it must exist).
+    key : str
+        The key of the study that wrote it (``"unreadable"`` when its manifest could not be read).
+
+    Returns
+    -------
+    Path
+        Where the log now is.
+    """
+    stem = "runs-" + "".join(c if c.isalnum() or c in "-_." else "_" for c in key)
+    for n in range(1, 100_000):
+        target = log.with_name(f"{stem}{'' if n == 1 else f'-{n}'}.jsonl")
+        try:
+            os.link(log, target)  # fails if target exists: no race can overwrite a kept log
+        except FileExistsError:
+            continue
+        except OSError:  # a file system without hard links
+            if target.exists():
+                continue
+            os.rename(log, target)
+            return target
+        os.unlink(log)
+        return target
+    raise StudyFolderError(f"{str(log.parent)!r} holds too many kept logs; use a new --out folder")
 
 
 def _clean(value: Any) -> Any:
@@ -63,28 +104,38 @@ class RunLog:
     def open(self) -> "RunLog":
         """Read what is there (cutting off a torn last line) and open for appending.
 
+        Only a torn tail, the last line without its newline (a kill during a write), is cut off. Any
+        other line that is not a run row (bad JSON, no ``point``/``run``) is an error, and the file is
+        left byte-identical: the rows after it are runs that must not be lost.
+
         Returns
         -------
         RunLog
             ``self``.
+
+        Raises
+        ------
+        RunLogError
+            A line other than a torn last line is not a run row (the message names file and line).
         """
-        good = 0
         if self.path.exists():
             data = self.path.read_bytes()
-            pos = 0
-            for line in data.splitlines(keepends=True):
-                if not line.endswith(b"\n"):
-                    break
+            lines = data.split(b"\n")
+            torn = lines.pop()  # b"" when the file ends with its newline, else a line cut by a kill
+            for number, line in enumerate(lines, 1):
                 try:
                     row = json.loads(line)
-                except ValueError:
-                    break
-                self.rows.setdefault((int(row["point"]), int(row["run"])), row)
-                pos += len(line)
-            good = pos
-            if good != len(data):
+                    key = (int(row["point"]), int(row["run"]))
+                except (ValueError, KeyError, TypeError, IndexError) as exc:
+                    raise RunLogError(
+                        f"{str(self.path)!r} line {number} is not a run row ({type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())[:120]}); the log is append-only and was changed by "
+                        "something else; it was left as it is: repair or remove that line (or use a new --out "
+                        "folder) and rerun") from None
+                self.rows.setdefault(key, row)
+            if torn:  # only the last line, written without its newline, is the study's to cut off
                 with open(self.path, "r+b") as fh:
-                    fh.truncate(good)
+                    fh.truncate(len(data) - len(torn))
                     os.fsync(fh.fileno())
         self._fh = open(self.path, "ab")
         return self
@@ -125,10 +176,18 @@ class RunLog:
             self._fh = None
 
 
-def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> RunLog:
+def _stderr(message: str) -> None:
+    import sys
+
+    print(message, file=sys.stderr)
+
+
+def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
+                      notice: Callable[[str], None] | None = None) -> RunLog:
     """Create or reopen ``out`` for ``spec``; refuse a folder of another study (or not a study) without ``force``.
 
-    With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl``; nothing is deleted.
+    With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl`` (``-2``, ``-3``, ...
+    if that name is taken, :func:`keep_log`), and ``notice`` says where; nothing is deleted or overwritten.
 
     Parameters
     ----------
@@ -138,6 +197,8 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> Run
         The study (its key is written to ``study.json``).
     force : bool
         Use a folder that holds another study, or other files.
+    notice : callable, optional
+        Receives the one-line note naming where a previous study's log was kept (default: stderr).
 
     Returns
     -------
@@ -164,9 +225,11 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False) -> Run
                 raise StudyFolderError(
                     f"{str(out)!r} holds another study ({old.get('spec', {}).get('name', '?') if old_key != 'unreadable' else 'unreadable manifest'}, "
                     f"key {old_key}); use a new --out folder, or --force to start this study there (the old log is kept "
-                    f"as runs-{old_key}.jsonl)")
+                    f"as runs-{old_key}.jsonl, or runs-{old_key}-N.jsonl if that name is taken)")
             if (out / LOG).exists():
-                os.replace(out / LOG, out / f"runs-{old_key}.jsonl")
+                kept = keep_log(out / LOG, old_key)
+                (notice or _stderr)(f"note: {str(out)!r} held another study (key {old_key}); its run log is kept "
+                                    f"as {str(kept)!r}")
     elif out.is_dir() and any(out.iterdir()) and not force:
         raise StudyFolderError(f"{str(out)!r} is not empty and holds no study; use a new --out folder "
                                "(or --force to write the study's files next to what is there)")

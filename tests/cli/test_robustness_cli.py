@@ -81,3 +81,59 @@ def test_issue_11_scene_build_refusal_is_one_line(tmp_path, capsys):
                     "[hall.materials]\nwalls='concrete'\nfloor='concrete'\nceiling='concrete'\n")
     assert main(["scene", "build", str(spec)]) == 2
     assert "millimetres" in _one_error_line(capsys, "scene build")
+
+
+def _interrupt_after(command: list[str], delay: float) -> tuple[int | None, list[str]]:
+    """Start ``risloc COMMAND`` as a program, send SIGINT after ``delay`` s; (status, stderr lines).
+
+    Status None: the command had already finished when the signal was due (nothing to check).
+    """
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    risloc = Path(sys.executable).with_name("risloc")
+    proc = subprocess.Popen([str(risloc), *command], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(delay)
+    if proc.poll() is not None:
+        proc.communicate()
+        return None, []
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    return proc.returncode, err.decode().splitlines()
+
+
+def test_issue_19_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path):
+    """A Ctrl-C during the imports (the first ~1.5 s) printed a traceback: the handler now covers them."""
+    commands = {
+        "demo": ["demo", "--analytic", "--out", str(tmp_path / "demo")],
+        "simulate": ["simulate", "-o", str(tmp_path / "x.npz")],
+    }
+    checked = 0
+    for verb, command in commands.items():
+        for delay in (0.15, 0.4, 1.0, 2.0):
+            status, err = _interrupt_after(command, delay)
+            if status is None:
+                continue
+            checked += 1
+            assert status == 130, (verb, delay, status, err)
+            assert len(err) == 1 and "Traceback" not in err[0], (verb, delay, err)
+            assert err[0].startswith("risloc") and "interrupted" in err[0], (verb, delay, err)
+    assert checked >= 6
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_issue_19_a_call_from_python_leaves_the_signal_handling_as_it_was(monkeypatch, capsys, tmp_path):
+    import signal
+
+    import risloc_rt.cli.simulate as sim
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    before = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(sim, "simulate", interrupted)
+    assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 130
+    assert signal.getsignal(signal.SIGINT) is before
