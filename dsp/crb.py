@@ -110,6 +110,31 @@ def tone_frequency_crb(snr: float, num_samples: int) -> float:
     return 6.0 / ((2 * np.pi) ** 2 * s * n * (n * n - 1))
 
 
+#: Relative tolerance of the rank test of the AoD's Fisher information (:func:`sweep_crb`): a direction
+#: of (az, el) whose information is below this fraction of what the beams' gradients carry before the
+#: amplitude β is removed (``2ρ Σ_m w_m |∇A_m|²``) is unobservable: its 1σ would be more than 10⁴
+#: times the sweep's typical one, and below it the inverse is dominated by round-off [unitless].
+AOD_RANK_RTOL = 1e-8
+
+#: An angle is unobservable when its share of an unobservable direction exceeds this [unitless].
+NULL_PROJECTION_TOL = 1e-6
+
+
+def _observable_std(fisher: np.ndarray, floor: float) -> np.ndarray:
+    """1σ of (az, el) [rad] from a 2 × 2 Fisher information [1/rad²]: inf for an angle that projects
+    onto a direction whose information is at most ``floor`` (``docs/estimation.md``, "Unobservable")."""
+    lam, vec = np.linalg.eigh(fisher)
+    if lam[0] > floor:  # full rank: the plain inverse, as before the rank test
+        try:
+            return np.sqrt(np.clip(np.diag(np.linalg.inv(fisher)), 0, None))
+        except np.linalg.LinAlgError:  # pragma: no cover - eigh said it is well conditioned
+            pass
+    seen = lam > floor
+    var = (vec[:, seen] ** 2) @ (1.0 / lam[seen])
+    blind = np.any(np.abs(vec[:, ~seen]) > NULL_PROJECTION_TOL, axis=1)
+    return np.where(blind, np.inf, np.sqrt(var))
+
+
 @dataclass(frozen=True, eq=False)
 class SweepBound:
     """1σ Cramér–Rao bounds (square roots of the CRB diagonal) for one sweep.
@@ -126,7 +151,9 @@ class SweepBound:
         Of v = ν·c/2 [m/s].
     aod : float array [2]
         Of [az, el] [rad]; el is NaN when the sweep cannot see it (all beams at one elevation):
-        az is then bounded with el known.
+        az is then bounded with el known. ``inf`` (never 0) for an angle the sweep cannot observe:
+        its Fisher information fails the rank test (:data:`AOD_RANK_RTOL`), e.g. the azimuth of an
+        elevation-only sweep, or beams in the panel's plane.
     fisher_aod : float array [2, 2]
         Fisher information of (az, el) after removing β [1/rad²].
     total_snr : float
@@ -224,14 +251,11 @@ def sweep_crb(
     fisher = 2 * rho * ((w[:, None] * g).T @ g - (np.outer(s_ag, s_ag) / s_aa if s_aa > 0 else 0.0))
     aod_std = np.full(2, np.nan)
     one_d = np.ptp(sweep.angles[:, 1]) < 1e-12
-    if not one_d:
-        try:
-            cov = np.linalg.inv(fisher)
-            aod_std = np.sqrt(np.clip(np.diag(cov), 0, None))
-        except np.linalg.LinAlgError:
-            pass
-    if one_d or not np.all(np.isfinite(aod_std)):
-        aod_std = np.array([1.0 / np.sqrt(fisher[0, 0]) if fisher[0, 0] > 0 else np.inf, np.nan])
+    floor = AOD_RANK_RTOL * 2 * rho * float(np.sum(w[:, None] * g * g))  # the rank test's information floor
+    if one_d:
+        aod_std = np.array([1.0 / np.sqrt(fisher[0, 0]) if fisher[0, 0] > floor else np.inf, np.nan])
+    else:
+        aod_std = _observable_std(fisher, floor)
     return SweepBound(
         delay=float(np.sqrt(var_tau)),
         delay_rate=float(np.sqrt(var_nu)),
@@ -259,7 +283,8 @@ def position_std(
     params : float array [P]
         Point of linearisation.
     stds : float array [P]
-        1σ of each parameter (NaN or inf entries are skipped: treated as known).
+        1σ of each parameter: NaN entries are skipped (treated as known, e.g. the elevation a 1-D
+        sweep assumes); an ``inf`` one (an unobservable parameter) makes every axis it moves ``inf``.
     steps : float array [P], optional
         Difference steps; default 1e-6 of |param| + 1e-7.
 
@@ -273,10 +298,13 @@ def position_std(
     h = np.asarray(steps, dtype=float) if steps is not None else 1e-6 * np.abs(p) + 1e-7
     var = np.zeros(3)
     for i in range(p.size):
-        if not np.isfinite(s[i]) or s[i] == 0:
+        if np.isnan(s[i]) or s[i] == 0:
             continue
         e = np.zeros_like(p)
         e[i] = h[i]
         col = (np.asarray(locate(p + e)) - np.asarray(locate(p - e))) / (2 * h[i])
+        if np.isinf(s[i]):
+            var[col != 0] = np.inf
+            continue
         var += (col * s[i]) ** 2
     return np.sqrt(var)

@@ -20,7 +20,7 @@ from .aod_fit import AodFit
 from .detection import Detection
 from .drift import DelayDrift
 from .geometry import RisPose
-from .qualify import is_one_dimensional, position_at
+from .qualify import Uncertainty, is_one_dimensional, position_at
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
 
@@ -37,6 +37,8 @@ FLAG_CODES: dict[str, str] = {
     "unresolved-peaks": "two returns within one resolution cell: delay and AoD are biased",
     "before-ris-delay": "the delay is shorter than the RIS loop-back delay: negative distance",
     "elevation-assumed": "a 1-D sweep cannot see elevation: the position assumes the sweep plane",
+    "unobservable": "the sweep cannot observe an angle: its 1σ and the position's are infinite, not a number",
+    "ris-facing-away": "the capture's true radar position lies behind the RIS plane: the RIS faces away from it",
     # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
     "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
     "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",
@@ -131,6 +133,9 @@ class FlagContext:
         Height offset from the sweep plane the ``elevation-assumed`` message states the error for [m].
     drift : DelayDrift or None
         The delay's drift across the sweep (the unambiguous velocity check), if measured.
+    std : Uncertainty or None
+        The estimate's 1σ (:func:`dsp.qualify.sweep_uncertainty`), if computed: ``unobservable`` reads its
+        infinite entries.
     """
 
     detection: Detection
@@ -150,6 +155,7 @@ class FlagContext:
     height_solved: bool
     height_range: float
     drift: DelayDrift | None = None
+    std: Uncertainty | None = None
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -312,3 +318,25 @@ def _sweep_plane_assumed(c: FlagContext) -> str:
         extra = ""
     return (f"a 1-D sweep cannot see elevation: the position assumes the UE in the sweep plane "
             f"(el {_deg(el_assumed)}){extra}; give ue_height (the radar's known height) to solve it")
+
+
+@_rule("unobservable")
+def _angle_not_observable(c: FlagContext) -> str | None:
+    std = c.std
+    if std is None or not np.any(np.isinf(std.aod)):
+        return None
+    names = " and ".join(n for n, v in zip(("azimuth", "elevation"), std.aod) if np.isinf(v))
+    angles = c.sweep.angles
+    if np.ptp(angles[:, 0]) < 1e-12:
+        why = (f"every beam is steered to az {_deg(angles[0, 0])} (an elevation-only sweep): the beams differ "
+               "only in elevation, so a change of azimuth scales all of them alike and is taken by the "
+               "return's unknown amplitude")
+    elif abs(abs(float(c.aod[0])) - np.pi / 2) < np.deg2rad(2.0) or \
+            np.any(np.abs(np.abs(angles[:, 0]) - np.pi / 2) < np.deg2rad(2.0)):
+        why = (f"the estimate (az {_deg(c.aod[0])}) or the sweep's beams lie in or near the panel's plane "
+               "(|az| ≈ 90°), where the beam pattern does not change with the angle")
+    else:
+        why = "the beams' pattern does not change along it at this direction"
+    return (f"the sweep cannot observe the {names}: {why}. Its 1σ is infinite (result.json: null) and so is "
+            "the position's along the axes it moves; the position is not reliable there. Sweep the beams "
+            "in that angle too (a 2-D sweep) and keep them away from the panel's plane")

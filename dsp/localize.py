@@ -117,7 +117,7 @@ def self_localize(
 
     std = _uncertainty(inp, est, det, steps.bounds, aod, distance, ue_height if height_solved else None)
     context = _flag_context(inp, est, det, steps.residual_frequency, aod, distance, ue_height=ue_height,
-                            height_solved=height_solved, height_range=height_range)
+                            height_solved=height_solved, height_range=height_range, std=std)
     return Localization(
         beam_index=est.beam_index, aod=aod, delay=float(est.delay), distance=float(distance),
         delay_rate=float(est.delay_rate), velocity=float(velocity), direction=direction, position=position,
@@ -175,7 +175,7 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
 def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
                   residual_frequency: Callable[[SweepInputs, SweepEstimate], tuple[float, float]],
                   aod: np.ndarray, distance: float, *, ue_height: float | None, height_solved: bool,
-                  height_range: float) -> FlagContext:
+                  height_range: float, std: Uncertainty | None = None) -> FlagContext:
     """What the flag rules read: the estimate, the residual test at the estimator's tone, the delay's drift."""
     arr, radar = inp.cube, inp.radar
     weights = np.abs(inp.pattern.amplitude(aod, inp.sweep.angles))
@@ -187,4 +187,4 @@ def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
                        pose=inp.pose, delay=est.delay, apparent_delay=f1 / (radar.slope * radar.sample_period),
                        delay_rate=est.delay_rate, loopback_delay=inp.loopback_delay, distance=distance, aod=aod,
                        unresolved=unresolved, ue_height=ue_height, height_solved=height_solved,
-                       height_range=height_range, drift=drift)
+                       height_range=height_range, drift=drift, std=std)

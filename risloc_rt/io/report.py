@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from dsp import SPEED_OF_LIGHT, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles, self_localize
+from dsp import (SPEED_OF_LIGHT, Flag, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles,
+                 self_localize)
 
 from .._files import atomic_write_bytes
 from ..model.capture import Capture
@@ -19,7 +20,7 @@ from ..model.power_check import range_alias_flag
 from ..model.scenario import Truth
 
 __all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
-           "RESULT_FORMAT", "json_safe"]
+           "RESULT_FORMAT", "json_safe", "facing_away_flag"]
 
 RESULT_FORMAT = "risloc-result"
 RESULT_VERSION = 1
@@ -95,7 +96,36 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     alias = range_alias_flag(loc, capture)
     if alias is not None and "aliased" not in loc.flag_codes:
         loc = replace(loc, flags=(*loc.flags, alias))
+    away = facing_away_flag(capture)
+    if away is not None:
+        loc = replace(loc, flags=(*loc.flags, away))
     return loc, time.perf_counter() - start
+
+
+def facing_away_flag(capture: Capture) -> Flag | None:
+    """The ``ris-facing-away`` flag when the capture's truth puts the radar behind (or in) the RIS plane.
+
+    Parameters
+    ----------
+    capture : Capture
+
+    Returns
+    -------
+    Flag or None
+        None without a truth, or when the true radar position is in front of the panel
+        (``normal · (p_UE - p_RIS) > 0``).
+    """
+    if capture.truth is None:
+        return None
+    pose = capture.ris.pose
+    depth = float(pose.normal @ (np.asarray(capture.truth.ue_position, dtype=float) - pose.position))
+    if depth > 0:
+        return None
+    return Flag("ris-facing-away",
+                f"the true radar position is {abs(depth):.3f} m {'behind' if depth < 0 else 'in'} the RIS plane "
+                f"(normal {np.round(pose.normal, 3).tolist()}): the RIS as given faces away from the radar, its "
+                "beams cannot reach it and the estimate (always in front of the panel) cannot be right; check the "
+                "capture's [ris] facing/normal")
 
 
 def report_capture(name: str, capture: Capture, *, out_dir: Path | None, processing: ProcessingConfig,
@@ -236,12 +266,14 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Pa
 
 def format_case(case: CaseResult) -> str:
     """Human-readable table of truth, estimate ± 1σ and error for one case (degrees for angles),
-    then the detection and the flags."""
+    then the detection and the flags. A 1σ that is infinite (the sweep cannot observe the quantity,
+    flag ``unobservable``) prints as ``± unobservable``; one that was not estimated (NaN) is left out."""
     loc, truth, err = case.localization, case.truth, case.errors
     std = loc.std
     fmt3 = lambda v: "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"  # noqa: E731
     deg = lambda v: "[" + ", ".join(f"{x:+.2f}" for x in np.rad2deg(v)) + "]°"  # noqa: E731
-    pm = lambda value, sigma, f: value if sigma is None or not np.isfinite(sigma) else f"{value} ± {f(sigma)}"  # noqa: E731
+    pm = lambda value, sigma, f: (value if sigma is None or np.isnan(sigma) else  # noqa: E731
+                                  f"{value} ± unobservable" if np.isinf(sigma) else f"{value} ± {f(sigma)}")
     rows = [("quantity", "truth", "estimate", "error")]
     rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-",
                  pm(f"{loc.distance:.4f}", std and std.distance, lambda x: f"{x:.2g}"),

@@ -275,9 +275,10 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     from dsp.aod_fit import AodFit
     from dsp.detection import Detection
     from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
+    from dsp.qualify import Uncertainty
 
     assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
-                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed"]
+                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed", "unobservable"]
     quiet = _quiet_context()
     assert sweep_flags(quiet) == ()
     one_d = BeamSweep.azimuth_grid(*np.deg2rad([-12.0, 12.0, 3.0]))  # 9 beams at el 0
@@ -295,6 +296,9 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
         "before-ris-delay": dict(delay=0.5 * quiet.loopback_delay, distance=-0.5 * quiet.loopback_delay * C / 2),
         "elevation-assumed": dict(sweep=one_d, magnitudes=np.r_[np.ones(4), 5.0, np.ones(4)],
                                   aod=np.deg2rad([1.0, 0.0])),
+        # an infinite azimuth σ (the sweep cannot observe it)
+        "unobservable": dict(std=Uncertainty(distance=0.01, velocity=0.01, aod=np.array([np.inf, 0.01]),
+                                             position=np.array([np.inf, 0.0, 0.06]), peak_snr_db=30.0, kind="crb")),
     }
     for code, change in causes.items():
         assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **change))] == [code], code
