@@ -72,7 +72,7 @@ def test_elevation_only_capture_is_flagged_and_its_position_sigma_is_infinite(es
     assert loc.std.aod[0] == np.inf and np.isfinite(loc.std.aod[1]) and loc.std.aod[1] > 0
     assert loc.std.position[0] == np.inf and loc.std.peb == np.inf  # az moves x (the panel's row axis)
     assert "unobservable" in loc.flag_codes
-    message = dict((f.code, f.message) for f in loc.flags)["unobservable"]
+    message = {f.code: f.message for f in loc.flags}["unobservable"]
     assert "azimuth" in message and "elevation" not in message.split(":")[0] and "elevation-only" in message
 
 
@@ -85,7 +85,7 @@ def test_beams_in_the_panel_plane_give_an_infinite_sigma_not_a_millimetre_one():
     truth = POSE.position + 6.0 * POSE.to_world(dsp.direction_from_angles(np.deg2rad([85.0, 0.0])))
     assert np.linalg.norm(loc.position - truth) > 10.0  # metres off (az -90°, the other side of the fan) ...
     assert loc.std.peb == np.inf and "unobservable" in loc.flag_codes  # ... so the σ must not claim mm
-    assert "panel's plane" in dict((f.code, f.message) for f in loc.flags)["unobservable"]
+    assert "panel's plane" in {f.code: f.message for f in loc.flags}["unobservable"]
 
 
 def test_a_well_conditioned_two_d_sweep_keeps_the_plain_inverse():
