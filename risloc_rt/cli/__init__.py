@@ -222,7 +222,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         if program:  # the one line below must not be cut by a second Ctrl-C
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-        print(f"{_command(state['args'])}: interrupted; no partial output was left", file=sys.stderr)
+        print(f"{_command(state['args'])}: interrupted; each file it wrote is complete (atomic writes), "
+              "a multi-file output may lack some: run it again", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
         if program:  # Ctrl-C while the interpreter shuts down would print a traceback
