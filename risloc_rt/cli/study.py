@@ -34,6 +34,8 @@ _runs = _count("Monte Carlo runs per point")
 
 def _guarded(call, out: Path):
     """Run ``call()``, turning the studies' errors into one-line CLI errors (exit 2; 130 after Ctrl-C)."""
+    from dsp.budget import BudgetError
+
     from ..studies import StudyError, StudyFolderError
 
     try:
@@ -42,7 +44,7 @@ def _guarded(call, out: Path):
         print(f"risloc study: interrupted; the finished runs are in {str(out)!r}: rerun the same command to "
               "continue", file=sys.stderr)
         return 130
-    except (StudyError, StudyFolderError) as exc:
+    except (StudyError, StudyFolderError, BudgetError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
@@ -66,7 +68,9 @@ def _sweep(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     result = _on_cluster(args, lambda dask: run_study(spec, args.out, workers=args.workers, dask=dask,
-                                                      quiet=args.quiet, force=args.force))
+                                                      quiet=args.quiet, force=args.force,
+                                                      force_long=args.force_long,
+                                                      force_workers=args.force_workers))
     if isinstance(result, int):
         return result
     if not args.quiet:
@@ -118,7 +122,9 @@ def _map(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     result = _on_cluster(args, lambda dask: run_map(settings, args.out, workers=args.workers, dask=dask,
-                                                    quiet=args.quiet, force=args.force))
+                                                    quiet=args.quiet, force=args.force,
+                                                    force_long=args.force_long,
+                                                    force_workers=args.force_workers))
     if isinstance(result, int):
         return result
     if not args.quiet:
@@ -127,7 +133,13 @@ def _map(args: argparse.Namespace) -> int:
 
 
 def _parallel_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--workers", type=_workers, help="local worker processes (default: all cores)")
+    parser.add_argument("--workers", type=_workers,
+                        help="local worker processes (default: all cores; more than the cores or the memory limit "
+                             "allows are lowered with a note)")
+    parser.add_argument("--force-workers", action="store_true",
+                        help="keep --workers above the core count (the memory limit still holds)")
+    parser.add_argument("--force-long", action="store_true",
+                        help="run a study expected to take longer than a day (or a map of more than 1e5 grid points)")
     parser.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://10.0.0.5:8786")
     parser.add_argument("--dask-timeout", type=float, default=10.0, metavar="S",
                         help="seconds to wait for the Dask scheduler (default 10)")

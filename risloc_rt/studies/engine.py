@@ -32,8 +32,8 @@ from typing import Any, Callable, Iterator, Protocol
 from .kernel import PreparedPoint, run_once
 from .store import RunLog
 
-__all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "check_preparer", "run_batch", "execute",
-           "default_workers", "connect_dask"]
+__all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing", "check_preparer",
+           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask"]
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
@@ -42,6 +42,17 @@ MAX_ATTEMPTS = 3
 DIE_ONCE = "RISLOC_STUDY_TEST_DIE_ONCE"
 #: Single-threaded numerical libraries in worker processes: the workers are the parallelism.
 _ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Memory one worker process needs [bytes]: 0.57 GiB measured at Table I (docs/benchmarks.md), rounded up.
+WORKER_BYTES = int(0.6 * (1 << 30))
+#: Memory one finished run costs the study process [bytes]: its row in the run log's table, the
+#: Parquet table and the summary (measured 2.0 KiB per row in ``RunLog.rows``; 2x margin).
+ROW_BYTES = 4 << 10
+#: A study expected to take longer than this [s] is refused unless ``long_ok`` (``--force-long``).
+LONG_SECONDS = 24 * 3600.0
+#: Fewer missing runs than this cannot make a long study: no calibration run, no time estimate.
+CALIBRATE_ABOVE = 50
+#: Batches in flight on a Dask cluster at once (the plan is lazy: the rest are submitted as these finish).
+DASK_WINDOW = 1000
 
 
 class StudyError(RuntimeError):
@@ -115,8 +126,12 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -> list[Batch]:
-    """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube).
+def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -> Iterator[Batch]:
+    """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube), lazily.
+
+    The batches are generated as they are taken, from the gaps between the finished runs of each
+    point: time and memory grow with the number of finished runs and of batches taken, never with
+    ``spec.runs`` (a study of 10⁹ runs per point plans its first batches in microseconds).
 
     Parameters
     ----------
@@ -128,22 +143,190 @@ def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -
         Worker count: batches hold at most ``runs / (2 workers)`` runs (and at most 25), so every
         worker gets work.
 
-    Returns
-    -------
-    list of Batch
+    Yields
+    ------
+    Batch
         Runs of consecutive indices, point by point.
     """
-    size = max(1, min(25, math.ceil(spec.runs / max(1, 2 * workers))))
-    out: list[Batch] = []
+    runs = int(spec.runs)
+    size = max(1, min(25, math.ceil(runs / max(1, 2 * workers))))
+    finished: dict[int, list[int]] = {}
+    for p, r in done:
+        if 0 <= r < runs:
+            finished.setdefault(p, []).append(r)
     for p, params in enumerate(spec.points()):
-        missing = [r for r in range(spec.runs) if (p, r) not in done]
-        i = 0
-        while i < len(missing):
-            j = i
-            while j + 1 < len(missing) and j + 1 - i < size and missing[j + 1] == missing[j] + 1:
-                j += 1
-            out.append(Batch(p, missing[i], missing[j] + 1, params))
-            i = j + 1
+        stops = sorted(finished.get(p, ())) + [runs]
+        first = 0
+        for stop in stops:  # the missing runs first ... stop - 1, in batches of at most ``size``
+            while first < stop:
+                yield Batch(p, first, min(stop, first + size), params)
+                first = min(stop, first + size)
+            first = stop + 1
+
+
+def count_missing(spec: StudyPlan, done: set[tuple[int, int]]) -> tuple[int, int]:
+    """How many runs of ``spec`` are not in the log, and in how many points, without listing them.
+
+    Parameters
+    ----------
+    spec : StudyPlan
+    done : set of (int, int)
+        The (point, run) pairs already in the log.
+
+    Returns
+    -------
+    missing : int
+        Runs to do.
+    points : int
+        Points with at least one run to do.
+    """
+    n_points = len(spec.points())
+    per_point: dict[int, int] = {}
+    for p, r in done:
+        if 0 <= p < n_points and 0 <= r < spec.runs:
+            per_point[p] = per_point.get(p, 0) + 1
+    missing = n_points * int(spec.runs) - sum(per_point.values())
+    full = sum(1 for n in per_point.values() if n >= spec.runs)
+    return missing, n_points - full
+
+
+def choose_workers(workers: int | None, *, insist: bool = False,
+                   notice: Callable[[str], None] | None = None) -> int:
+    """The worker processes a local study gets: at most the cores and what the memory limit allows.
+
+    Parameters
+    ----------
+    workers : int or None
+        Asked for (``--workers``); None: as many as the cores and the memory limit allow.
+    insist : bool
+        Keep ``workers`` above the core count (``--force-workers``); the memory limit still holds.
+    notice : callable, optional
+        Receives the one-line note when ``workers`` is lowered (default: print to stderr).
+
+    Returns
+    -------
+    int
+        The worker count (>= 1).
+
+    Raises
+    ------
+    ValueError
+        ``workers`` < 1.
+    dsp.budget.BudgetError
+        ``insist`` and ``workers`` × :data:`WORKER_BYTES` exceed the memory limit.
+    """
+    from dsp.budget import check_memory, format_bytes, memory_limit
+
+    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
+        raise ValueError(f"--workers {workers} must be >= 1")
+    cores = default_workers()
+    limit, source = memory_limit()
+    by_memory = max(1, limit // WORKER_BYTES)
+    if workers is None:
+        return max(1, min(cores, by_memory))
+    workers = int(workers)
+    if insist:
+        if workers > 1:
+            check_memory(workers * WORKER_BYTES, f"--workers {workers} (about {format_bytes(WORKER_BYTES)} each)",
+                         fix=f"use at most {by_memory} workers, or raise $RISLOC_MEMORY_LIMIT")
+        return workers
+    cap = min(cores, by_memory)
+    if workers > cap:
+        (notice or (lambda msg: print(msg, file=sys.stderr)))(
+            f"note: --workers {workers} lowered to {cap}: {cores} core(s), and the memory limit "
+            f"{format_bytes(limit)} ({source.split(';')[0]}) holds {by_memory} workers of about "
+            f"{format_bytes(WORKER_BYTES)}; add --force-workers to keep {workers}")
+        return cap
+    return workers
+
+
+def _format_seconds(seconds: float) -> str:
+    """``42 s``, ``12 min``, ``3.5 h``, ``41 days``."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 3 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.3g} days"
+
+
+def _calibrate(prepare: Preparer, batch: Batch, study_seed: int) -> tuple[float, float]:
+    """Time the preparation of ``batch``'s point and its first run in this process [s] (nothing is logged;
+    the prepared point stays in this process's cache, so ``workers=1`` does not prepare it again)."""
+    import numpy as np
+
+    with _one_thread():
+        prep = _prepared(prepare, batch.params)
+        t0 = time.perf_counter()
+        run_once(prep, study_seed=study_seed, point=batch.point, run=batch.start, buffer=np.empty_like(prep.cube))
+        seconds = time.perf_counter() - t0
+    return float(prep.seconds), seconds
+
+
+def check_budget(spec: StudyPlan, done: set[tuple[int, int]], *, prepare: Preparer, workers: int,
+                 long_ok: bool = False, say: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Check a study's memory and time before it starts, and say what it will cost.
+
+    Memory: every run of the study ends as a row held by the study process (the run log's table,
+    then the Parquet table): ``points × runs ×`` :data:`ROW_BYTES` is checked against the memory
+    limit (:func:`dsp.budget.check_memory`) before any run. Time: with more than
+    :data:`CALIBRATE_ABOVE` runs to do, the first missing run's point is prepared and one run timed
+    in this process (a *calibration run*, not logged); the expected time is
+    ``(points to do × preparation + runs to do × run time) / workers``. A study expected to take
+    longer than :data:`LONG_SECONDS` is refused unless ``long_ok``.
+
+    Parameters
+    ----------
+    spec : StudyPlan
+    done : set of (int, int)
+        The (point, run) pairs already in the log.
+    prepare : Preparer
+    workers : int
+        Workers the runs are spread over.
+    long_ok : bool
+        Run a study expected to be long (``--force-long``).
+    say : callable, optional
+        Receives the one-line announcement (run count and expected time); None: silent.
+
+    Returns
+    -------
+    dict
+        ``missing`` (runs to do), ``points`` (points to do), ``expected_seconds`` [s] (None without calibration).
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        The rows of the study exceed the memory limit.
+    StudyError
+        The expected time exceeds :data:`LONG_SECONDS` and ``long_ok`` is not given.
+    """
+    from dsp.budget import check_memory
+
+    n_points = len(spec.points())
+    total = n_points * int(spec.runs)
+    check_memory(total * ROW_BYTES, f"{spec.name}: {n_points} point(s) x --runs {spec.runs} = {total:,} runs "
+                 f"(a row of about {ROW_BYTES >> 10} KiB each kept in memory)",
+                 fix="use fewer --runs or points (a study continues where it stopped: raise --runs later)")
+    missing, points = count_missing(spec, done)
+    out: dict[str, Any] = {"missing": missing, "points": points, "expected_seconds": None}
+    head = f"{spec.name}: {n_points} point(s) x {spec.runs:,} runs = {total:,} runs, {missing:,} to do"
+    if missing > CALIBRATE_ABOVE:
+        first = next(plan_batches(spec, done, workers=workers))
+        prep_s, run_s = _calibrate(prepare, first, spec.seed)
+        if workers > 1:  # the workers prepare their own points: do not hold this one (75 MB at Table I)
+            _CACHE.clear()
+        expected = (points * prep_s + missing * run_s) / max(1, workers)
+        out["expected_seconds"] = expected
+        line = (f"{head} on {workers} worker(s): expected about {_format_seconds(expected)} "
+                f"(calibration: {run_s:.2f} s per run, {prep_s:.2f} s per point's preparation)")
+        if expected > LONG_SECONDS and not long_ok:
+            raise StudyError(f"{line}, more than the {_format_seconds(LONG_SECONDS)} a study may take without "
+                             "--force-long; use fewer --runs or points, or add --force-long")
+        if say:
+            say(line)
+    elif say and missing:
+        say(f"{head}")
     return out
 
 
@@ -289,7 +472,7 @@ def _init_worker(parent: int) -> None:
 
 
 def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, dask: Any = None, quiet: bool = False,
-            notice: Callable[[str], None] | None = None) -> dict[str, Any]:
+            notice: Callable[[str], None] | None = None, long_ok: bool = False) -> dict[str, Any]:
     """Run every missing run of ``spec`` and append it to ``log``.
 
     Parameters
@@ -308,6 +491,8 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         No progress bar (retries go to ``notice``).
     notice : callable, optional
         Receives the retry messages when ``quiet`` (default: print to stderr).
+    long_ok : bool
+        Run a study whose expected time exceeds :data:`LONG_SECONDS` (:func:`check_budget`).
 
     Returns
     -------
@@ -320,12 +505,21 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     TypeError
         ``prepare`` is not a module-level function.
     StudyError
-        A batch killed its worker :data:`MAX_ATTEMPTS` times, or the Dask cluster gave up on it.
+        A batch killed its worker :data:`MAX_ATTEMPTS` times, the Dask cluster gave up on it, or the
+        study is expected to take longer than :data:`LONG_SECONDS` without ``long_ok``.
+    dsp.budget.BudgetError
+        The study's rows would exceed the memory limit (:func:`check_budget`).
     """
     from tqdm import tqdm
 
     check_preparer(prepare)
     notice = notice or (lambda msg: print(msg, file=sys.stderr))
+    if dask is None:
+        check_budget(spec, log.done(), prepare=prepare, workers=workers, long_ok=long_ok,
+                     say=None if quiet else (lambda msg: print(msg, file=sys.stderr)))
+    else:
+        check_budget(spec, log.done(), prepare=prepare, workers=_dask_threads(dask), long_ok=long_ok,
+                     say=None if quiet else (lambda msg: print(msg, file=sys.stderr)))
     batches = plan_batches(spec, log.done(), workers=workers)
     total = spec.runs * len(spec.points())
     done_before = sum(1 for (p, r) in log.done() if r < spec.runs)
@@ -370,55 +564,65 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     return info
 
 
-def _run_pool(spec: StudyPlan, prepare: Preparer, batches: list[Batch], workers: int, take: Callable,
+def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], workers: int, take: Callable,
               say: Callable) -> None:
     import multiprocessing
 
-    attempts = {b: 0 for b in batches}
-    queue = list(batches)
+    attempts: dict[Batch, int] = {}
+    retry: list[Batch] = []  # batches whose worker died, run again before the rest of the (lazy) plan
+    plan = iter(batches)
+
+    def next_batch() -> Batch | None:
+        return retry.pop(0) if retry else next(plan, None)
+
     saved = {k: os.environ.get(k) for k in _ONE_THREAD}
     for k in _ONE_THREAD:  # spawned workers read them when they import numpy
         os.environ.setdefault(k, "1")
     try:
-        while queue:
+        b: Batch | None = next_batch()
+        while b is not None:
             pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                        initializer=_init_worker, initargs=(os.getpid(),))
             running: dict[Any, Batch] = {}
             broken: list[Batch] = []
             try:
-                while queue or running:
+                while b is not None or running:
                     try:
-                        while queue and len(running) < workers:  # one batch per worker: a death names its batch
-                            b = queue[0]
+                        while b is not None and len(running) < workers:  # one batch per worker: a death names its batch
                             running[pool.submit(run_batch, prepare, b.params, b.point, b.start, b.stop,
                                                 spec.seed)] = b
-                            queue.pop(0)
+                            b = next_batch()
                     except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
                         broken += list(running.values())
                         running.clear()
                         break
                     finished, _ = wait(running, return_when=FIRST_COMPLETED)
                     for fut in finished:
-                        b = running.pop(fut)
+                        done_batch = running.pop(fut)
                         try:
                             result = fut.result()
                         except BrokenProcessPool:
-                            broken.append(b)
+                            broken.append(done_batch)
                             continue
-                        take(result, b)
+                        take(result, done_batch)
                     if broken:
                         broken += list(running.values())
                         running.clear()
                         break
             finally:
                 pool.shutdown(wait=not broken, cancel_futures=True)
-            for b in broken:
-                attempts[b] += 1
-                if attempts[b] >= MAX_ATTEMPTS:
-                    raise StudyError(f"{b.label}: its worker process died {attempts[b]} times (killed or out of "
+            for d in broken:
+                attempts[d] = attempts.get(d, 0) + 1
+                if attempts[d] >= MAX_ATTEMPTS:
+                    raise StudyError(f"{d.label}: its worker process died {attempts[d]} times (killed or out of "
                                      "memory); the finished runs are kept, rerun with fewer --workers to continue")
-                say(f"warning: a worker process died while running {b.label} (attempt {attempts[b]}); retrying it")
-            queue = broken + queue
+                say(f"warning: a worker process died while running {d.label} (attempt {attempts[d]}); retrying it")
+            if broken:
+                if b is not None:
+                    retry.append(b)  # taken from the plan but not submitted: after the broken ones
+                retry[:0] = broken
+                retry.sort(key=lambda x: (x.point, x.start))
+                b = next_batch()
     finally:
         for k, v in saved.items():
             if v is None:
@@ -460,24 +664,48 @@ def connect_dask(address: Any, *, timeout: float = 10.0) -> Any:
                          "or leave out --dask to run on this machine") from None
 
 
-def _run_dask(spec: StudyPlan, prepare: Preparer, batches: list[Batch], address: Any, take: Callable,
+def _dask_threads(address: Any) -> int:
+    """Threads of the Dask cluster at ``address`` (a client, or an address: connected to and closed)."""
+    client = connect_dask(address)
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # noqa: BLE001 - an estimate only; the run itself reports a failing cluster
+        return 1
+    finally:
+        if isinstance(address, str):
+            client.close()
+
+
+def _run_dask(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], address: Any, take: Callable,
               say: Callable) -> None:
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
     client = connect_dask(address)
+    plan = iter(batches)
+
+    def submit(b: Batch) -> Any:
+        fut = client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed,
+                            key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
+                            retries=MAX_ATTEMPTS - 1)
+        futures[fut] = b
+        return fut
+
     try:
-        futures = {client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed,
-                                 key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
-                                 retries=MAX_ATTEMPTS - 1): b for b in batches}
+        futures: dict[Any, Batch] = {}
+        first = [submit(b) for b, _ in zip(plan, range(DASK_WINDOW))]  # a window of the lazy plan
         with client.as_current():
-            for fut in as_completed(list(futures)):
-                b = futures[fut]
+            pending = as_completed(first)
+            for fut in pending:
+                b = futures.pop(fut)
                 try:
                     take(fut.result(), b)
                 except KilledWorker as exc:
                     raise StudyError(f"{b.label}: Dask workers died running it ({exc}); the finished runs are kept, "
                                      "rerun the same command to continue") from None
+                nxt = next(plan, None)
+                if nxt is not None:
+                    pending.add(submit(nxt))
     finally:
         if isinstance(address, str):
             client.close()

@@ -30,12 +30,16 @@ import numpy as np
 from dsp.validation import integer, non_negative, one_of, positive
 
 from .._files import atomic_write_bytes
-from .engine import default_workers, execute
+from .engine import choose_workers, default_workers, execute
 from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError, keep_log
 
-__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "prepare_cell"]
+__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "grid_budget", "prepare_cell", "MAX_GRID_POINTS"]
+
+#: More grid points than this (before the cells are chosen) are refused unless ``force_long``: each
+#: cell is a trace and ``runs`` runs (≈ 14 s of one core at 20 runs), so 10⁵ cells are weeks.
+MAX_GRID_POINTS = 100_000
 
 
 @dataclass(frozen=True)
@@ -91,13 +95,65 @@ class MapSettings:
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def grid_cells(settings: MapSettings) -> tuple[Any, np.ndarray, np.ndarray]:
+def grid_budget(settings: MapSettings, *, long_ok: bool = False) -> tuple[int, int]:
+    """Count the grid points of ``settings`` from the hall's footprint and check their memory, before any grid is made.
+
+    Parameters
+    ----------
+    settings : MapSettings
+        The hall and ``spacing`` [m].
+    long_ok : bool
+        Allow more than :data:`MAX_GRID_POINTS` grid points (``--force-long``).
+
+    Returns
+    -------
+    points : int
+        Grid points over the footprint's bounding box (the cells are those that qualify).
+    estimate : int
+        Peak memory of :func:`grid_cells` [bytes]: ``P × 8 × (8 + 6 V)`` for ``P`` grid points and
+        ``V`` footprint vertices (the grid, its positions and mask, and the point-in-polygon and
+        edge-distance temporaries of ``P × V`` elements); 256 B per point for a rectangular hall,
+        the 255 B per point measured (7.4 GB for 2.9·10⁷ positions).
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        ``estimate`` exceeds the memory limit.
+    StudyError
+        More than :data:`MAX_GRID_POINTS` grid points without ``long_ok``.
+    """
+    import math
+
+    from dsp.budget import check_memory, format_bytes
+
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
+    from .engine import StudyError
+
+    spec = load_spec(scene_directory(settings.scene) / "spec.toml")
+    poly = np.array(spec.footprint, dtype=float)
+    size = poly.max(axis=0) - poly.min(axis=0)
+    nx, ny = (max(0, math.ceil(float(s) / settings.spacing - 0.5)) for s in size)
+    points = nx * ny
+    estimate = points * 8 * (8 + 6 * len(poly))
+    what = (f"a floor grid of {points:,} points (--spacing {settings.spacing:g} m over the {size[0]:.3g} m x "
+            f"{size[1]:.3g} m footprint of {settings.scene!r}: {nx:,} x {ny:,})")
+    check_memory(estimate, what, fix="use a larger --spacing")
+    if points > MAX_GRID_POINTS and not long_ok:
+        raise StudyError(f"{what} (about {format_bytes(estimate)} of memory), more than the {MAX_GRID_POINTS:,} a map "
+                         "may have without --force-long (each cell is a trace and --runs runs); use a larger --spacing")
+    return points, estimate
+
+
+def grid_cells(settings: MapSettings, *, long_ok: bool = False) -> tuple[Any, np.ndarray, np.ndarray]:
     """The cells of a floor map: inside the footprint, away from walls and objects, within the sweep fan.
 
     Parameters
     ----------
     settings : MapSettings
         The hall, ``spacing``, ``height`` and ``margin`` [m].
+    long_ok : bool
+        Allow more than :data:`MAX_GRID_POINTS` grid points (:func:`grid_budget`, checked first).
 
     Returns
     -------
@@ -112,12 +168,15 @@ def grid_cells(settings: MapSettings) -> tuple[Any, np.ndarray, np.ndarray]:
     ------
     ValueError
         No grid point qualifies.
+    dsp.budget.BudgetError, StudyError
+        The grid is too large (:func:`grid_budget`).
     """
     from ..authoring.geometry import load_geometry
     from ..authoring.polygon import boundary_distance, contains
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
 
+    grid_budget(settings, long_ok=long_ok)
     folder = scene_directory(settings.scene)
     spec = load_spec(folder / "spec.toml")
     poly = np.array(spec.footprint, dtype=float)
@@ -266,7 +325,8 @@ class MapResult:
 
 
 def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = None, dask: Any = None,
-            quiet: bool = False, force: bool = False) -> MapResult:
+            quiet: bool = False, force: bool = False, force_long: bool = False,
+            force_workers: bool = False) -> MapResult:
     """Run (or continue) a floor map in folder ``out``.
 
     The cells are the points of a study (:mod:`risloc_rt.studies.engine`, point preparer
@@ -286,6 +346,11 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         No progress bar.
     force : bool
         Use a folder that holds another floor map (or other files).
+    force_long : bool
+        Run a map of more than :data:`MAX_GRID_POINTS` grid points, or one expected to take longer
+        than a day (``--force-long``).
+    force_workers : bool
+        Keep ``workers`` above the core count (``--force-workers``).
 
     Returns
     -------
@@ -297,10 +362,16 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         ``out`` holds something else and ``force`` is not given.
     ValueError
         ``workers`` < 1, or no cell qualifies (:func:`grid_cells`).
+    dsp.budget.BudgetError
+        The grid (:func:`grid_budget`), the runs or ``force_workers``'s workers exceed the memory limit.
+    StudyError
+        More than :data:`MAX_GRID_POINTS` grid points, or more than a day expected, without ``force_long``.
     """
-    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
-        raise ValueError(f"--workers {workers} must be >= 1")
-    workers = int(workers) if workers is not None else default_workers()
+    if dask is None:
+        workers = choose_workers(workers, insist=force_workers)
+    else:  # batch sizes only: the cluster's threads are the parallelism
+        workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
+    grid_budget(settings, long_ok=force_long)
     folder = Path(out)
     manifest = folder / "map-study.json"
     if manifest.exists():
@@ -315,14 +386,14 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
                       f"{str(kept)!r}", file=sys.stderr)
     elif folder.is_dir() and any(folder.iterdir()) and not force:
         raise StudyFolderError(f"{str(folder)!r} is not empty and holds no floor map; use a new --out folder")
-    spec, cells, _ = grid_cells(settings)
+    spec, cells, _ = grid_cells(settings, long_ok=force_long)
     plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells))
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings)}).encode(), sync=True)
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
     try:
-        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet)
+        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long)
         out_cells = []
         for c, ue in enumerate(cells):
             rows = [log.rows[(c, r)] for r in range(settings.runs)]

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from .._files import atomic_write_bytes
-from .engine import default_workers, execute
+from .engine import choose_workers, default_workers, execute
 from .figures import plot_summary
 from .kernel import prepare_point
 from .spec import StudySpec
@@ -49,7 +49,8 @@ class StudyResult:
 
 
 def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, dask: Any = None,
-              quiet: bool = False, force: bool = False, figures: bool = True) -> StudyResult:
+              quiet: bool = False, force: bool = False, figures: bool = True, force_long: bool = False,
+              force_workers: bool = False) -> StudyResult:
     """Run (or continue) ``spec`` in folder ``out``; see ``docs/studies.md``.
 
     Parameters
@@ -59,7 +60,9 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     out : path
         The study folder: created, or reopened to continue the same study.
     workers : int, optional
-        Local worker processes (default: all cores); 1 runs in this process.
+        Local worker processes (default: all cores, as far as the memory limit allows); 1 runs in this
+        process. More than the cores or the memory limit allows are lowered with a note
+        (:func:`risloc_rt.studies.engine.choose_workers`) unless ``force_workers``.
     dask : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or client: run the batches there instead.
     quiet : bool
@@ -68,6 +71,11 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
         Reuse a folder that holds another study (its log is kept under another name).
     figures : bool
         Draw ``study.png``.
+    force_long : bool
+        Run a study expected to take longer than a day (``--force-long``;
+        :func:`risloc_rt.studies.engine.check_budget`).
+    force_workers : bool
+        Keep ``workers`` above the core count (``--force-workers``).
 
     Returns
     -------
@@ -78,17 +86,21 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     StudyFolderError
         ``out`` holds another study (or no study) and ``force`` is not given.
     StudyError
-        A batch killed its worker too often, or the Dask cluster gave up on it.
+        A batch killed its worker too often, the Dask cluster gave up on it, or the study is expected
+        to take longer than a day without ``force_long``.
+    dsp.budget.BudgetError
+        The study's rows, or ``force_workers``'s workers, exceed the memory limit.
     ValueError
         ``workers`` < 1.
     """
-    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
-        raise ValueError(f"--workers {workers} must be >= 1")
-    workers = int(workers) if workers is not None else default_workers()
+    if dask is None:
+        workers = choose_workers(workers, insist=force_workers)
+    else:  # batch sizes only: the cluster's threads are the parallelism
+        workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
     folder = Path(out)
     log = open_study_folder(folder, spec, force=force)
     try:
-        info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet)
+        info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet, long_ok=force_long)
         rows = list(log.rows.values())
     finally:
         log.close()
