@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO, Iterator
 
-__all__ = ["atomic_open", "atomic_write_bytes"]
+__all__ = ["atomic_open", "atomic_write_bytes", "stage_bytes"]
 
 
 def _umask() -> int:
@@ -58,3 +58,23 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, sync: bool 
     with atomic_open(path, sync=sync) as fh:
         fh.write(data)
     return Path(path)
+
+
+def stage_bytes(path: str | os.PathLike[str], data: bytes, *, suffix: str = ".tmp") -> Path:
+    """Write ``data`` to a new hidden file beside ``path`` and return it; nothing is replaced.
+
+    The first half of :func:`atomic_open`, for a caller that moves several files into place
+    together (a scene build): the file is ``.NAME.*SUFFIX`` in the target's folder (created if
+    missing), with the permissions an ordinary ``open`` gives; a failed write removes it.
+    """
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=suffix)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, 0o666 & ~_umask())
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    return Path(tmp)

@@ -15,14 +15,13 @@ import hashlib
 import json
 import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
 
-from .._files import atomic_write_bytes
+from .._files import atomic_write_bytes, stage_bytes
 from ._parse import SpecError
 from .materials import MaterialSpec
 from .shapes import SceneMesh, scene_meshes
@@ -242,18 +241,7 @@ _STAGE_SUFFIX = ".risloc-build.tmp"
 
 def _stage(target: Path, data: bytes) -> Path:
     """Write ``data`` to a fresh hidden file beside ``target``; returns its path (nothing is replaced)."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=_STAGE_SUFFIX)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-    return Path(tmp)
+    return stage_bytes(target, data, suffix=_STAGE_SUFFIX)
 
 
 def _manifest_bytes(spec: HallSpec, files: dict[str, bytes], pending: dict[str, list[str]] | None = None,
