@@ -21,7 +21,10 @@ with, the RIS pose and hardware, and optionally the truth::
     ue_position = [0.0, 0.0, 0.0]
 
 Every bad value raises a one-line :class:`MeasuredFormatError` naming the file, the key and
-the fix; unknown keys are refused with a did-you-mean.
+the fix; unknown keys are refused with a did-you-mean. Sizes are checked against the memory limit
+(``$RISLOC_MEMORY_LIMIT``, :func:`dsp.budget.check_memory`) before anything of that size exists:
+the beams of an azimuth grid (:data:`BEAM_BYTES` each) and the RIS's elements × beams
+(:func:`ris_memory`); a :class:`dsp.budget.BudgetError` names the key, the estimate and the limit.
 """
 
 from __future__ import annotations
@@ -35,11 +38,13 @@ from typing import Any
 
 import numpy as np
 
+from dsp.budget import check_memory
+
 from ..._files import atomic_write_bytes
 from ..errors import MeasuredFormatError, read_text_file
 from .ris_timing import RisProgram
 
-__all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
+__all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule", "ris_memory",
            "write_sweep_schedule"]
 
 _TOP = ("frames_per_beam", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth", "sync")
@@ -48,6 +53,11 @@ _SWEEP = ("start_deg", "stop_deg", "step_deg", "elevation_deg", "angles_deg")
 _RIS = ("position", "facing", "loopback_delay_ns", "mode", "rows", "columns", "element_spacing",
         "relay_rx_angle_deg", "yaw_deg")
 _TRUTH = ("ue_position",)
+#: Bytes of one beam of an azimuth grid while it is parsed: its float64 angle, the ``(az, el)`` tuple
+#: of two floats (56 + 2·24 B) and the tuple's pointer, rounded up.
+BEAM_BYTES = 128
+#: Bytes the model's RIS response holds per element and beam (:func:`ris_memory`).
+RIS_BYTES_PER_ELEMENT_BEAM = 32
 
 
 @dataclass(frozen=True)
@@ -238,6 +248,9 @@ def _angles(sweep: dict[str, Any], source: str) -> tuple[tuple[tuple[float, floa
     if abs(count - n) > 1e-6:
         raise MeasuredFormatError(f"{source}: sweep.step_deg = {step:g} does not divide stop_deg - start_deg = "
                                   f"{stop - start:g} ({count:.6g} steps); choose a step that lands on stop_deg")
+    check_memory((n + 1) * BEAM_BYTES, f"{source}: sweep.step_deg = {step:g} from {start:g} to {stop:g} deg declares "
+                 f"{n + 1:,} beams (about {BEAM_BYTES} B each as the schedule's angle list)",
+                 fix="a sweep has one beam per recorded frame or few; check start_deg, stop_deg and step_deg")
     az = np.linspace(start, stop, n + 1)
     return tuple((float(a), elevation) for a in az), (start, stop, step, elevation)
 
@@ -331,6 +344,37 @@ def _truth_position(doc: dict[str, Any], source: str) -> tuple[float, ...] | Non
                    fix="give the radar's true position [x, y, z] in metres")
 
 
+def ris_memory(num_beams: int, rows: int, columns: int) -> int:
+    """Bytes the model allocates for this RIS and sweep: ``RIS_BYTES_PER_ELEMENT_BEAM · M · rows · columns``.
+
+    The RIS response (:func:`risloc_rt.model.ris.ris_response`, used when a capture is simulated,
+    compared or calibrated) holds the beam weights ``exp(-j k g(φ_m)·x_n)`` ``[M, rows·columns]``
+    complex128 (16 B) and their float64 phase argument ``g(φ_m)·x_n`` (8 B) with the complex
+    temporary of the exponent: 33 B per element and beam measured (tracemalloc peak, 300 × 300
+    elements, 61 beams), so 32 B is a lower bound; the element positions ``[rows·columns, 3]``
+    are negligible beside it.
+
+    Parameters
+    ----------
+    num_beams, rows, columns : int
+        M, the RIS's rows and columns.
+
+    Returns
+    -------
+    int
+        [bytes].
+    """
+    return RIS_BYTES_PER_ELEMENT_BEAM * int(num_beams) * int(rows) * int(columns)
+
+
+def _check_ris_memory(num_beams: int, rows: int, columns: int, source: str) -> None:
+    """Refuse (:class:`dsp.budget.BudgetError`) a RIS whose beam patterns would not fit the memory limit."""
+    check_memory(ris_memory(num_beams, rows, columns),
+                 f"{source}: ris.rows = {rows} x ris.columns = {columns} ({rows * columns:,} elements) with {num_beams} "
+                 f"beams (the RIS's beam weights, {RIS_BYTES_PER_ELEMENT_BEAM} B per element and beam)",
+                 fix="give the panel's real element grid (the paper's RIS: rows = 16, columns = 4)")
+
+
 def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> SweepSchedule:
     """Parse the TOML text of a sweep schedule (see the module docstring).
 
@@ -361,6 +405,7 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
     _check_keys(sweep, _SWEEP, source, "sweep.")
     angles, grid = _angles(sweep, source)
     ris = _ris_fields(doc, source)
+    _check_ris_memory(len(angles), ris["ris_rows"], ris["ris_columns"], source)
     sync = _sync_fields(doc, source)
     return SweepSchedule(angles_deg=angles, grid=grid, truth_ue_position=_truth_position(doc, source), **frames,
                          **ris, **sync)

@@ -27,6 +27,7 @@ from typing import Any
 
 from ..errors import MeasuredFormatError
 from .chirp_config import ADC_FORMATS, TiChirp, TiChirpConfig
+from .sdk_cfg import MAX_CHIRP_INDEX, MAX_LOOPS
 
 __all__ = ["ParsedStudioJson", "parse_studio_json", "read_studio_json"]
 
@@ -93,6 +94,16 @@ class _Node:
         raise MeasuredFormatError(f"{self.source}: {node.path}={v!r} must be an integer (or '0x…' text)")
 
 
+def _check_chirp_range(node: _Node, start: int, end: int) -> None:
+    """``chirpStartIdx`` ≤ ``chirpEndIdx``, both within the devices' chirp configurations 0…511."""
+    for what, idx in (("chirpStartIdx", start), ("chirpEndIdx", end)):
+        if not 0 <= idx <= MAX_CHIRP_INDEX:
+            raise MeasuredFormatError(f"{node.source}: {node.path}.{what}={idx} is outside 0…{MAX_CHIRP_INDEX} (the "
+                                      f"devices hold {MAX_CHIRP_INDEX + 1} chirp configurations); fix the export")
+    if end < start:
+        raise MeasuredFormatError(f"{node.source}: {node.path}: chirpEndIdx={end} < chirpStartIdx={start}")
+
+
 def read_studio_json(path: str | Path, *, device_index: int = 0) -> ParsedStudioJson:
     """:func:`parse_studio_json` of a file.
 
@@ -139,7 +150,9 @@ def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int =
     ------
     MeasuredFormatError
         A missing key (named by its path), a non-numeric field, several profiles in the frame,
-        or a frame using chirps no ``rlChirps`` entry defines.
+        a frame using chirps no ``rlChirps`` entry defines, a chirp index outside the devices'
+        0…511 or ``numLoops`` outside 1…255 (as :func:`~.sdk_cfg.parse_sdk_cfg`; ranges are never
+        expanded, so ``chirpEndIdx = 1e10`` costs no memory).
     """
     root = _Node(data, "", source)
     devices = root.child("mmWaveDevices")
@@ -156,20 +169,25 @@ def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int =
                                   "1 (complex1x) or 2 (complex2x)")
     frame = rf.child("rlFrameCfg_t")
     start_idx, end_idx = frame.integer("chirpStartIdx"), frame.integer("chirpEndIdx")
-    if end_idx < start_idx:
-        raise MeasuredFormatError(f"{source}: {frame.path}: chirpEndIdx={end_idx} < chirpStartIdx={start_idx}")
+    _check_chirp_range(frame, start_idx, end_idx)
+    num_loops = frame.integer("numLoops")
+    if not 1 <= num_loops <= MAX_LOOPS:
+        raise MeasuredFormatError(f"{source}: {frame.path}.numLoops={num_loops} must be 1…{MAX_LOOPS}")
 
+    # rlChirps ranges are kept as ranges (a later entry overrides an earlier one), never expanded
+    # index by index: the frame's loop (at most MAX_CHIRP_INDEX + 1 chirps) is all that is built.
     chirp_nodes = rf.child("rlChirps")
-    by_index: dict[int, _Node] = {}
+    ranges: list[tuple[int, int, _Node]] = []
     for j in range(len(chirp_nodes.value) if isinstance(chirp_nodes.value, list) else 0):
         c = chirp_nodes.child(j).child("rlChirpCfg_t")
-        for idx in range(c.integer("chirpStartIdx"), c.integer("chirpEndIdx") + 1):
-            by_index[idx] = c
+        lo, hi = c.integer("chirpStartIdx"), c.integer("chirpEndIdx")
+        _check_chirp_range(c, lo, hi)
+        ranges.append((lo, hi, c))
     chirps, profile_ids = [], set()
     for idx in range(start_idx, end_idx + 1):
-        if idx not in by_index:
+        c = next((node for lo, hi, node in reversed(ranges) if lo <= idx <= hi), None)
+        if c is None:
             raise MeasuredFormatError(f"{source}: {frame.path} uses chirp {idx}, which no rlChirps entry defines")
-        c = by_index[idx]
         profile_ids.add(c.integer("profileId"))
         chirps.append(TiChirp(tx_mask=c.integer("txEnable"),
                               start_frequency_offset=c.number("startFreqVar_MHz") * 1e6,
@@ -210,7 +228,7 @@ def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int =
             num_samples=prof.integer("numAdcSamples"),
             sample_rate=prof.number("digOutSampleRate") * 1e3,
             rx_gain_db=None if gain is None else prof.number("rxGain_dB"),
-            rx_mask=rx_mask, tx_mask=tx_mask, chirps=tuple(chirps), num_loops=frame.integer("numLoops"),
+            rx_mask=rx_mask, tx_mask=tx_mask, chirps=tuple(chirps), num_loops=num_loops,
             num_frames=frame.integer("numFrames"), frame_periodicity=frame.number("framePeriodicity_msec") / 1e3,
             adc_bits=(12, 14, 16)[bits_code], adc_format=ADC_FORMATS[fmt_code], iq_swap=iq_swap)
     except MeasuredFormatError as exc:
