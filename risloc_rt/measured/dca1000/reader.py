@@ -11,12 +11,14 @@ Axis order of every cube: frames F, loops K (chirps per virtual channel), virtua
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Literal, Sequence
 
 import numpy as np
 
+from dsp.budget import check_memory
 from dsp.validation import integer
 
 from ..errors import MeasuredFormatError
@@ -151,6 +153,35 @@ def _likely_causes(total: int, layout: RawLayout, files: Sequence[Path], expecte
     return "; ".join(hints)
 
 
+#: Largest share of a packet-recorded stream that may be lost (zero-filled) before the headers are refused.
+MAX_LOST_FRACTION = 0.5
+#: Bytes per complex64 sample of a decoded cube.
+CUBE_ITEM_BYTES = 8
+
+
+def _check_zero_fill(files: Sequence[Path], sizes: Sequence[int], payload_size: int, total: int) -> None:
+    """Refuse packet headers that declare a stream mostly made of lost packets.
+
+    The last header says how long the stream is (``byte count + payload``); the files hold
+    ``Σ whole packets · P`` + the final short payload. A stream more than :data:`MAX_LOST_FRACTION`
+    lost is not a lossy link but a corrupt or hostile header (a sequence jump to 2³² declares
+    ~6 TB): reading it would zero-fill that much.
+    """
+    rec = HEADER_BYTES + payload_size
+    present = 0
+    for size in sizes:
+        full, rem = divmod(size, rec)
+        present += full * payload_size + max(rem - HEADER_BYTES, 0)
+    lost = total - present
+    if lost > MAX_LOST_FRACTION * total:
+        last = Path(files[-1])
+        raise MeasuredFormatError(
+            f"{last}: the last packet header declares a stream of {total:,} bytes but the files hold {present:,} bytes "
+            f"of payload: {lost / total:.1%} would be lost packets, zero-filled (more than "
+            f"{MAX_LOST_FRACTION:.0%}); the header is corrupt, a split file is missing, or the file is not "
+            "packet-recorded (pass form='raw')")
+
+
 def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form: Form = "auto",
              payload_size: int | None = None, expected_frames: int | None = None) -> CaptureInfo:
     """Find a capture's files, tell raw from packet-recorded, and check the size against ``layout``.
@@ -200,6 +231,7 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
                 raise MeasuredFormatError(f"{f}: {s} bytes is not a whole number of {rec}-byte packets; split files "
                                           "of a packet capture end between packets (wrong payload_size?)")
         total = packet_stream_length(files, detected)
+        _check_zero_fill(files, sizes, detected, total)
     else:
         total = sum(sizes)
     expected = int(expected_frames) if expected_frames else None
@@ -260,7 +292,11 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
     layout, fb = info.layout, info.layout.frame_bytes
     last = info.num_frames if max_frames is None else min(info.num_frames, integer(max_frames, "max_frames",
                                                                                         minimum=0, error=MeasuredFormatError))
-    buf = np.empty(fpb * fb, np.uint8)
+    f = max(min(fpb, last), 1)
+    check_memory(f * (fb + CUBE_ITEM_BYTES * layout.num_loops * layout.num_virtual * layout.num_samples),
+                 f"{info.files[0]}: one block of {f} frame(s) of {fb:,} bytes ({layout.describe()}) and its complex64 "
+                 "cube", fix="lower frames_per_block, or check numAdcSamples, numLoops and the chirps per loop")
+    buf = np.empty(f * fb, np.uint8)
     fill, frame0 = 0, 0
     damaged: set[int] = set()
     dropped: list[DroppedPackets] = []
@@ -283,7 +319,9 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
     for data, event in _stream(info, 1 << 22):
         if isinstance(event, DroppedPackets):
             dropped.append(event)
-            damaged.update(range(event.stream_offset // fb, (event.stream_offset + event.num_bytes - 1) // fb + 1))
+            # frames past ``last`` are never read: a gap declared to reach 2^47 bytes marks only those up to it
+            damaged.update(range(event.stream_offset // fb,
+                                 min((event.stream_offset + event.num_bytes - 1) // fb + 1, last)))
         elif isinstance(event, PacketIssue):
             issues.append(event)
         while data.size:
@@ -334,7 +372,11 @@ def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     """
     info = open_raw(path, layout, form=form, payload_size=payload_size, expected_frames=expected_frames)
     nf = info.num_frames if max_frames is None else min(info.num_frames, max_frames)
-    cube = np.empty(layout.cube_shape(nf), np.complex64)
+    shape = layout.cube_shape(nf)
+    check_memory(CUBE_ITEM_BYTES * math.prod(shape),
+                 f"{info.files[0]}: {nf:,} frames of {info.stream_bytes:,} bytes of {info.form} stream read whole as "
+                 f"complex64 {list(shape)}", fix="read it block by block (iter_frames) or pass max_frames")
+    cube = np.empty(shape, np.complex64)
     damaged, dropped, issues = [], [], []
     for block in iter_frames(info, convention=convention, max_frames=nf, frames_per_block=16):
         cube[block.first_frame:block.first_frame + len(block.cube)] = block.cube
