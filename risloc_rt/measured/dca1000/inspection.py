@@ -17,6 +17,7 @@ import numpy as np
 import scipy.constants
 import scipy.signal
 
+from dsp.budget import check_memory
 from dsp.flags import Flag
 
 from ...plotting import new_figure, save_figure
@@ -27,6 +28,12 @@ from .raw_layout import RawLayout
 from .reader import CaptureInfo, Form, iter_frames, open_raw
 
 __all__ = ["CaptureInspection", "Peak", "inspect_capture", "plot_inspection"]
+
+
+#: Peak bytes per sample of a block while it is inspected: the raw words and the complex64 cube
+#: (12 B), I and Q as float64 (16 B), the windowed cube, both transforms and the power (complex128
+#: and float64, ~48 B); 75 B measured (tracemalloc, 4 vs 16 frames per block).
+INSPECT_BYTES_PER_SAMPLE = 80
 
 
 def _db(x):
@@ -321,6 +328,11 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
     if not 0 <= min_range_bin < N:
         raise MeasuredFormatError(f"min_range_bin={min_range_bin} must be in [0, {N})")
     bits = cfg.adc_bits if cfg is not None else 16
+    f = max(min(frames_per_block, info.num_frames), 1)
+    check_memory(f * K * layout.num_virtual * N * INSPECT_BYTES_PER_SAMPLE,
+                 f"{info.files[0]}: inspecting {f} frame(s) of {K} loops x {layout.num_virtual} channels x {N} samples "
+                 f"at a time ({INSPECT_BYTES_PER_SAMPLE} B per sample)",
+                 fix="lower frames_per_block, or check numAdcSamples, numLoops and the chirps per loop")
     sums = _stream_sums(info, layout, bits, window, frames_per_block, max_frames)
     rd = sums.range_doppler
     doppler_bins = np.arange(K) - K // 2

@@ -24,6 +24,7 @@ import numpy as np
 import scipy.fft
 
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose
+from dsp.budget import check_memory
 
 from ...model.capture import Capture, provenance
 from ...model.ris import RisConfig
@@ -39,7 +40,7 @@ from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, rang
 from .ris_timing import chirp_fractions
 from .schedule import SweepSchedule, format_sweep_schedule, read_sweep_schedule
 
-__all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture"]
+__all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture", "import_memory"]
 
 DEFAULT_LEAKAGE = "gate"
 """Self-interference removal on import (chosen by the measurements in docs/measured-captures.md)."""
@@ -63,6 +64,25 @@ def default_processing(num_samples: int, num_chirps: int) -> ProcessingConfig:
     ProcessingConfig
     """
     return ProcessingConfig(n_dft=2 * int(num_samples) - 1, k_dft=scipy.fft.next_fast_len(4 * int(num_chirps)))
+
+
+def import_memory(num_beams: int, num_loops: int, num_channels: int, num_samples: int) -> int:
+    """Peak bytes of the beams' frames on import: ``16·M·K·N·(V + 2)``.
+
+    The frames of the beams ``[M, K, V, N]`` complex128, the combined cube ``[M, K, N]`` and its
+    copy with the leakage removed (complex128 each).
+
+    Parameters
+    ----------
+    num_beams, num_loops, num_channels, num_samples : int
+        M, K, V (channels imported), N.
+
+    Returns
+    -------
+    int
+        [bytes].
+    """
+    return 16 * int(num_beams) * int(num_loops) * int(num_samples) * (int(num_channels) + 2)
 
 
 def _sha256(path: Path) -> str:
@@ -273,6 +293,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     MeasuredFormatError
         Bad files or options, a channel the configuration does not have, a recording with too
         few frames for the schedule, or an ``"auto"`` alignment below ``min_confidence``.
+    dsp.budget.BudgetError
+        The beams' frames (:func:`import_memory`) would exceed the memory limit.
     """
     if leakage not in LEAKAGE_METHODS:
         raise MeasuredFormatError(f"leakage = {leakage!r} must be one of {', '.join(LEAKAGE_METHODS)}")
@@ -292,6 +314,11 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         raise MeasuredFormatError(
             f"{info.files[0]}: leakage removal 'background' needs frames with the RIS off, and the alignment leaves "
             "none (record frames before or after the sweep, or describe the [sync] pattern); use --leakage gate")
+    check_memory(import_memory(len(wanted), cfg.num_loops, len(chans), cfg.num_samples),
+                 f"{info.files[0]}: {len(wanted)} beams (sweep schedule) x {cfg.num_loops} loops x {len(chans)} "
+                 f"channel(s) x {cfg.num_samples} samples (radar configuration) as complex128",
+                 fix="check the sweep's beams and the configuration's numLoops and numAdcSamples, or import fewer "
+                     "channels (--channels)")
     beams = _read_beams(info, wanted, off, chans, cfg, frames_per_block=frames_per_block)
     cube, weights = _combined_cube(beams, radar, leakage, gate_range, len(off))
     sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
