@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import CliError, add_trace_flags, trace_cache, trace_settings, vector
+from .._outputs import output_file
+from .common import CliError, add_force_flag, add_trace_flags, trace_cache, trace_settings, vector
 
 __all__ = ["add_parser"]
 
@@ -33,13 +34,13 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix not in (".toml", ".json"):
         raise CliError(f"-o {args.output}: name a .toml or .json file (e.g. -o calibration.toml)")
-    if out.exists() and not args.force:
-        raise CliError(f"-o {args.output} exists; risloc does not overwrite it: give another name or --force")
-    capture = load_capture(args.capture)
-    ue, source = ue_position_of(capture, None if args.ue is None else vector(args.ue, "--ue"))
-    model = hall_model(capture, args.scene, ue, ue_source=source, trace=trace_settings(args), cache=trace_cache(args))
-    cal = calibrate_capture(capture, model.traced.paths, max_range_offset=args.max_range_offset)
-    path = write_calibration(cal, out)
+    with output_file(out, force=args.force, flag="-o"):
+        capture = load_capture(args.capture)
+        ue, source = ue_position_of(capture, None if args.ue is None else vector(args.ue, "--ue"))
+        model = hall_model(capture, args.scene, ue, ue_source=source, trace=trace_settings(args),
+                           cache=trace_cache(args))
+        cal = calibrate_capture(capture, model.traced.paths, max_range_offset=args.max_range_offset)
+        path = write_calibration(cal, out)
     print(f"calibrated {args.capture} against {model.scenario.scene_xml.parent.name} (radar at "
           f"{[round(float(x), 3) for x in ue]} m, {source}): wrote {path}")
     rows = [("range offset", cal.range_offset * 1e3, cal.range_offset_std * 1e3, "mm"),
@@ -71,7 +72,7 @@ def add_parser(sub) -> None:
     cal.add_argument("--scene", required=True, help="the hall (name in scenes/ or folder) the capture was made in")
     cal.add_argument("--ue", metavar="X,Y,Z", help="the radar's position [m] (default: the capture's truth)")
     cal.add_argument("-o", "--output", required=True, help="calibration file to write (.toml or .json)")
-    cal.add_argument("--force", action="store_true", help="replace an existing output file")
+    add_force_flag(cal, "an existing -o file")
     cal.add_argument("--max-range-offset", type=float, default=0.3, metavar="M",
                      help="range offsets searched, +-M metres (default: %(default)s)")
     add_trace_flags(cal)

@@ -10,7 +10,8 @@ import numpy as np
 
 from ..measured.sweep.importer import DEFAULT_LEAKAGE
 from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
-from .common import CliError
+from .._outputs import check_output_file, output_file
+from .common import CliError, add_force_flag, npz_target
 
 __all__ = ["add_parser"]
 
@@ -81,7 +82,8 @@ def _inspect(args: argparse.Namespace) -> int:
         for flag in d["flags"]:
             print(f"  flag {flag['code']}: {flag['message']}")
     if args.plot:
-        plot_inspection(result, args.plot)
+        with output_file(args.plot, force=args.force, flag="--plot") as target:
+            plot_inspection(result, target)
         print(f"wrote {args.plot}")
     return 0
 
@@ -105,11 +107,7 @@ def _import(args: argparse.Namespace) -> int:
     from ..io.capture_file import save_capture
     from ..measured import import_capture
 
-    out = Path(args.output)
-    if out.suffix != ".npz" and out.with_name(out.name + ".npz").exists():
-        raise CliError(f"-o {args.output} would be written as {out.name}.npz, which exists; name the file "
-                       f"itself (-o {out.name}.npz) to replace it")
-    target = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")
+    target = check_output_file(npz_target(args.output), force=args.force, flag="-o")
     for name, given in (("RAW", args.raw), ("--config", args.config), ("--sweep", args.sweep)):
         if Path(given).exists() and target.exists() and target.resolve() == Path(given).resolve():
             raise CliError(f"-o {args.output} is the {name} input; give another file name for the capture")
@@ -134,7 +132,8 @@ def _import(args: argparse.Namespace) -> int:
     capture = import_capture(args.raw, args.config, args.sweep, lanes=args.lanes, iq_swap=args.iq_swap,
                              form=args.form, first_frame=first, leakage=args.leakage, gate_range=args.gate_range,
                              channels=channels, min_confidence=args.min_confidence)
-    path = save_capture(capture, target)
+    with output_file(target, force=args.force, flag="-o"):
+        path = save_capture(capture, target)
     reader = capture.provenance["reader"]
     M, K, N = capture.cube.shape
     az = capture.sweep.angles[:, 0]
@@ -180,6 +179,7 @@ def add_parser(sub) -> None:
     ins.add_argument("--min-range-bin", type=int, default=0, help="ignore range bins below this (Tx-Rx leakage)")
     ins.add_argument("--json", action="store_true", help="print a machine-readable summary")
     ins.add_argument("--plot", metavar="PNG", help="write the range profile and range-Doppler map")
+    add_force_flag(ins, "an existing --plot file")
     ins.set_defaults(func=_inspect)
 
     imp = verbs.add_parser("import", help="a recorded RIS sweep (raw capture + radar config + sweep schedule) -> "
@@ -189,6 +189,7 @@ def add_parser(sub) -> None:
     imp.add_argument("--sweep", required=True, metavar="SWEEP.toml",
                      help="the sweep schedule: beams, frames per beam, first frame, channel, RIS (docs/formats.md)")
     imp.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
+    add_force_flag(imp, "an existing -o file")
     imp.add_argument("--lanes", type=int, choices=[2, 4], help="LVDS lanes: 2 (xWR16/18/68xx, default) or 4 (xWR14xx)")
     imp.add_argument("--iq-swap", action="store_true", help="the file stores Q before I")
     imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",

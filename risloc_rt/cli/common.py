@@ -17,7 +17,7 @@ from dsp import ProcessingConfig
 
 __all__ = ["CliError", "vector", "angle_pair", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
            "plot_traced_profile", "add_trace_flags", "add_processing_flags", "add_estimator_flags",
-           "estimator_options", "EXIT_NO_DETECTION"]
+           "estimator_options", "add_force_flag", "npz_target", "EXIT_NO_DETECTION"]
 
 
 class CliError(Exception):
@@ -218,6 +218,37 @@ def add_trace_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--diffraction", action="store_true", help="trace first-order edge diffraction (sionna-rt)")
     p.add_argument("--refraction", action="store_true", help="trace refraction through walls and objects (sionna-rt)")
     p.add_argument("--no-cache", action="store_true", help="always re-trace (default: reuse cached traces)")
+
+
+def npz_target(text: str) -> Path:
+    """The file a capture named ``text`` is written to: ``text`` itself, ``.npz`` appended when missing.
+
+    Parameters
+    ----------
+    text : str
+        The ``-o`` value.
+
+    Returns
+    -------
+    Path
+        What :func:`risloc_rt.io.capture_file.save_capture` will write.
+    """
+    out = Path(text)
+    return out if out.suffix == ".npz" else out.with_name(out.name + ".npz")
+
+
+def add_force_flag(p: argparse.ArgumentParser, what: str = "an existing output") -> None:
+    """Add ``--force``: replace ``what`` although risloc-rt did not write it (``risloc_rt._outputs``).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A verb's parser.
+    what : str
+        The outputs it concerns, for the help text.
+    """
+    p.add_argument("--force", action="store_true",
+                   help=f"replace {what} that risloc-rt did not write, or that was changed since (never a folder)")
 
 
 #: Exit status of ``locate`` and ``demo`` when a capture holds no detectable RIS return (no position).

@@ -5,11 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import CliError, add_trace_flags, trace_cache, trace_settings, vector
+from .._outputs import output_folder
+from .common import CliError, add_force_flag, add_trace_flags, trace_cache, trace_settings, vector
 
 __all__ = ["add_parser"]
-
-_OWN = ("index.html", "comparison.json", "range_profiles.png", "delay_doppler.png", "sweep_power.png")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -26,6 +25,27 @@ def _run(args: argparse.Namespace) -> int:
         The exit status: 0 when the page is written;
         bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
     """
+    out = Path(args.output)
+    with output_folder(out, force=args.force, flag="-o", expect=("index.html", "comparison.json")) as stage:
+        comparison, position, source = _compare(args, stage)
+    s = comparison.summary
+    print(f"wrote {out / 'index.html'} and the figures beside it: {s['peaks']} measured peak(s) at the best beam "
+          f"{comparison.beam}, {s['explained']} explained by traced paths, {s['unexplained']} unexplained; delay "
+          f"residual rms {s['delay_residual_rms_mm'] if s['delay_residual_rms_mm'] is not None else float('nan'):.2f} mm,"
+          f" power residual rms {s['power_residual_rms_db'] if s['power_residual_rms_db'] is not None else float('nan'):.2f}"
+          f" dB; P_ave rms difference {s['pave_rms_difference_db']:.2f} dB; radar at {[round(float(v), 3) for v in position]}"
+          f" m ({source})")
+    return 0
+
+
+def _compare(args: argparse.Namespace, stage: Path):
+    """The comparison of ``args.capture`` with the traced hall, its page written into ``stage``.
+
+    Returns
+    -------
+    (Comparison, ndarray, str)
+        The comparison, the radar position used [m] and where it came from.
+    """
     from ..io.capture_file import load_capture
     from ..io.report import process_capture
     from ..measured.compare.calibration_file import read_calibration
@@ -33,13 +53,6 @@ def _run(args: argparse.Namespace) -> int:
     from ..measured.compare.comparison_page import write_comparison
     from ..measured.compare.traced_hall import hall_model, ue_position_of
 
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"-o {args.output} is a file; give a folder for the comparison page")
-    if out.is_dir() and not args.force:
-        clash = [name for name in _OWN if (out / name).exists()]
-        if clash:
-            raise CliError(f"-o {args.output} already holds {', '.join(clash[:3])}; give a new folder or --force")
     capture = load_capture(args.capture)
     cal = None if args.calibration is None else read_calibration(args.calibration)
     ue = None if args.ue is None else vector(args.ue, "--ue")
@@ -59,15 +72,8 @@ def _run(args: argparse.Namespace) -> int:
     model = hall_model(capture, args.scene, position, ue_source=source, ris=ris, trace=trace_settings(args),
                        cache=trace_cache(args))
     comparison = compare_capture(capture, model, calibration=cal)
-    written = write_comparison(comparison, out)
-    s = comparison.summary
-    print(f"wrote {written['index']} ({len(written) - 1} more files): {s['peaks']} measured peak(s) at the best beam "
-          f"{comparison.beam}, {s['explained']} explained by traced paths, {s['unexplained']} unexplained; delay "
-          f"residual rms {s['delay_residual_rms_mm'] if s['delay_residual_rms_mm'] is not None else float('nan'):.2f} mm,"
-          f" power residual rms {s['power_residual_rms_db'] if s['power_residual_rms_db'] is not None else float('nan'):.2f}"
-          f" dB; P_ave rms difference {s['pave_rms_difference_db']:.2f} dB; radar at {[round(float(v), 3) for v in position]}"
-          f" m ({source})")
-    return 0
+    write_comparison(comparison, stage)
+    return comparison, position, source
 
 
 def add_parser(sub) -> None:
@@ -88,6 +94,6 @@ def add_parser(sub) -> None:
                                                  "estimate)")
     p.add_argument("--calibration", metavar="FILE", help="a calibration file from 'risloc calibrate'")
     p.add_argument("-o", "--output", required=True, help="folder for index.html, comparison.json and the PNG figures")
-    p.add_argument("--force", action="store_true", help="replace the page in an existing folder")
+    add_force_flag(p, "a page file in -o")
     add_trace_flags(p)
     p.set_defaults(func=_run)

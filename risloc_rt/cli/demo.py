@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .._outputs import output_folder, safe_name
 from ..io.report import format_case, report_capture, write_result
 from ..model.scenario import PAPER_CASES, paper_scenario
 from ..model.simulate import simulate
-from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_processing_flags, add_trace_flags,
+from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_force_flag, add_processing_flags, add_trace_flags,
                      estimator_options, plot_traced_profile, processing_overrides, quiet_hall_paths, trace_cache,
                      trace_settings)
 
@@ -20,15 +21,18 @@ __all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
-    return _demo_analytic(args) if args.analytic else _demo_hall(args)
+    out = Path(args.out)
+    with output_folder(out, force=args.force, flag="--out", expect=("result.json",)) as stage:
+        status = _demo_analytic(args, stage) if args.analytic else _demo_hall(args, stage)
+    print(f"wrote {out / 'result.json'} and plots under {out}/")
+    return status
 
 
-def _demo_hall(args: argparse.Namespace) -> int:
+def _demo_hall(args: argparse.Namespace, out: Path) -> int:
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
     from ..hall.scenario import hall_scenario
 
-    out = Path(args.out)
     folder = scene_directory(args.scene)
     count = len(load_spec(folder / "spec.toml").radar_positions())
     cache = trace_cache(args)
@@ -44,7 +48,7 @@ def _demo_hall(args: argparse.Namespace) -> int:
         capture = simulate(hs.base, rng=np.random.default_rng(ss), paths=traced.paths, seed=args.seed)
         timing = {"trace" + (" (cached)" if traced.trace.cache_hit else ""): traced.timing["trace"],
                   "paths": traced.timing["paths"], "synthesis": time.perf_counter() - start}
-        result = report_capture(hs.name.replace("#", "-"), capture, out_dir=out, processing=processing, timing=timing,
+        result = report_capture(safe_name(hs.name.replace("#", "-")), capture, out_dir=out, processing=processing, timing=timing,
                                 **estimator_options(args))
         plot_traced_profile(hs, traced, out / result.name / "traced_profile.png")
         result = replace(result, plots={**result.plots, "traced_profile": f"{result.name}/traced_profile.png"})
@@ -54,13 +58,11 @@ def _demo_hall(args: argparse.Namespace) -> int:
         for w in traced.report.warnings:
             print(f"  warning: {w}")
         cases.append(result)
-    path = write_result(out, cases)
-    print(f"wrote {path} and plots under {out}/")
+    write_result(out, cases)
     return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
-def _demo_analytic(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+def _demo_analytic(args: argparse.Namespace, out: Path) -> int:
     cases = []
     print(f"risloc demo: the paper scenario (Table I), UE-RIS 13.38 m, RIS mode {args.mode}, seed {args.seed}")
     seeds = np.random.SeedSequence(args.seed).spawn(len(PAPER_CASES))
@@ -69,12 +71,11 @@ def _demo_analytic(args: argparse.Namespace) -> int:
         processing = processing_overrides(args, scenario.processing)
         start = time.perf_counter()
         capture = simulate(scenario, rng=np.random.default_rng(ss), seed=args.seed)
-        result = report_capture(scenario.name, capture, out_dir=out, processing=processing,
+        result = report_capture(safe_name(scenario.name), capture, out_dir=out, processing=processing,
                                 timing={"synthesis": time.perf_counter() - start}, **estimator_options(args))
         print(format_case(result))
         cases.append(result)
-    path = write_result(out, cases)
-    print(f"wrote {path} and plots under {out}/")
+    write_result(out, cases)
     return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
@@ -89,6 +90,7 @@ def add_parser(sub) -> None:
     """
     demo = sub.add_parser("demo", help="localize end to end in the default ray-traced hall (or --analytic: the paper's point-target scenario)")
     demo.add_argument("--out", default="risloc-demo", help="output directory for result.json and plots (default: %(default)s)")
+    add_force_flag(demo, "a result.json or plot in --out")
     demo.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     demo.add_argument("--mode", choices=["relay", "reflective"], default="relay", help="RIS mode (default: %(default)s)")
     demo.add_argument("--scene", default="paper_hall", help="scene name in scenes/ or folder (default: %(default)s)")

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .._outputs import output_folder, safe_name
 from ..io.capture_file import load_capture
 from ..io.report import format_case, report_capture, write_result
-from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_processing_flags, estimator_options,
+from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_force_flag, add_processing_flags, estimator_options,
                      processing_overrides)
 
 __all__ = ["add_parser"]
@@ -20,12 +21,19 @@ def _run(args: argparse.Namespace) -> int:
 
         capture = apply_to_capture(capture, read_calibration(args.calibration))
     processing = processing_overrides(args, capture.processing)
-    out = Path(args.out) if args.out else None
-    result = report_capture(Path(args.capture).stem, capture, out_dir=out, processing=processing, timing={},
-                            **estimator_options(args))
+    name = safe_name(Path(args.capture).stem)
+    if not args.out:
+        result = report_capture(name, capture, out_dir=None, processing=processing, timing={},
+                                **estimator_options(args))
+        print(format_case(result))
+        return 0 if result.localization.detected else EXIT_NO_DETECTION
+    out = Path(args.out)
+    with output_folder(out, force=args.force, flag="--out", expect=("result.json",)) as stage:
+        result = report_capture(name, capture, out_dir=stage, processing=processing, timing={},
+                                **estimator_options(args))
+        write_result(stage, [result])
     print(format_case(result))
-    if out is not None:
-        print(f"wrote {write_result(out, [result])} and plots under {out}/")
+    print(f"wrote {out / 'result.json'} and plots under {out / name}/")
     return 0 if result.localization.detected else EXIT_NO_DETECTION
 
 
@@ -44,6 +52,7 @@ def add_parser(sub) -> None:
                                      f"{EXIT_NO_DETECTION} when nothing was detected (no position), 2 for bad input.")
     loc.add_argument("capture", help="capture file (.npz) from 'risloc simulate' or a converter")
     loc.add_argument("--out", help="directory for result.json and plots (default: print only)")
+    add_force_flag(loc, "a result.json or plot in --out")
     loc.add_argument("--calibration", metavar="FILE",
                      help="a calibration file from 'risloc calibrate': its tau_RB and range offset set the distance")
     add_processing_flags(loc)

@@ -11,6 +11,8 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
+from .common import add_force_flag
+
 __all__ = ["add_parser"]
 
 
@@ -81,9 +83,12 @@ def _cmd_show(args: argparse.Namespace) -> int:
 
     from ..authoring.show import show_scene
 
+    from .._outputs import output_file
+
     scene = _scene_path(args.scene)
     paths = None
     with ExitStack() as stack:
+        target = stack.enter_context(output_file(args.output, force=args.force, flag="-o"))
         if args.paths is not None:
             from ..hall.raytrace.tracer import TraceSettings
             from ..hall.scenario import hall_scenario
@@ -93,7 +98,7 @@ def _cmd_show(args: argparse.Namespace) -> int:
             changes = {k: v for k, v in (("max_depth", args.depth), ("samples_per_src", args.samples)) if v is not None}
             hs = hall_scenario(folder, radar_index=args.paths, trace=TraceSettings(**changes))
             paths = quiet_hall_paths(hs, None)
-        fig = show_scene(scene, args.output, radar_index=args.paths, paths=paths)
+        fig = show_scene(scene, target, radar_index=args.paths, paths=paths)
     extra = ""
     if paths is not None:
         extra = (f" with {fig.counts['monostatic_paths']} traced echoes and {fig.counts['ris_legs']} radar->RIS legs "
@@ -147,6 +152,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                       help="trace the hall from this radar position of the spec and draw the paths")
     show.add_argument("--depth", type=int, help="ray-tracing depth for --paths (default 3)")
     show.add_argument("--samples", type=int, help="rays per source for --paths (default 100000)")
+    add_force_flag(show, "an existing -o file")
     show.set_defaults(func=_guarded("show", _cmd_show))
     return scene
 

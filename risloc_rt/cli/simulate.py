@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
+from .._outputs import output_file, output_folder
 from ..io.capture_file import save_capture
 from ..model.builder import analytic_scenario
 from ..model.scenario import PAPER_CASES, Scenario, paper_scenario
 from ..model.simulate import simulate
-from .common import (CliError, add_processing_flags, add_trace_flags, angle_pair, processing_overrides,
-                     quiet_hall_paths, trace_cache, trace_settings, vector)
+from .common import (CliError, add_force_flag, add_processing_flags, add_trace_flags, angle_pair, npz_target,
+                     processing_overrides, quiet_hall_paths, trace_cache, trace_settings, vector)
 
 __all__ = ["add_parser"]
 
@@ -67,18 +69,47 @@ def _placed_scenario(args: argparse.Namespace) -> Scenario:
 
 
 def _run(args: argparse.Namespace) -> int:
+    """``risloc simulate``: check ``-o`` (``risloc_rt._outputs``), then :func:`_simulate` into it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit status of :func:`_simulate`.
+    """
+    if args.format == "dca1000":
+        from ..measured.emulate.experiment import check_folder
+
+        folder = check_folder(args.output)
+        with output_folder(folder, force=args.force, flag="-o") as stage:
+            summary = _simulate(args, stage)
+        print(f"wrote {folder}: {summary}")
+        return 0
+    with output_file(npz_target(args.output), force=args.force, flag="-o") as target:
+        summary = _simulate(args, target)
+    print(f"wrote {target}: {summary}")
+    return 0
+
+
+def _simulate(args: argparse.Namespace, target: Path) -> str:
     """``risloc simulate``: a capture file of the analytic scenario or a traced hall (``--format dca1000``: a folder).
 
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line (-o, --scene, --case, --ue [m], --calibration, --format, ...).
+        The parsed command line (--scene, --case, --ue [m], --calibration, --format, ...).
+    target : Path
+        The capture file to write, or with ``--format dca1000`` the (staging) folder.
 
     Returns
     -------
-    int
-        The exit status: 0 when the capture is written;
-        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    str
+        What was written, for the ``wrote`` line; bad input raises ``CliError`` or
+        ``MeasuredFormatError`` (exit 2).
     """
     cal = None
     if args.calibration is not None:
@@ -123,17 +154,16 @@ def _run(args: argparse.Namespace) -> int:
                        paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep")
     t = capture.truth
     if args.format == "dca1000":
-        return _write_dca1000(args, capture)
+        return _write_dca1000(args, capture, target)
     if args.complex64:
         capture = replace(capture, cube=capture.cube.astype(np.complex64))
-    path = save_capture(capture, args.output)
-    print(f"wrote {path}: {capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x "
-          f"{capture.cube.shape[2]} samples ({capture.cube.dtype}); truth: distance {t.distance:.4f} m, "
-          f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
-    return 0
+    save_capture(capture, target)
+    return (f"{capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x "
+            f"{capture.cube.shape[2]} samples ({capture.cube.dtype}); truth: distance {t.distance:.4f} m, "
+            f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
 
 
-def _write_dca1000(args: argparse.Namespace, capture) -> int:
+def _write_dca1000(args: argparse.Namespace, capture, folder: Path) -> str:
     """--format dca1000: the folder of a real experiment (risloc_rt.measured.emulate.experiment).
 
     Parameters
@@ -142,11 +172,13 @@ def _write_dca1000(args: argparse.Namespace, capture) -> int:
         The parsed command line (``--adc-bits``, ``--dc-offset`` [LSB], ``--iq-gain-db`` [dB], ...).
     capture : Capture
         The simulated capture (its radar made TI-compatible with ``dca1000_radar``).
+    folder : Path
+        The folder to write (the staging folder of ``-o``).
 
     Returns
     -------
-    int
-        The exit status: 0 when the folder is written.
+    str
+        What was written, for the ``wrote`` line.
     """
     from ..measured.emulate.experiment import emulate_capture
 
@@ -167,16 +199,15 @@ def _write_dca1000(args: argparse.Namespace, capture) -> int:
 
         offset = adc_power_offset_db(read_calibration(args.calibration), 2.0 ** (args.adc_bits - 1) /
                                      full_scale(capture.radar))
-    exp = emulate_capture(capture, args.output, adc_bits=args.adc_bits, dropped_packets_rate=args.dropped_packets_rate,
+    exp = emulate_capture(capture, folder, adc_bits=args.adc_bits, dropped_packets_rate=args.dropped_packets_rate,
                           dc_offset=dc, iq_gain_db=args.iq_gain_db, power_offset_db=offset,
                           rng=np.random.default_rng([args.seed, 1]))
     t = capture.truth
-    print(f"wrote {exp.folder}: {exp.raw_path.name} ({len(exp.raw.files)} file(s), {exp.raw.stream_bytes} bytes, "
-          f"{len(exp.raw.dropped_sequences)} dropped packet(s)), {exp.config_path.name}, {exp.schedule_path.name}: "
-          f"{capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x {capture.cube.shape[2]} samples, "
-          f"{args.adc_bits}-bit, full scale {exp.full_scale:.4g} sqrt(W); truth: distance {t.distance:.4f} m, "
-          f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
-    return 0
+    return (f"{exp.raw_path.name} ({len(exp.raw.files)} file(s), {exp.raw.stream_bytes} bytes, "
+            f"{len(exp.raw.dropped_sequences)} dropped packet(s)), {exp.config_path.name}, {exp.schedule_path.name}: "
+            f"{capture.cube.shape[0]} beams x {capture.cube.shape[1]} chirps x {capture.cube.shape[2]} samples, "
+            f"{args.adc_bits}-bit, full scale {exp.full_scale:.4g} sqrt(W); truth: distance {t.distance:.4f} m, "
+            f"AoD {np.rad2deg(t.aod[0]):+.2f}° az {np.rad2deg(t.aod[1]):+.2f}° el")
 
 
 def add_parser(sub) -> None:
@@ -191,6 +222,7 @@ def add_parser(sub) -> None:
     sim = sub.add_parser("simulate", help="simulate a capture file: the paper scenario, or a ray-traced hall with --scene")
     sim.add_argument("-o", "--output", required=True, help="capture file to write (.npz), or with --format dca1000 "
                                                            "the folder")
+    add_force_flag(sim, "an existing -o file")
     sim.add_argument("--scene", help="ray trace this hall (name in scenes/ or folder) instead of the analytic paper scenario")
     sim.add_argument("--radar-index", type=int, default=0, help="with --scene: which radar position of the spec (default: %(default)s)")
     sim.add_argument("--case", choices=list(PAPER_CASES), default="broadside", help="analytic paper case (default: %(default)s)")

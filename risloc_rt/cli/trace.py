@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import add_trace_flags, plot_traced_profile, quiet_hall_paths, trace_cache, trace_settings, vector
+from .._outputs import check_output_file, output_file
+from .common import add_force_flag, add_trace_flags, npz_target, plot_traced_profile, quiet_hall_paths, trace_cache, trace_settings, vector
 
 __all__ = ["add_parser"]
 
@@ -17,6 +18,10 @@ def _run(args: argparse.Namespace) -> int:
     from ..hall.scenario import hall_scenario
 
     ue = vector(args.ue, "--ue")
+    output = npz_target(args.output) if args.output else None
+    for flag, given in (("-o", output), ("--plot", args.plot)):
+        if given:  # refused before the trace, not after it
+            check_output_file(given, force=args.force, flag=flag)
     velocity = None if args.ue_velocity is None else vector(args.ue_velocity, "--ue-velocity")
     hs = hall_scenario(args.scene, mode=args.mode, trace=trace_settings(args), ue_position=ue, ue_velocity=velocity)
     traced = quiet_hall_paths(hs, trace_cache(args))
@@ -31,9 +36,12 @@ def _run(args: argparse.Namespace) -> int:
     if args.output:
         meta = {"scene": str(hs.scene_xml), "scene_hash": traced.trace.scene_hash, "radar_position": ue.tolist(),
                 "ris": hs.base.ris.to_dict(), "trace_settings": hs.trace.to_dict(), "model": hs.model.to_dict()}
-        print(f"wrote {save_path_set(args.output, traced.candidates, traced.report, metadata=meta)}")
+        with output_file(output, force=args.force, flag="-o") as target:
+            written = save_path_set(target, traced.candidates, traced.report, metadata=meta)
+        print(f"wrote {written}")
     if args.plot:
-        plot_traced_profile(hs, traced, Path(args.plot))
+        with output_file(args.plot, force=args.force, flag="--plot") as target:
+            plot_traced_profile(hs, traced, Path(target))
         print(f"wrote {args.plot}")
     return 0
 
@@ -54,6 +62,7 @@ def add_parser(sub) -> None:
     trace.add_argument("--mode", choices=["relay", "reflective"], help="override the RIS mode of the spec")
     trace.add_argument("-o", "--output", help="save every path, kept or pruned, to this .npz file")
     trace.add_argument("--plot", metavar="PNG", help="plot the range profile built from the paths, peaks labelled")
+    add_force_flag(trace, "an existing -o or --plot file")
     trace.add_argument("--all", action="store_true", help="list pruned paths too")
     trace.add_argument("--limit", type=int, default=60, help="list at most this many paths, strongest first (default: %(default)s)")
     add_trace_flags(trace)

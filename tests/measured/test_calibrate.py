@@ -57,8 +57,10 @@ def test_calibrate_cli_file_and_locate_with_it(hall_capture, tmp_path, capsys, m
     assert "range offset" in text and "tau_RB" in text
     cal = read_calibration(out)
     assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9 and abs(cal.range_offset - RANGE_OFFSET) <= 1e-3
-    assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(out), *TRACE]) == 2     # no overwrite
-    assert "exists" in capsys.readouterr().err
+    out.write_text(out.read_text() + "# edited by hand\n")      # now the user's file: refused without --force
+    assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(out), *TRACE]) == 2
+    assert "risloc-rt did not write it" in capsys.readouterr().err
+    assert out.read_text().endswith("# edited by hand\n")
     assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(tmp_path / "cal.json"), *TRACE]) == 0
     assert read_calibration(tmp_path / "cal.json").amplification_db == pytest.approx(cal.amplification_db, abs=1e-9)
     capsys.readouterr()

@@ -96,10 +96,16 @@ def test_the_page_loads_in_a_headless_browser(pages, tmp_path):
     assert 'id="figure-status">2/3<' in dom and 'data-loaded="no"' in dom
 
 
-def test_compare_refuses_to_overwrite_and_bad_scenes(injected_hall, pages, capsys):
+def test_compare_refuses_to_overwrite_and_bad_scenes(injected_hall, pages, tmp_path, capsys):
     base = ["compare", str(injected_hall["path"]), *TRACE]
-    assert main([*base, "--scene", "paper_hall", "-o", str(pages / "raw")]) == 2
-    assert "already holds" in capsys.readouterr().err
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "index.html").write_text("<p>my own page</p>")     # a file risloc-rt did not write
+    assert main([*base, "--scene", "paper_hall", "-o", str(mine)]) == 2
+    err = capsys.readouterr().err
+    assert "index.html exists and risloc-rt did not write it" in err and err.count("\n") == 1
+    assert sorted(p.name for p in mine.iterdir()) == ["index.html"]            # nothing staged is left
+    assert (mine / "index.html").read_text() == "<p>my own page</p>"
     assert main([*base, "--scene", "no_such_hall", "-o", str(pages / "x")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "no_such_hall" in err

@@ -107,7 +107,8 @@ def test_simulate_dca1000_cli_writes_the_experiment_folder(tmp_path, capsys):
     argv = ["simulate", "--distance", "8", "--aod", "10,0", "--no-noise", "--format", "dca1000", "-o", str(folder)]
     assert main(argv) == 0
     assert "adc_data_Raw_0.bin" in capsys.readouterr().out
-    assert sorted(p.name for p in folder.iterdir()) == ["adc_data.cfg", "adc_data_Raw_0.bin", "sweep.toml"]
+    assert sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")) == \
+        ["adc_data.cfg", "adc_data_Raw_0.bin", "sweep.toml"]
     cfg = read_sdk_cfg(folder / "adc_data.cfg").config
     assert (cfg.num_samples, cfg.num_loops, cfg.num_frames, cfg.num_rx) == (600, 128, 61, 1)
     assert cfg.loop_period == pytest.approx(70e-6)        # Table I's 600 samples at 10 Msps need > 50 us
