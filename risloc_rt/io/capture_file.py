@@ -31,7 +31,7 @@ from dsp.budget import BudgetError, check_memory, dsp_memory
 
 from .._files import atomic_open
 from ..model.capture import Capture
-from ..model.ris import RisConfig
+from ..model.ris import RisConfig, check_ris_memory
 from ..model.scenario import Truth
 
 __all__ = ["CaptureFormatError", "FORMAT_NAME", "FORMAT_VERSION", "capture_metadata", "load_capture", "save_capture"]
@@ -185,6 +185,21 @@ def _check_arrays(p: Path, headers: dict[str, tuple[tuple[int, ...], np.dtype]])
         if dtype_a.kind not in kinds or len(shape_a) > 2 or math.prod(shape_a) > 10 * max(shape[0], 1) + 10:
             raise CaptureFormatError(f"{p}: {name} has dtype {dtype_a} and shape {list(shape_a)}; expected "
                                      f"{'float [M, 2]' if name == 'beam_angles' else 'int [M]'} with M={shape[0]}")
+    check_memory(_arrays_memory(headers), f"{p}: the arrays "
+                 + ", ".join(f"{name} {list(headers[name][0])} {headers[name][1]}" for name in _ARRAYS),
+                 fix="this capture is larger than the memory limit allows (a compressed archive is read at its "
+                     "decompressed size, the shapes above)")
+
+
+def _arrays_memory(headers: dict[str, tuple[tuple[int, ...], np.dtype]]) -> int:
+    """Bytes :func:`load_capture` allocates to read the arrays of a capture, from their ``.npy`` headers.
+
+    ``Σ prod(shape) · itemsize`` over ``cube``, ``beam_angles``, ``frame_index`` and ``metadata``: each
+    array is read once, at its declared (decompressed) size, whatever the archive's compressed
+    size (a 2.4 MB deflated archive can declare 3.6 GB of zeros). Members that are not part of a
+    capture are never read and do not count.
+    """
+    return sum(math.prod(headers[name][0]) * headers[name][1].itemsize for name in _ARRAYS if name in headers)
 
 
 def load_capture(path: str | os.PathLike[str]) -> Capture:
@@ -263,6 +278,9 @@ def _read(p: Path, archive: Any, cube_shape: tuple[int, ...]) -> Capture:
     check_memory(dsp_memory(cube_shape, n_dft=processing.n_dft, k_dft=processing.k_dft),
                  f"{p}: processing n_dft={processing.n_dft}, k_dft={processing.k_dft} on the cube",
                  fix="lower processing.n_dft/k_dft in the metadata (the paper uses 2N-1 and about 37K)")
+    # The link-budget check of 'risloc locate' evaluates the RIS response for every beam of the cube.
+    check_ris_memory(ris, cube_shape[0], where=f"{p}: metadata ris",
+                     fix="check ris.num_rows and ris.num_columns in the metadata (the paper's RIS has 16 x 4 elements)")
     try:
         sweep = BeamSweep(as_finite_array(archive["beam_angles"], "beam_angles", shape=(None, 2)))
         return Capture(
