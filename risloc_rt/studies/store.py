@@ -125,7 +125,9 @@ class RunLog:
             for number, line in enumerate(lines, 1):
                 try:
                     row = json.loads(line)
-                    key = (int(row["point"]), int(row["run"]))
+                    key = (row["point"], row["run"])
+                    if not all(type(v) is int and v >= 0 for v in key):  # not 1.7, "1", true, Infinity, 1e999
+                        raise ValueError(f"point and run must be whole numbers >= 0, not {key!r}")
                 except (ValueError, KeyError, TypeError, IndexError) as exc:
                     raise RunLogError(
                         f"{str(self.path)!r} line {number} is not a run row ({type(exc).__name__}: "
