@@ -369,16 +369,24 @@ def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     RawCapture
         ``cube`` complex64 ``[F, K, V, N]`` [ADC counts], the capture's info, damaged frames, lost
         packets and packet issues.
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        The cube (``8·F·K·V·N`` bytes) and one block being decoded would exceed the memory limit.
     """
     info = open_raw(path, layout, form=form, payload_size=payload_size, expected_frames=expected_frames)
     nf = info.num_frames if max_frames is None else min(info.num_frames, max_frames)
     shape = layout.cube_shape(nf)
-    check_memory(CUBE_ITEM_BYTES * math.prod(shape),
+    fpb = 16
+    block_bytes = min(fpb, max(nf, 1)) * (layout.frame_bytes + CUBE_ITEM_BYTES * math.prod(shape[1:]))
+    check_memory(CUBE_ITEM_BYTES * math.prod(shape) + block_bytes,
                  f"{info.files[0]}: {nf:,} frames of {info.stream_bytes:,} bytes of {info.form} stream read whole as "
-                 f"complex64 {list(shape)}", fix="read it block by block (iter_frames) or pass max_frames")
+                 f"complex64 {list(shape)} (and one block of {fpb} frames being decoded)",
+                 fix="read it block by block (iter_frames) or pass max_frames")
     cube = np.empty(shape, np.complex64)
     damaged, dropped, issues = [], [], []
-    for block in iter_frames(info, convention=convention, max_frames=nf, frames_per_block=16):
+    for block in iter_frames(info, convention=convention, max_frames=nf, frames_per_block=fpb):
         cube[block.first_frame:block.first_frame + len(block.cube)] = block.cube
         damaged += [block.first_frame + i for i in np.flatnonzero(block.damaged)]
         dropped += block.dropped
