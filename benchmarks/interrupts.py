@@ -59,8 +59,8 @@ SMALL_SWEEP = ["--set", "num_chirps=32", "--set", "num_samples=64", "--set", "n_
 
 
 def _is_time_key(key: str) -> bool:
-    """Fields that carry wall-clock time (``seconds``, ``wall_seconds``, ``seconds_per_run``, ``created``)."""
-    return key == "created" or key.endswith("seconds") or key.startswith("seconds")
+    """Fields that carry wall-clock time (``seconds``, ``wall_seconds``, ``seconds_per_run``, ``created``, ``timing``)."""
+    return key in ("created", "timing") or key.endswith("seconds") or key.startswith("seconds")
 
 
 def strip_time(obj: Any) -> Any:
@@ -314,13 +314,15 @@ def run(argv: list[str], env: dict[str, str], cwd: Path, moment: float | None = 
         _, err = proc.communicate()
     seconds = time.perf_counter() - start
     leftover = False
-    try:
-        os.killpg(proc.pid, 0)
-        leftover = True  # a process of the group (a worker) outlived the command
-        time.sleep(2.0)
+    for _ in range(100):  # a helper (multiprocessing's resource tracker) may take a moment to follow
+        try:
+            os.killpg(proc.pid, 0)
+        except (ProcessLookupError, PermissionError):
+            break
+        time.sleep(0.05)
+    else:
+        leftover = True  # a process of the group (a worker) outlived the command by 5 s
         os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
     return Outcome(proc.returncode, err.decode(errors="replace").splitlines(), seconds, finished_first, leftover)
 
 
