@@ -9,8 +9,8 @@ group gets SIGINT at that moment, as a terminal's Ctrl-C does. Each moment check
 
 * **exit 130**: the exit status is 130;
 * **one line**: stderr is exactly one line, ``risloc ...: interrupted; ...``, no traceback;
-* **intact**: every file that existed before is byte-identical or a complete new version equal to
-  the reference (a study's ``runs.jsonl`` keeps its previous bytes and gains only whole rows, a
+* **intact**: nothing is written beside the output (in the command's working folder); every file
+  that existed before is byte-identical or a complete new version equal to the reference (a study's ``runs.jsonl`` keeps its previous bytes and gains only whole rows, a
   subset of the reference rows; a scene folder is the previous build or the new one, byte for
   byte; a single output is absent or equal to the reference), no temporary file is left, and no
   process of the group is left running;
@@ -386,15 +386,21 @@ def one_moment(cmd: Command, work: Path, env: dict[str, str], i: int, moment: fl
         category = "other"
     one_line = len(out.stderr) == 1 and "Traceback" not in text and out.stderr[0].startswith("risloc") \
         and "interrupted" in out.stderr[0]
+    beside = sorted(set(os.listdir(base)) - {root.name, target.name})  # the command's working folder
     if category == "finished":
         intact = check_resume(after, cmd.reference)
     elif cmd.kind == "scene":
         intact = check_scene(before, after, cmd.reference)
     else:
         intact = check_files(before, after, cmd.reference)
+    if beside:
+        intact = "; ".join(filter(None, [intact, f"wrote outside its output: {beside[:3]}"]))
     again = run(cmd.argv(target), env, base)
     resumed = tree(root)
     resume = check_resume(resumed, cmd.reference)
+    beside = sorted(set(os.listdir(base)) - {root.name, target.name})
+    if beside:
+        resume = "; ".join(filter(None, [resume, f"the rerun wrote outside its output: {beside[:3]}"]))
     if again.status != 0 or again.stderr:
         resume = f"the resume failed ({again.status}): {again.stderr[-2:]}" + (f"; {resume}" if resume else "")
     shutil.rmtree(base, ignore_errors=True)
