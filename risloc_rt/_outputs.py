@@ -181,18 +181,29 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
 
 
 class _HoldSignals:
-    """Hold SIGINT and SIGTERM back (in the main thread) for the duration of a ``with`` block."""
+    """Hold SIGINT and SIGTERM back for the duration of a ``with`` block, then deliver them.
 
-    _SIGNALS: ClassVar[frozenset] = frozenset({signal.SIGINT, signal.SIGTERM})
+    The Python-level handlers are swapped for one that only notes the signal (a signal mask would
+    not do: the kernel hands a process-directed signal to any thread that does not block it, and
+    CPython then runs the handler in the main thread at once). On exit the previous handlers come
+    back and each noted signal is raised again, so Ctrl-C still ends the command, after the block.
+    Outside the main thread (where handlers cannot be set) it does nothing.
+    """
+
+    _SIGNALS: ClassVar[tuple[int, ...]] = (signal.SIGINT, signal.SIGTERM)
 
     def __enter__(self) -> None:
-        self._held = threading.current_thread() is threading.main_thread()
-        if self._held:
-            self._old = signal.pthread_sigmask(signal.SIG_BLOCK, self._SIGNALS)
+        self._pending: list[int] = []
+        self._old: dict[int, object] = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in self._SIGNALS:
+                self._old[sig] = signal.signal(sig, lambda signum, frame: self._pending.append(signum))
 
     def __exit__(self, *exc: object) -> None:
-        if self._held:
-            signal.pthread_sigmask(signal.SIG_SETMASK, self._old)
+        for sig, handler in self._old.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # type: ignore[arg-type]
+        for sig in dict.fromkeys(self._pending):
+            signal.raise_signal(sig)
 
 
 def _staged_files(stage: Path) -> list[Path]:
