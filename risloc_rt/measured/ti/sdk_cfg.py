@@ -14,7 +14,7 @@ from pathlib import Path
 from ..errors import MeasuredFormatError
 from .chirp_config import ADC_FORMATS, TiChirp, TiChirpConfig
 
-__all__ = ["ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg", "read_sdk_cfg"]
+__all__ = ["MAX_CHIRP_INDEX", "MAX_LOOPS", "ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg", "read_sdk_cfg"]
 
 #: Argument counts of the mapped commands in mmWave SDK 3.x (adcbufCfg: 4 in SDK 1.x).
 ARGUMENT_COUNTS: dict[str, tuple[int, ...]] = {
