@@ -282,6 +282,13 @@ def environment(pythonpath: Path | None, cache: Path) -> dict[str, str]:
     return env
 
 
+def _foreground_signals() -> None:
+    """In the child: SIGINT as in a terminal's foreground job. A program started in the background
+    by a shell (``cmd &``, ``nohup``) inherits SIGINT ignored, and Python then never raises
+    KeyboardInterrupt: every moment would count as 'finished'."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @dataclass
 class Outcome:
     status: int | None
@@ -295,7 +302,8 @@ def run(argv: list[str], env: dict[str, str], cwd: Path, moment: float | None = 
     """Run ``risloc ARGV`` in a new process group; with ``moment``, SIGINT the group after that many seconds."""
     start = time.perf_counter()
     proc = subprocess.Popen(risloc_argv(env) + argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
-                            cwd=cwd, start_new_session=True)
+                            cwd=cwd, start_new_session=True,
+                            preexec_fn=_foreground_signals)  # noqa: PLW1509 - no threads here
     finished_first = False
     if moment is not None:
         while time.perf_counter() - start < moment and proc.poll() is None:
@@ -417,8 +425,8 @@ def summarize(name: str, results: list[Result]) -> dict[str, Any]:
         "startup": cats.count("startup"), "finished": cats.count("finished"),
         "exit_130": sum(r.exit_130 for r in interrupted), "one_line": sum(r.one_line for r in interrupted),
         "intact": sum(not r.intact for r in results), "resume_equal": sum(not r.resume for r in results),
-        "startup_detail": sorted({f"status {r.status}" + (f", stderr ends {r.stderr[-1][:80]!r}" if r.stderr else
-                                                           ", no stderr") for r in results if r.category == "startup"}),
+        "startup_detail": [{"moment": round(r.moment, 4), "status": r.status, "stderr": r.stderr[-8:]}
+                           for r in results if r.category == "startup"],
         "failures": [{"moment": round(r.moment, 4), "category": r.category, "status": r.status,
                       "stderr": r.stderr[-3:], "intact": r.intact, "resume": r.resume, "leftover": r.leftover}
                      for r in results if not r.ok],
