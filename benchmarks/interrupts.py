@@ -25,6 +25,7 @@ for intact outputs and resume, but not for exit 130 and one line.
 
     .venv/bin/python benchmarks/interrupts.py [--moments 50] [--seed 0] [--only simulate ...]
         [--from-commit HEAD] [--json results.json] [--notes /tmp/notes-interrupts.md]
+    .venv/bin/python benchmarks/interrupts.py --merge a.json b.json     # the table of runs split over processes
 
 ``tests/fuzz/test_interrupt_moments.py`` runs the same checks at a few moments per command.
 """
@@ -495,7 +496,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write the rows (with every failure) here")
     parser.add_argument("--notes", type=Path, help="append the table (markdown) to this file")
     parser.add_argument("--verbose", action="store_true", help="a line per moment")
+    parser.add_argument("--merge", nargs="+", type=Path, metavar="JSON",
+                        help="print the table of --json files of earlier runs (commands split over processes)")
     args = parser.parse_args(argv)
+    if args.merge:
+        rows = [row for path in args.merge for row in json.loads(path.read_text())]
+        print(HEADER)
+        for row in rows:
+            print(table_line(row) + ("  (partial)" if row.get("partial") else ""))
+        failures = [line for row in rows for line in failure_lines(row, args.seed)]
+        print("\n".join(["failures:", *failures] if failures else ["no failures"]))
+        for row in rows:
+            for s in row.get("startup_detail", []):
+                print(f"  start-up kill, {row['command']}: {s}" if isinstance(s, str) else
+                      f"  start-up kill, {row['command']} at {s['moment']:.3f} s: status {s['status']}, "
+                      f"stderr {s['stderr'][:1] + s['stderr'][-2:] if s['stderr'] else 'none'}")
+        return 0
     names = args.only or list(commands())
     start = time.perf_counter()
     rows = []
