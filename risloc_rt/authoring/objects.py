@@ -14,9 +14,12 @@ from typing import Literal
 
 import numpy as np
 
+from dsp.budget import check_memory
+
 from . import polygon
 from ._parse import SpecError, Table, check_number
 from .materials import MaterialSpec, check_name, parse_material, register
+from .meshcheck import mesh_memory
 
 __all__ = [
     "BoxObject", "CylinderObject", "WallPanel", "ImportedMesh", "HallObject", "HallContext", "MESH_SUFFIXES",
@@ -273,6 +276,10 @@ def parse_pillar(t: Table, name: str, ctx: HallContext) -> BoxObject | CylinderO
     if t.has("radius"):
         radius = t.number("radius", unit="m", minimum=0.0, strict=True)
         segments = t.integer("segments", default=32, minimum=3)
+        # 4 triangles per segment (side quad, top and bottom fans), each kept by the build and the check.
+        check_memory(mesh_memory(4 * segments), f"{t.key('segments')} = {segments:,} (a round pillar of "
+                     f"{4 * segments:,} triangles)", fix="32 to 128 segments make a round pillar (128 facets of a "
+                     "0.3 m pillar stand 0.09 mm from the circle)")
         t.finish()
         obj: BoxObject | CylinderObject = CylinderObject(name=name, kind="pillar", material=material, center=(cx, cy),
                                                          radius=radius, base=base, height=height, segments=segments)

@@ -17,7 +17,11 @@ from .materials import MaterialSpec, check_name, parse_material
 if TYPE_CHECKING:
     from ..model.ris import RisConfig
 
-__all__ = ["RisPanel", "RisSpec", "RadarSpec", "inside_hall", "parse_ris", "parse_radar"]
+__all__ = ["RisPanel", "RisSpec", "RadarSpec", "check_grid_memory", "inside_hall", "parse_ris", "parse_radar"]
+
+#: Bytes per radar position a spec keeps: a tuple of three floats in ``RadarSpec.positions`` (about
+#: 120 B), its row of ``HallSpec.radar_positions()`` (24 B) and the list ``tuple()`` builds it from.
+POSITION_BYTES = 160
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,18 @@ def inside_hall(point: tuple[float, ...], key: str, footprint: np.ndarray, heigh
 
 
 
+def _check_ris_size(rows: int, columns: int, t: Table) -> None:
+    """Refuse a RIS whose response to a single beam would not fit in the memory limit (the least any
+    simulation of it needs; the simulator checks again with its sweep's beams)."""
+    from dsp.budget import check_memory
+
+    from ..model.ris import ris_response_memory
+
+    check_memory(ris_response_memory(rows * columns, 1), f"{t.key('rows')} = {rows:,} x {t.key('columns')} = "
+                 f"{columns:,} ({rows * columns:,} elements)",
+                 fix="give the RIS fewer elements (the paper's panel has 16 x 4)")
+
+
 def parse_ris(t: Table, index: int, frequency: float, footprint: np.ndarray, height: float) -> RisSpec:
     name = check_name(t.string("name", default=f"ris{index}"), t.key("name"), what="RIS")
     position = t.vector("position", 3, unit="m")
@@ -147,6 +163,7 @@ def parse_ris(t: Table, index: int, frequency: float, footprint: np.ndarray, hei
         raise SpecError(tkey, str(exc), "give a direction that is non-zero and not parallel to 'up'") from None
     rows = t.integer("rows", default=16, minimum=1)
     columns = t.integer("columns", default=4, minimum=1)
+    _check_ris_size(rows, columns, t)
     spacing_raw = t.raw("spacing", "half-wavelength")
     if spacing_raw == "half-wavelength":
         spacing = SPEED_OF_LIGHT / frequency / 2
@@ -181,6 +198,51 @@ def parse_ris(t: Table, index: int, frequency: float, footprint: np.ndarray, hei
                    loopback_delay=loopback_delay, mode=mode, relay_rx_toward=rx, panel=panel)
 
 
+def check_grid_memory(nx: int, ny: int, num_vertices: int, *, key: str, spacing: float, span: Any) -> int:
+    """Refuse a ``[radar] grid`` whose points would not fit in the memory limit, before any is made.
+
+    Parameters
+    ----------
+    nx, ny : int
+        Grid points along x and y over the footprint's bounding box less the margin.
+    num_vertices : int
+        V, the footprint's vertices.
+    key : str
+        The spacing's key path, for the message (``radar.grid.spacing``).
+    spacing : float
+        [m].
+    span : float array [2]
+        Extent of the grid along x and y [m].
+
+    Returns
+    -------
+    int
+        The estimate [bytes]: ``P · (8 · (8 + 6 V) + 160)`` for ``P = nx · ny`` points, the grid and its
+        point-in-polygon test (:func:`.polygon.grid_test_memory`) plus :data:`POSITION_BYTES` per position.
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        The estimate exceeds :func:`dsp.budget.memory_limit`.
+    """
+    from dsp.budget import check_memory
+
+    points = int(nx) * int(ny)
+    estimate = polygon.grid_test_memory(points, num_vertices) + POSITION_BYTES * points
+    sx, sy = (max(float(v), 0.0) for v in span)
+    check_memory(estimate, f"{key} = {spacing:g} m over {sx:.3g} m x {sy:.3g} m makes {nx:,} x {ny:,} = {points:,} "
+                           "radar positions, which", fix=f"raise {key} (1 m gives {_count(sx, 1.0) * _count(sy, 1.0):,} "
+                                                         "positions here) or list radar.positions")
+    return estimate
+
+
+def _count(span: float, spacing: float) -> int:
+    """Grid points ``floor(span / spacing) + 1`` along one axis (0 for a negative span), capped near 10¹⁸ so
+    that a spacing of 1e-300 m gives a count instead of an overflow."""
+    n = float(span) / float(spacing) + 1e-9
+    return max(0, math.floor(min(n, 1e18)) + 1)
+
+
 def parse_radar(t: Table | None, ris: tuple[RisSpec, ...], footprint: np.ndarray, height: float) -> RadarSpec:
     if t is None:
         return RadarSpec(facing=ris[0].name if ris else None)
@@ -206,8 +268,10 @@ def parse_radar(t: Table | None, ris: tuple[RisSpec, ...], footprint: np.ndarray
             raise SpecError(g.key("height"), f"{z:g} m is not between the floor and the ceiling ({height:g} m)",
                             "give a height inside the hall")
         lo, hi = footprint.min(axis=0) + margin, footprint.max(axis=0) - margin
-        xs = lo[0] + spacing * np.arange(max(0, int(np.floor((hi[0] - lo[0]) / spacing + 1e-9)) + 1))
-        ys = lo[1] + spacing * np.arange(max(0, int(np.floor((hi[1] - lo[1]) / spacing + 1e-9)) + 1))
+        nx, ny = (_count(hi[i] - lo[i], spacing) for i in range(2))
+        check_grid_memory(nx, ny, len(footprint), key=g.key("spacing"), spacing=spacing, span=hi - lo)
+        xs = lo[0] + spacing * np.arange(nx)
+        ys = lo[1] + spacing * np.arange(ny)
         xy = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)  # x-major order
         keep = polygon.contains(footprint, xy) & (polygon.boundary_distance(footprint, xy) >= margin - 1e-9)
         xy = xy[keep]

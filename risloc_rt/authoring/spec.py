@@ -91,6 +91,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dsp import SPEED_OF_LIGHT
+from dsp.budget import BudgetError
 
 from . import polygon
 from ._parse import SpecError, Table, check_vector, toml_type
@@ -376,6 +377,10 @@ def load_spec(path: str | Path) -> HallSpec:
     ------
     SpecError
         Naming the file, the key path and the fix.
+    dsp.budget.BudgetError
+        A size the spec declares (``radar.grid.spacing``, a RIS's ``rows`` × ``columns``, a pillar's
+        ``segments``) would need more memory than :func:`dsp.budget.memory_limit`; checked before
+        anything of that size is made. Names the file and the key.
     FileNotFoundError
         When ``path`` does not exist.
     """
@@ -390,3 +395,5 @@ def load_spec(path: str | Path) -> HallSpec:
         return _parse(data, source=raw, source_path=path.resolve(), base_dir=path.resolve().parent)
     except SpecError as exc:
         raise exc.with_source(str(path)) from None
+    except BudgetError as exc:  # a size the spec declares (a radar grid, a RIS, a pillar's segments)
+        raise BudgetError(f"{path}: {exc}") from None

@@ -21,7 +21,7 @@ from ..model.paths import PathSet
 from ..model.plate import Plate
 from .pruning import ModelSettings, PruneReport, prune_paths
 from .raytrace.tracer import TraceResult, TraceSettings
-from ..model.ris import RisMode
+from ..model.ris import RisMode, check_ris_memory
 from ..model.scenario import Scenario
 from ..authoring.scene_folder import DEFAULT_SCENE, SceneError, scene_directory
 
@@ -216,6 +216,10 @@ def hall_scenario(
         ue_velocity=velocity,
         name=f"{spec.name}#{radar_index}" if ue_position is None else f"{spec.name}@{ue.tolist()}",
     )
+    # Every simulation of the hall evaluates the RIS response for each beam of the sweep.
+    check_ris_memory(ris, base.sweep.num_beams, where=f"{folder / 'spec.toml'}: ris[0] (rows, columns)",
+                     fix=f"give ris[0] fewer rows and columns in {folder / 'spec.toml'} (the paper's panel has 16 x 4), "
+                         "or sweep fewer beams")
     panel = spec.ris_panels()[0]
     return HallScenario(
         base=base,
