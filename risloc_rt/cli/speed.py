@@ -13,11 +13,14 @@ import json
 from pathlib import Path
 from typing import Any
 
+from .common import add_force_flag
+
 __all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
     from .._files import atomic_write_bytes
+    from .._outputs import check_output_file, output_file
     from ..authoring.scene_folder import SCENES_DIR
     from ..studies.speed import format_table, mechanism_verdicts, plot_tradeoff, run_speed_study
     from .common import CliError
@@ -25,6 +28,9 @@ def _run(args: argparse.Namespace) -> int:
     scenes = args.scene or sorted(p.parent.name for p in SCENES_DIR.glob("*/spec.toml"))
     if args.realizations < 1 or args.positions < 1 or args.full < 0:
         raise CliError("--realizations and --positions must be >= 1 and --full >= 0")
+    for flag, given in (("--json", args.json), ("--plot", args.plot)):
+        if given:  # refused before the study, not after it
+            check_output_file(given, force=args.force, flag=flag)
     print(f"risloc speed: scenes {', '.join(scenes)}; {args.realizations} noise realizations per setting and radar "
           f"position (fast noise stream), the paper's full 2-D DFT on {min(args.full, args.realizations)} of them "
           f"at the default trace setting; reference model: depth 4, 10⁶ rays")
@@ -34,9 +40,13 @@ def _run(args: argparse.Namespace) -> int:
     for line in mechanism_verdicts(summaries):
         print(line)
     if args.json:
-        print(f"wrote {atomic_write_bytes(args.json, json.dumps(summaries, indent=1).encode())}")
+        with output_file(args.json, force=args.force, flag="--json") as target:
+            atomic_write_bytes(target, json.dumps(summaries, indent=1).encode())
+        print(f"wrote {args.json}")
     if args.plot:
-        print(f"wrote {plot_tradeoff(summaries, Path(args.plot))}")
+        with output_file(args.plot, force=args.force, flag="--plot") as target:
+            plot_tradeoff(summaries, Path(target))
+        print(f"wrote {args.plot}")
     return 0
 
 
@@ -59,4 +69,5 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", metavar="FILE", help="write the summaries as JSON")
     p.add_argument("--plot", metavar="PNG", help="draw the trade-off curves")
+    add_force_flag(p, "an existing --json or --plot file")
     p.set_defaults(func=_run)

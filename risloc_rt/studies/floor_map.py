@@ -30,6 +30,7 @@ import numpy as np
 from dsp.validation import integer, non_negative, one_of, positive
 
 from .._files import atomic_write_bytes
+from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
@@ -413,15 +414,17 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     finally:
         log.close()
     wall = time.perf_counter() - start
-    atomic_write_bytes(folder / "map.json", json.dumps({"settings": asdict(settings), "cells": out_cells},
-                                                       indent=1).encode() + b"\n")
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     buf_pq = io.BytesIO()
     cols = {k: [json.dumps(c[k]) if k in ("flags", "trace_warnings") else c[k] for c in out_cells] for k in out_cells[0]}
     pq.write_table(pa.table(cols), buf_pq)
-    atomic_write_bytes(folder / "map.parquet", buf_pq.getvalue())
-    fig = plot_map(spec, out_cells, settings, folder / "map.png")
-    return MapResult(cells=out_cells, folder=folder, figure=fig, wall_seconds=wall)
+    # moved in together (risloc_rt._outputs); the folder is the map's (its manifest was checked)
+    with output_folder(folder, force=True, flag="--out") as stage:
+        atomic_write_bytes(stage / "map.json", json.dumps({"settings": asdict(settings), "cells": out_cells},
+                                                          indent=1).encode() + b"\n")
+        atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())
+        plot_map(spec, out_cells, settings, stage / "map.png")
+    return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall)
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from .._files import atomic_write_bytes
+from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_summary
 from .kernel import prepare_point
@@ -107,12 +108,17 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     summary = summarize(spec, rows, info)
     summary["wall_seconds"] = info["wall_seconds"]
     summary["workers"] = "dask" if dask is not None else workers
-    table = write_parquet(folder / TABLE, rows, spec.points(), study_seed=spec.seed, runs=spec.runs)
     from ..io.report import json_safe
 
-    path = atomic_write_bytes(folder / SUMMARY, json.dumps(json_safe(summary), indent=1).encode() + b"\n")
-    fig = None
-    if figures:
-        fig = plot_summary(summary, folder / "study.png")
+    # the derived files are moved in together (risloc_rt._outputs): an interrupt leaves the old set or
+    # the new one, never a new summary beside an old figure; the folder is the study's (its manifest
+    # was checked above), so its derived files are replaced
+    with output_folder(folder, force=True, flag="--out") as stage:
+        write_parquet(stage / TABLE, rows, spec.points(), study_seed=spec.seed, runs=spec.runs)
+        atomic_write_bytes(stage / SUMMARY, json.dumps(json_safe(summary), indent=1).encode() + b"\n")
+        if figures:
+            plot_summary(summary, stage / "study.png")
+    table, path = folder / TABLE, folder / SUMMARY
+    fig = folder / "study.png" if figures else None
     return StudyResult(summary=summary, folder=folder, table=table, summary_path=path, figure=fig,
                        new_runs=info["new_runs"], wall_seconds=info["wall_seconds"])
