@@ -20,7 +20,10 @@ from ...model.capture import Capture
 from ...model.ris import RisConfig
 from ..errors import MeasuredFormatError
 
-__all__ = ["HallModel", "hall_model", "ue_position_of"]
+__all__ = ["HallModel", "MAX_NORMAL_MISMATCH", "hall_model", "ue_position_of"]
+
+#: Largest angle between the capture's RIS normal and the scene's before they count as two panels [rad].
+MAX_NORMAL_MISMATCH = np.deg2rad(10.0)
 
 
 @dataclass(frozen=True)
@@ -68,7 +71,8 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
     capture : Capture
         Its radar, sweep, processing and RIS.
     scene : str or path
-        A scene name in ``scenes/`` or a folder; its RIS must be within 5 cm of the capture's.
+        A scene name in ``scenes/`` or a folder; its RIS must be within 5 cm of the capture's and
+        face the same way (normals within :data:`MAX_NORMAL_MISMATCH`).
     ue_position : array [3]
         The radar's position [m].
     ue_source : str
@@ -84,6 +88,15 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
     -------
     HallModel
         The hall scenario and its kept paths (√W, delays with τ_RB [s]).
+
+    Raises
+    ------
+    MeasuredFormatError
+        The capture's RIS is not the scene's (position, or the way it faces: without a truth,
+        this is how a reversed ``[ris] facing`` in a sweep schedule is caught, whose estimates
+        are all mirror images through the panel).
+    ValueError
+        The radar position lies behind the scene's RIS panel (:func:`risloc_rt.hall.hall_scenario`).
     """
     hs = hall_scenario(scene, radar=capture.radar, sweep=capture.sweep, processing=capture.processing,
                        ue_position=ue_position, ue_velocity=np.zeros(3), trace=trace)
@@ -93,8 +106,32 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
             f"the capture's RIS is at {np.round(ris.pose.position, 3).tolist()} m but the scene's is at "
             f"{np.round(hs.base.ris.pose.position, 3).tolist()} m; give the scene the experiment was done in (or fix "
             "the sweep schedule's [ris] position)")
+    _check_facing(ris, hs.base.ris)
     hs = replace(hs, base=replace(hs.base, ris=ris))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AliasWarning)
         traced = hall_paths(hs, cache=cache)
     return HallModel(scenario=hs, traced=traced, ue_position=np.asarray(ue_position, float), ue_source=ue_source)
+
+
+def _check_facing(ris: RisConfig, scene_ris: RisConfig) -> None:
+    """Refuse a capture RIS that faces another way than the scene's.
+
+    A radar position behind the panel is refused before, by :func:`risloc_rt.hall.hall_scenario`
+    (the scene's RIS, which this check makes the capture's too).
+
+    Parameters
+    ----------
+    ris : RisConfig
+        The capture's RIS (its sweep schedule's ``[ris]`` pose).
+    scene_ris : RisConfig
+        The scene's RIS at the same place.
+    """
+    normal, scene_normal = ris.pose.normal, scene_ris.pose.normal
+    angle = float(np.arccos(np.clip(normal @ scene_normal, -1.0, 1.0)))
+    if angle > MAX_NORMAL_MISMATCH:
+        raise MeasuredFormatError(
+            f"the capture's RIS faces {np.round(normal, 3).tolist()} but the scene's faces "
+            f"{np.round(scene_normal, 3).tolist()} ({np.rad2deg(angle):.0f}° apart); fix the sweep schedule's [ris] "
+            "facing/normal (it points from the panel toward the side the radar is on), or give the scene the "
+            "experiment was done in")
