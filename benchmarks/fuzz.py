@@ -9,8 +9,11 @@ mutations of a valid one) and an oracle. Every input ends in one of
 * ``wrong``     the call returned but the oracle rejects the result (a silent wrong answer),
 * ``hang``      the input ran past the time limit.
 
-The table also gives each entry point's peak memory (max RSS growth of its worker process).
-The goal is zero in the last three columns.
+The table also gives each entry point's peak memory (max RSS growth of its worker process) and
+its peak RSS, which must stay within ``--memory-limit`` (``$RISLOC_MEMORY_LIMIT`` of the workers)
++ 200 MB: the ``declared sizes`` entry point (issue 19) feeds sizes from 0 to 10¹³ into every place
+an input declares one, so a size used before it is checked shows up there. The goal is zero in
+the three failure columns.
 
     .venv/bin/python benchmarks/fuzz.py --examples 100000 [--seed 0] [--time-limit 10]
 
@@ -315,6 +318,143 @@ def run_raw(inp: tuple[str, Any], ws: Workspace) -> str:
     return "correct" if raw.cube.shape == ref.shape and np.array_equal(raw.cube, ref) else "wrong"
 
 
+# -------------------------------------------------------------------- sizes that inputs declare (issue 19)
+
+#: Where an input declares a size, and the reader that must check it before allocating.
+DECLARED = ("capture ris", "capture processing", "capture cube header", "spec radar grid", "spec ris",
+            "cfg samples", "cfg loops and frames", "packet header", "schedule step", "schedule ris",
+            "studio chirps")
+
+_SCHEDULE = ("frames_per_beam = 1\nfirst_frame = 0\n[sweep]\nstart_deg = -45.0\nstop_deg = 45.0\nstep_deg = {step}\n"
+             "[ris]\nposition = [0.0, 13.38, 0.0]\nfacing = [0.0, 12.38, 0.0]\nloopback_delay_ns = 1.78\n"
+             "rows = {rows}\ncolumns = {columns}\n")
+
+
+def _studio(chirp_end: int, frame_end: int, loops: int, samples: int) -> dict:
+    """An mmWave Studio export (1 Tx, 4 Rx) with the given chirp range, loops and samples."""
+    profile = dict(profileId=0, startFreqConst_GHz=60.25, idleTimeConst_usec=7.0, adcStartTimeConst_usec=6.0,
+                   rampEndTime_usec=60.0, freqSlopeConst_MHz_usec=64.985, txStartTime_usec=1.0,
+                   numAdcSamples=samples, digOutSampleRate=5000.0, rxGain_dB=30)
+    chirp = dict(chirpStartIdx=0, chirpEndIdx=chirp_end, profileId=0, startFreqVar_MHz=0.0, freqSlopeVar_KHz_usec=0.0,
+                 idleTimeVar_usec=0.0, adcStartTimeVar_usec=0.0, txEnable="0x1")
+    frame = dict(chirpStartIdx=0, chirpEndIdx=frame_end, numLoops=loops, numFrames=8, framePeriodicity_msec=40.0)
+    return {"mmWaveDevices": [{"rfConfig": {
+        "rlChanCfg_t": {"rxChannelEn": "0xF", "txChannelEn": "0x1"},
+        "rlAdcOutCfg_t": {"fmt": {"b2AdcBits": 2, "b2AdcOutFmt": 1}},
+        "rlProfiles": [{"rlProfileCfg_t": profile}], "rlChirps": [{"rlChirpCfg_t": chirp}], "rlFrameCfg_t": frame}}]}
+
+
+def gen_declared(rng: np.random.Generator, ws: Workspace) -> tuple[str, Any]:
+    """One declared size: a place (:data:`DECLARED`) and log-uniform values from 0 to 10¹³."""
+    def size() -> int:
+        return int(10 ** rng.uniform(0, 13)) - int(rng.integers(2))
+
+    return str(rng.choice(DECLARED)), (size(), size(), size())
+
+
+def run_declared(inp: tuple[str, Any], ws: Workspace) -> str:
+    """Read the input through its public reader; the memory check must come before the allocation.
+
+    The oracle is the memory: the worker runs under ``$RISLOC_MEMORY_LIMIT`` and its peak RSS must
+    stay within that limit + 200 MB (:func:`run_entry_point`); a result is ``correct`` when it has
+    the declared sizes.
+    """
+    kind, (a, b, c) = inp
+    if kind.startswith("capture"):
+        from risloc_rt.io.capture_file import load_capture
+        from risloc_rt.io.report import process_capture
+
+        with np.load(io.BytesIO(ws.capture_bytes), allow_pickle=False) as f:
+            content = {k: f[k] for k in f.files}
+        meta = json.loads(str(content["metadata"]))
+        if kind == "capture ris":
+            meta["ris"].update(num_rows=a, num_columns=b)
+        elif kind == "capture processing":
+            meta["processing"].update(n_dft=a, k_dft=b)
+        content["metadata"] = np.array(json.dumps(meta))
+        path = ws.path("declared.npz")
+        path.write_bytes(_npz_bytes(content, cube_shape=(a % 10**7, b % 10**7, c % 10**7)
+                                    if kind == "capture cube header" else None))
+        cap = load_capture(path)
+        loc, _ = process_capture(cap)
+        return "correct" if cap.ris.num_rows * cap.ris.num_columns >= 1 and loc is not None else "wrong"
+    if kind.startswith("spec"):
+        from risloc_rt.authoring import loads_spec
+
+        text = ws.spec_text
+        if kind == "spec radar grid":
+            start = text.index("positions = [", text.index("[radar]"))
+            end = text.index("\n]\n", start) + 2
+            text = text[:start] + f"grid = {{spacing = {1.0 / a if a else 0.0:.6g}, height = 1.2}}" + text[end:]
+        else:
+            text = text.replace("rows = 16", f"rows = {a}").replace("columns = 4", f"columns = {b}")
+        spec = loads_spec(text, base_dir=ROOT / "scenes" / "l_hall")
+        return "correct" if len(spec.radar_positions()) >= 1 else "wrong"
+    if kind.startswith("cfg") or kind == "packet header":
+        from risloc_rt.measured import RawLayout, read_raw, read_sdk_cfg
+
+        cfg_text, data = ws.raw_cfg_text, ws.raw_bytes["packets" if kind == "packet header" else "raw"]  # type: ignore[attr-defined]
+        lines = cfg_text.splitlines()
+        for i, line in enumerate(lines):
+            words = line.split()
+            if kind == "cfg samples" and words[:1] == ["profileCfg"]:
+                words[10] = str(a)
+            elif kind == "cfg loops and frames" and words[:1] == ["frameCfg"]:
+                words[3], words[4] = str(a), str(b % 70000)
+            lines[i] = " ".join(words)
+        if kind == "packet header":
+            blob = bytearray(data)
+            at = int(c % max(len(blob) // 2, 1)) & ~1
+            blob[at:at + 10] = (a % 2**32).to_bytes(4, "little") + (b % 2**48).to_bytes(6, "little")
+            data = bytes(blob)
+        bin_path, cfg_path = ws.path("declared_Raw_0.bin"), ws.path("declared.cfg")
+        bin_path.write_bytes(data)
+        cfg_path.write_text("\n".join(lines) + "\n", encoding="latin-1")
+        layout = RawLayout.from_config(read_sdk_cfg(cfg_path).config)
+        raw = read_raw(bin_path, layout, form="packets" if kind == "packet header" else "raw")
+        return "correct" if raw.cube.shape[1:] == layout.cube_shape(1)[1:] else "wrong"
+    if kind.startswith("schedule"):
+        from dsp import BeamSweep, RisPose
+        from risloc_rt.measured import parse_sweep_schedule
+        from risloc_rt.model.ris import RisConfig, ris_response
+
+        text = _SCHEDULE.format(step=(repr(90.0 / a) if a else "0.0") if kind == "schedule step" else "1.5",
+                                rows=a if kind == "schedule ris" else 16, columns=b if kind == "schedule ris" else 4)
+        schedule = parse_sweep_schedule(text, source="declared.toml")
+        # what simulate/compare/calibrate then do with it: the RIS response over the sweep
+        ris = RisConfig(pose=RisPose.facing(schedule.ris_position, schedule.ris_facing), num_rows=schedule.ris_rows,
+                        num_columns=schedule.ris_columns, loopback_delay=schedule.loopback_delay_ns * 1e-9)
+        sweep = BeamSweep(np.deg2rad(np.asarray(schedule.angles_deg, float)))
+        response = ris_response(ris, sweep, np.zeros((1, 2)), np.zeros((1, 2)), wavelength=5e-3)
+        return "correct" if response.shape[0] == len(schedule.angles_deg) else "wrong"
+    from risloc_rt.measured import parse_studio_json
+
+    parsed = parse_studio_json(_studio(a, b % 600, c % 300, int(c % 70000)), source="declared.json")
+    return "correct" if parsed.config.num_samples >= 1 else "wrong"
+
+
+def _npz_bytes(content: dict[str, np.ndarray], *, cube_shape: tuple[int, ...] | None) -> bytes:
+    """``content`` as an ``.npz``; with ``cube_shape``, the cube's ``.npy`` header declares that shape
+    over the real cube's (too few) bytes."""
+    import zipfile
+
+    buf = io.BytesIO()
+    np.savez(buf, **content)
+    if cube_shape is None:
+        return buf.getvalue()
+    out = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(buf.getvalue())) as src, zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "cube.npy":
+                head = io.BytesIO()
+                np.lib.format.write_array_header_1_0(head, {"descr": np.lib.format.dtype_to_descr(
+                    content["cube"].dtype), "fortran_order": False, "shape": tuple(int(v) for v in cube_shape)})
+                data = head.getvalue() + content["cube"].tobytes()
+            dst.writestr(info.filename, data)
+    return out.getvalue()
+
+
 ENTRY_POINTS: dict[str, tuple[Callable, Callable]] = {
     "capture .npz": (gen_capture, run_capture),
     "scene spec (TOML)": (gen_spec, run_spec),
@@ -323,7 +463,18 @@ ENTRY_POINTS: dict[str, tuple[Callable, Callable]] = {
     "path file": (gen_path_file, run_path_file),
     "CLI arguments": (gen_cli, run_cli),
     "raw DCA1000 + .cfg": (gen_raw, run_raw),
+    "declared sizes": (gen_declared, run_declared),
 }
+
+#: Seconds per input before it counts as a hang, where an entry point needs more than ``--time-limit``:
+#: a declared size that fits in memory (a 7408 x 794 DFT grid on 61 beams, 5e5 radar positions)
+#: costs work in proportion, tens of seconds, legitimately.
+TIME_LIMITS = {"declared sizes": 60.0}
+
+
+def time_limit(name: str, default: float) -> float:
+    """Seconds per input for entry point ``name``: ``default``, or :data:`TIME_LIMITS`'s if larger."""
+    return max(default, TIME_LIMITS.get(name, 0.0))
 
 
 def make_workspace(folder: Path) -> Workspace:
@@ -455,12 +606,13 @@ def run_entry_point(name: str, examples: int, seed: int, limit: float, queue: An
         start = time.perf_counter()
         for _ in range(examples):
             inp = gen(rng, ws)
-            outcome = _classify(run, inp, ws, errors, limit)
+            outcome = _classify(run, inp, ws, errors, time_limit(name, limit))
             counts[outcome] += 1
             if outcome in ("traceback", "wrong", "hang") and len(examples_wrong) < 3:
                 examples_wrong.append(f"{_LAST_EXCEPTION[0]} <- {repr(inp)[:150]}")
         peak = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
     out = {"name": name, "examples": examples, **counts, "peak_memory": peak,
+           "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
            "seconds": time.perf_counter() - start, "samples": examples_wrong}
     if queue is not None:
         queue.put(out)
@@ -473,13 +625,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--time-limit", type=float, default=10.0, help="seconds per input before it counts as a hang")
     parser.add_argument("--only", choices=list(ENTRY_POINTS), help="one entry point")
+    parser.add_argument("--memory-limit", default="512M",
+                        help="$RISLOC_MEMORY_LIMIT of the workers (default %(default)s); the peak RSS of each "
+                             "must stay within it + 200 MB")
     args = parser.parse_args(argv)
+    import os
+
+    from dsp.budget import MEMORY_LIMIT_ENV, parse_bytes
+
+    os.environ[MEMORY_LIMIT_ENV] = args.memory_limit
+    allowed = parse_bytes(args.memory_limit) + 200 * 2**20
     names = [args.only] if args.only else list(ENTRY_POINTS)
     per = max(args.examples // len(names), 1)
     ctx = multiprocessing.get_context("fork")
-    print(f"risloc-rt fuzzing: {per} inputs per entry point, seed {args.seed}, {args.time_limit:g} s per input")
+    print(f"risloc-rt fuzzing: {per} inputs per entry point, seed {args.seed}, {args.time_limit:g} s per input, "
+          f"memory limit {args.memory_limit}")
     print(f"{'entry point':<20} {'inputs':>7} {'clear errors':>12} {'correct':>8} {'tracebacks':>10} "
-          f"{'silent wrong':>12} {'hangs':>6} {'peak memory':>12} {'time [s]':>9}")
+          f"{'silent wrong':>12} {'hangs':>6} {'peak memory':>12} {'peak RSS':>9} {'time [s]':>9}")
     total = dict.fromkeys(("examples", "error", "correct", "traceback", "wrong", "hang"), 0)
     bad = []
     for name in names:
@@ -490,10 +652,13 @@ def main(argv: list[str] | None = None) -> int:
         proc.join()
         for k in total:
             total[k] += r[k]
-        mem = f"{r['peak_memory'] / 2**20:.0f} MiB"
+        mem, rss = f"{r['peak_memory'] / 2**20:.0f} MiB", f"{r['peak_rss'] / 2**20:.0f} MiB"
         print(f"{name:<20} {r['examples']:>7} {r['error']:>12} {r['correct']:>8} {r['traceback']:>10} "
-              f"{r['wrong']:>12} {r['hang']:>6} {mem:>12} {r['seconds']:>9.1f}", flush=True)
+              f"{r['wrong']:>12} {r['hang']:>6} {mem:>12} {rss:>9} {r['seconds']:>9.1f}", flush=True)
         bad += [f"  {name}: {s}" for s in r["samples"]]
+        if r["peak_rss"] > allowed:
+            bad.append(f"  {name}: peak RSS {rss} above the limit + 200 MB")
+            total["wrong"] += 1
     print(f"{'total':<20} {total['examples']:>7} {total['error']:>12} {total['correct']:>8} {total['traceback']:>10} "
           f"{total['wrong']:>12} {total['hang']:>6}")
     if bad:

@@ -25,6 +25,14 @@ SETTINGS = settings(max_examples=100, deadline=None, derandomize=True, database=
 GOOD = {"error", "correct"}
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _memory_limit():
+    """The fuzzed inputs run under a 512 MiB memory limit (``declared sizes`` declares up to 10¹³)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("RISLOC_MEMORY_LIMIT", "512M")
+        yield
+
+
 @pytest.fixture(scope="module")
 def ws(tmp_path_factory):
     return fuzz.make_workspace(tmp_path_factory.mktemp("fuzz"))
@@ -35,7 +43,8 @@ def _outcome(name, inp, ws):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fuzz._classify(fuzz.ENTRY_POINTS[name][1], inp, ws, fuzz._expected_errors(), 10.0)
+        return fuzz._classify(fuzz.ENTRY_POINTS[name][1], inp, ws, fuzz._expected_errors(),
+                              fuzz.time_limit(name, 10.0))
 
 
 @pytest.mark.parametrize("name", list(fuzz.ENTRY_POINTS))
@@ -96,3 +105,24 @@ def test_capture_metadata_values(ws, key, value):
         np.savez(buf, **content)
         assert _outcome("capture .npz", ("bytes", buf.getvalue()), ws) in GOOD, (key, field, value)
         meta = json.loads(str(np.load(io.BytesIO(ws.capture_bytes))["metadata"]))
+
+
+@pytest.mark.slow
+def test_declared_sizes_keep_peak_memory_within_the_limit(tmp_path):
+    """Issue 19's goal: 300 declared sizes (0 … 10¹³, every place an input declares one) in a fresh
+    process under a 512 MiB limit: no traceback, nothing wrong, and a peak RSS within the limit + 200 MB."""
+    import json
+    import subprocess
+    import sys
+
+    script = (f"import importlib.util, json, sys; s = importlib.util.spec_from_file_location('f', {str(_spec.origin)!r}); "
+              "f = importlib.util.module_from_spec(s); s.loader.exec_module(f); "
+              "print(json.dumps(f.run_entry_point('declared sizes', 300, 19, 10.0)))")
+    env = {**__import__("os").environ, "RISLOC_MEMORY_LIMIT": "512M"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=900,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    r = json.loads(done.stdout.strip().splitlines()[-1])
+    assert r["traceback"] == r["wrong"] == r["hang"] == 0, r["samples"]
+    assert r["error"] > 0 and r["correct"] > 0                     # both sides of the limit were reached
+    assert r["peak_rss"] <= 512 * 2**20 + 200e6, f"peak RSS {r['peak_rss'] / 2**20:.0f} MiB"
