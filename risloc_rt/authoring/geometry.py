@@ -137,22 +137,17 @@ class HallGeometry:
         """
         o = as_finite_array(origin, "origin", shape=(3,))
         d = as_finite_array(directions, "directions", shape=(None, 3))
-        v0 = self.triangles[:, 0]  # [T, 3]
-        e1, e2 = self.triangles[:, 1] - v0, self.triangles[:, 2] - v0
-        p = np.cross(d[:, None, :], e2[None, :, :])  # [R, T, 3]
-        det = np.einsum("tk,rtk->rt", e1, p)
-        ok = np.abs(det) > 1e-12
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        s = o - v0  # [T, 3]
-        u = np.einsum("tk,rtk->rt", s, p) * inv
-        q = np.cross(s, e1)  # [T, 3]
-        v = (d @ q.T) * inv
-        t = (q * e2).sum(axis=1)[None, :] * inv
-        hit = ok & (u >= -_EDGE_SLACK) & (v >= -_EDGE_SLACK) & (u + v <= 1 + _EDGE_SLACK) & (t > _T_MIN)
-        t = np.where(hit, t, np.inf)
-        first = np.argmin(t, axis=1)
-        dist = t[np.arange(len(d)), first]
-        return dist, np.where(np.isfinite(dist), self.owner[first], -1)
+        # Blocks of triangles keep the [R, T] temporaries near RAY_BLOCK elements (~100 B each), whatever
+        # the scene's size; strict '<' keeps the first triangle of equal distance, as one argmin would.
+        best = np.full(len(d), np.inf)
+        owner = np.full(len(d), -1, dtype=np.int64)
+        step = max(1, RAY_BLOCK // max(len(d), 1))
+        for start in range(0, len(self.triangles), step):
+            dist, first = _first_hits(o, d, self.triangles[start:start + step])
+            better = dist < best
+            best[better] = dist[better]
+            owner[better] = self.owner[start + first[better]]
+        return best, owner
 
     def first_hit(self, origin: Any, direction: Any) -> tuple[str | None, float]:
         """(object name, distance [m]) of the first surface along one ray; ``(None, inf)`` if it escapes."""
@@ -251,3 +246,28 @@ class HallGeometry:
 def load_geometry(xml_path: str | Path) -> HallGeometry:
     """:meth:`HallGeometry.from_xml`."""
     return HallGeometry.from_xml(xml_path)
+
+
+#: Ray-triangle pairs :meth:`HallGeometry.ray_hits` tests at once (about 100 bytes each).
+RAY_BLOCK = 1 << 18
+
+
+def _first_hits(o: np.ndarray, d: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Möller-Trumbore: distance [R] to the first of ``triangles`` [T, 3, 3] hit by the rays ``o + t d``
+    (``inf`` where none is) and its index into ``triangles`` [R]."""
+    v0 = triangles[:, 0]  # [T, 3]
+    e1, e2 = triangles[:, 1] - v0, triangles[:, 2] - v0
+    p = np.cross(d[:, None, :], e2[None, :, :])  # [R, T, 3]
+    det = np.einsum("tk,rtk->rt", e1, p)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - v0  # [T, 3]
+    u = np.einsum("tk,rtk->rt", s, p) * inv
+    q = np.cross(s, e1)  # [T, 3]
+    v = (d @ q.T) * inv
+    t = (q * e2).sum(axis=1)[None, :] * inv
+    hit = ok & (u >= -_EDGE_SLACK) & (v >= -_EDGE_SLACK) & (u + v <= 1 + _EDGE_SLACK) & (t > _T_MIN)
+    t = np.where(hit, t, np.inf)
+    first = np.argmin(t, axis=1)
+    dist = t[np.arange(len(d)), first]
+    return dist, first

@@ -13,9 +13,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dsp.budget import check_memory
+
 from . import polygon
 from ._parse import SpecError
 from .materials import MaterialSpec
+from .meshcheck import mesh_memory
 from .objects import BoxObject, CylinderObject, ImportedMesh, WallPanel
 
 if TYPE_CHECKING:
@@ -95,8 +98,13 @@ def _rect_faces_inward(n_verts: int) -> np.ndarray:
     return np.array([[0, 2, 1], [0, 3, 2]], dtype=np.int64) + n_verts
 
 
+#: Python objects per wall cell while :func:`wall_mesh` builds it (a vertex tuple, its index entry,
+#: two face lists) [bytes], besides the two triangles' :data:`.meshcheck.FACE_BYTES`.
+WALL_CELL_BYTES = 400
+
+
 def wall_mesh(p0: np.ndarray, p1: np.ndarray, height: float,
-              holes: list[tuple[float, float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+              holes: list[tuple[float, float, float, float]], *, where: str = "wall") -> tuple[np.ndarray, np.ndarray]:
     """Vertical wall over footprint edge p0 -> p1 (CCW footprint), with rectangular holes.
 
     Parameters
@@ -107,18 +115,30 @@ def wall_mesh(p0: np.ndarray, p1: np.ndarray, height: float,
         [m].
     holes : list of (u0, u1, z0, z1)
         Openings, u along the edge from p0, z above the floor [m].
+    where : str
+        The wall, for the memory error (``"spec.toml: wall_1"``).
 
     Returns
     -------
     vertices [V, 3], faces [F, 3]
         One quad (two triangles) without holes; otherwise the grid of cells between all hole
         edges, minus the cells inside a hole (no T-junctions). Normals point into the hall.
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        The grid of ``C`` cells would need more than the memory limit: ``C · (WALL_CELL_BYTES + 2 ·
+        FACE_BYTES)`` bytes (:data:`WALL_CELL_BYTES`, :func:`.meshcheck.mesh_memory`), checked before it is made.
     """
     e = p1 - p0
     length = float(np.linalg.norm(e))
     e = e / length
     us = np.unique(np.clip([0.0, length, *[v for h in holes for v in h[:2]]], 0.0, length))
     zs = np.unique(np.clip([0.0, height, *[v for h in holes for v in h[2:]]], 0.0, height))
+    cells = (len(us) - 1) * (len(zs) - 1)
+    check_memory(cells * WALL_CELL_BYTES + mesh_memory(2 * cells),
+                 f"{where}: {len(holes):,} doors/windows cut it into {len(us) - 1:,} x {len(zs) - 1:,} = {cells:,} cells",
+                 fix="use fewer doors and windows on one wall, or line them up (equal sills and heights share cells)")
     index: dict[tuple[int, int], int] = {}
     verts: list[tuple[float, float, float]] = []
     faces: list[list[int]] = []
@@ -177,7 +197,8 @@ def scene_meshes(spec: "HallSpec") -> list[SceneMesh]:
     panels = [o for o in spec.objects if isinstance(o, WallPanel)]
     for i in range(len(fp)):
         holes = [(*p.u_range, *p.z_range) for p in panels if p.wall == i]
-        v, f = wall_mesh(fp[i], fp[(i + 1) % len(fp)], h, holes)
+        v, f = wall_mesh(fp[i], fp[(i + 1) % len(fp)], h, holes,
+                         where=f"{spec.source_path or spec.name}: wall_{i}" if holes else f"wall_{i}")
         out.append(SceneMesh(f"wall_{i}", "wall", spec.materials.walls, v, f))
     for obj in spec.objects:
         if isinstance(obj, BoxObject):
