@@ -206,9 +206,12 @@ def load_capture(path: str | os.PathLike[str]) -> Capture:
     """Read a capture written by :func:`save_capture` (or by a measured-data converter).
 
     Every field is checked before the data are read: the array headers (shape, dtype, a cube
-    within the memory limit of :mod:`dsp.budget`), the metadata's keys (unknown ones refused,
-    with the nearest valid key suggested), types and physical ranges, and the DSP's memory at
-    the recommended processing (``n_dft``, ``k_dft``). A damaged file (flipped bytes, a
+    within the memory limit of :mod:`dsp.budget`, and all the arrays read together at their
+    decompressed size, ``Σ prod(shape) · itemsize``), the metadata's keys (unknown ones refused,
+    with the nearest valid key suggested), types and physical ranges, the DSP's memory at
+    the recommended processing (``n_dft``, ``k_dft``) and the RIS response's memory for the
+    metadata's ``num_rows × num_columns`` and the cube's M beams
+    (:func:`risloc_rt.model.ris.ris_response_memory`). A damaged file (flipped bytes, a
     truncated archive: zip CRC errors) is a :class:`CaptureFormatError`, never a traceback.
 
     Raises
@@ -218,7 +221,7 @@ def load_capture(path: str | os.PathLike[str]) -> Capture:
     CaptureFormatError
         Not a capture, or a field is missing, malformed or out of range; the message names it.
     dsp.budget.BudgetError
-        The cube, or processing it, would exceed the memory limit.
+        The arrays, processing the cube, or the RIS's response would exceed the memory limit.
     """
     p = Path(path)
     if not p.is_file():
