@@ -148,7 +148,8 @@ def ris_response_memory(num_elements: int, num_beams: int, num_paths: int = 1) -
     Notes
     -----
     ``8 N (6 + 7 L + 4 M)`` bytes: the element positions and their meshgrid (``6 N`` float64), the
-    two steering matrices [N, L] complex128 with the real phase of one (``7 N L`` float64 words),
+    two steering matrices [N, L] complex128 and, while the second is formed, its real phase and
+    complex argument (``7 N L`` float64 words),
     and the beam weights [M, N]: their phase times ``-j k`` (complex128) and its exponential
     (complex128), ``4 M N`` float64 words, alive together at the peak. Measured: 4.4 GiB for
     1500 × 1500 elements and 61 beams, where the formula gives 4.3 GiB.
