@@ -127,6 +127,7 @@ def grid_budget(settings: MapSettings, *, long_ok: bool = False) -> tuple[int, i
 
     from dsp.budget import check_memory, format_bytes
 
+    from ..authoring.polygon import grid_test_memory
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
     from .engine import StudyError
@@ -136,7 +137,7 @@ def grid_budget(settings: MapSettings, *, long_ok: bool = False) -> tuple[int, i
     size = poly.max(axis=0) - poly.min(axis=0)
     nx, ny = (max(0, math.ceil(float(s) / settings.spacing - 0.5)) for s in size)
     points = nx * ny
-    estimate = points * 8 * (8 + 6 * len(poly))
+    estimate = grid_test_memory(points, len(poly))
     what = (f"a floor grid of {points:,} points (--spacing {settings.spacing:g} m over the {size[0]:.3g} m x "
             f"{size[1]:.3g} m footprint of {settings.scene!r}: {nx:,} x {ny:,})")
     check_memory(estimate, what, fix="use a larger --spacing")
