@@ -133,8 +133,9 @@ def check_output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -
     return p
 
 
-def record_outputs(folder: str | os.PathLike[str], names: list[str] | tuple[str, ...]) -> None:
-    """Add the files ``folder/name`` to ``folder``'s ledger with their present sha256.
+def record_outputs(folder: str | os.PathLike[str], names: list[str] | tuple[str, ...], *,
+                   digests: dict[str, str] | None = None) -> None:
+    """Add the files ``folder/name`` to ``folder``'s ledger with their sha256.
 
     Parameters
     ----------
@@ -142,11 +143,16 @@ def record_outputs(folder: str | os.PathLike[str], names: list[str] | tuple[str,
         The folder holding the files (and the ledger).
     names : sequence of str
         File names inside ``folder`` (no separators), just written by risloc-rt.
+    digests : dict of str -> str, optional
+        Known sha256 of some of them (computed before they were moved into place); the others are
+        hashed now.
     """
     root = Path(folder)
     ledger = _read_ledger(root)
     for name in names:
-        if (root / name).is_file():
+        if digests is not None and name in digests:
+            ledger[name] = digests[name]
+        elif (root / name).is_file():
             ledger[name] = _sha256(root / name)
     doc = {"format": _FORMAT, "version": 1,
            "note": "files risloc-rt wrote here and their sha256; it replaces only these, unchanged, without --force",
@@ -156,11 +162,15 @@ def record_outputs(folder: str | os.PathLike[str], names: list[str] | tuple[str,
 
 @contextmanager
 def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iterator[Path]:
-    """Check ``path`` (:func:`check_output_file`), let the block write it, then record it in the ledger.
+    """Check ``path`` (:func:`check_output_file`), let the block write it beside, then move it in and record it.
 
     Enter the block before the expensive work, so a refused output costs nothing. The block
-    writes the file itself (atomically: :func:`risloc_rt._files.atomic_open`); when it ends
-    without an exception and the file exists, its sha256 goes into the ledger.
+    writes the file to the path it is given: a hidden name beside ``path`` with the same suffix
+    (``.NAME.*.risloc-tmp.SUFFIX``, so writers that choose a format by the suffix or append one
+    keep working). When the block ends without an exception, the file is hashed, then moved over
+    ``path`` and recorded in the ledger with ``SIGINT``/``SIGTERM`` held back, so Ctrl-C can never
+    leave a new file the ledger does not name (the rerun would be refused). On an exception the
+    hidden file is removed and ``path`` is as it was.
 
     Parameters
     ----------
@@ -172,12 +182,31 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
     Yields
     ------
     Path
-        ``path``.
+        Where the block must write the file.
     """
     p = check_output_file(path, force=force, flag=flag)
-    yield p
-    if p.is_file():
-        record_outputs(p.parent, [p.name])
+    made = [d for d in (p.parent, *p.parent.parents) if not d.exists()]
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=f".risloc-tmp{p.suffix}")
+    os.close(fd)
+    staged = Path(name)
+    try:
+        yield staged
+        if staged.is_file() and staged.stat().st_size > 0:
+            digest = _sha256(staged)
+            with _HoldSignals():
+                if p.is_symlink():
+                    p.unlink()
+                os.replace(staged, p)
+                record_outputs(p.parent, [p.name], digests={p.name: digest})
+    finally:
+        if staged.exists():
+            staged.unlink()
+        for d in made:  # folders made for an output that was never moved in
+            try:
+                d.rmdir()
+            except OSError:
+                break
 
 
 class _HoldSignals:

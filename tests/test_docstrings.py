@@ -20,7 +20,7 @@ MODULES = ["risloc_rt.studies.engine", "risloc_rt.studies.figures", "risloc_rt.s
            "risloc_rt.cli", "risloc_rt.cli.common", "risloc_rt.cli.demo", "risloc_rt.cli.locate",
            "risloc_rt.cli.trace", "risloc_rt.cli.scene", "risloc_rt.cli.speed", "risloc_rt.cli.study",
            "risloc_rt.cli.capture", "risloc_rt.cli.calibrate", "risloc_rt.cli.compare", "risloc_rt.cli.simulate",
-           "risloc_rt.model.paths", "risloc_rt._outputs",
+           "risloc_rt.model.paths", "risloc_rt._outputs", "risloc_rt._workers",
            "risloc_rt.measured.compare.calibration_file", "risloc_rt.measured.compare.calibration_fit",
            "risloc_rt.measured.compare.comparison", "risloc_rt.measured.compare.comparison_page",
            "risloc_rt.measured.compare.traced_hall", "risloc_rt.measured.dca1000.channels",

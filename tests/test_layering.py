@@ -40,13 +40,14 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: Subpackage -> floor. ``risloc_rt._version``, ``_files``, ``_lazy`` (floor -1), ``plotting`` (figures) and ``_outputs`` (the output policy), both on ``_files``, and the root package (lazy re-exports) sit below all.
+#: Subpackage -> floor. ``risloc_rt._version``, ``_files``, ``_lazy``, ``_workers`` (floor -1), ``plotting`` (figures) and ``_outputs`` (the output policy), both on ``_files``, and the root package (lazy re-exports) sit below all.
 FLOORS = {
     "dsp": 0,
     "risloc_rt._version": -1,
     "risloc_rt._files": -1,
     "risloc_rt._outputs": 0,
     "risloc_rt._lazy": -1,
+    "risloc_rt._workers": -1,
     "risloc_rt.plotting": 0,
     "risloc_rt.model": 1,
     "risloc_rt.authoring": 2,

@@ -169,3 +169,44 @@ def test_signals_are_held_during_the_swap_and_delivered_after(tmp_path, monkeypa
 def test_safe_name_keeps_a_name_inside_its_folder(text, expected):
     assert safe_name(text) == expected
     assert len(safe_name("n" * 500)) == 120
+
+
+def test_ctrl_c_as_a_file_is_moved_in_still_records_it(tmp_path, monkeypatch):
+    # Regression (issue 19, found by benchmarks/interrupts.py): the file used to be moved in by the
+    # writer and hashed into the ledger afterwards; Ctrl-C in between left a complete file the
+    # ledger did not name, and the rerun the interrupt message advises was refused.
+    import risloc_rt._outputs as outputs
+
+    real_replace = os.replace
+    calls = []
+
+    def interrupt_then_replace(src, dst):
+        if not calls:
+            os.kill(os.getpid(), signal.SIGINT)     # Ctrl-C exactly as the output is moved in
+        calls.append(dst)
+        real_replace(src, dst)
+
+    monkeypatch.setattr(outputs.os, "replace", interrupt_then_replace)
+    out = tmp_path / "x.npz"
+    with pytest.raises(KeyboardInterrupt):
+        with output_file(out, force=False, flag="-o") as staged:
+            assert staged.parent == tmp_path and staged.name.startswith(".x.npz.") and staged.suffix == ".npz"
+            staged.write_bytes(b"the capture")
+    assert out.read_bytes() == b"the capture" and written_by_risloc(out)    # the rerun may replace it
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER, "x.npz"]   # nothing staged left
+
+
+def test_a_failed_single_file_output_leaves_the_previous_file(tmp_path):
+    out = tmp_path / "sub" / "plot.png"
+    with pytest.raises(RuntimeError):
+        with output_file(out, force=False, flag="-o") as staged:
+            staged.write_bytes(b"half")
+            raise RuntimeError("the writer failed")
+    assert not (tmp_path / "sub").exists()             # the folder made for it is gone again
+    with output_file(out, force=False, flag="-o") as staged:
+        staged.write_bytes(b"old")
+    with pytest.raises(KeyboardInterrupt):
+        with output_file(out, force=False, flag="-o") as staged:
+            staged.write_bytes(b"new")
+            raise KeyboardInterrupt
+    assert out.read_bytes() == b"old" and sorted(p.name for p in out.parent.iterdir()) == [LEDGER, "plot.png"]

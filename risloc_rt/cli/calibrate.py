@@ -34,15 +34,15 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix not in (".toml", ".json"):
         raise CliError(f"-o {args.output}: name a .toml or .json file (e.g. -o calibration.toml)")
-    with output_file(out, force=args.force, flag="-o"):
+    with output_file(out, force=args.force, flag="-o") as target:
         capture = load_capture(args.capture)
         ue, source = ue_position_of(capture, None if args.ue is None else vector(args.ue, "--ue"))
         model = hall_model(capture, args.scene, ue, ue_source=source, trace=trace_settings(args),
                            cache=trace_cache(args))
         cal = calibrate_capture(capture, model.traced.paths, max_range_offset=args.max_range_offset)
-        path = write_calibration(cal, out)
+        write_calibration(cal, target)
     print(f"calibrated {args.capture} against {model.scenario.scene_xml.parent.name} (radar at "
-          f"{[round(float(x), 3) for x in ue]} m, {source}): wrote {path}")
+          f"{[round(float(x), 3) for x in ue]} m, {source}): wrote {out}")
     rows = [("range offset", cal.range_offset * 1e3, cal.range_offset_std * 1e3, "mm"),
             ("RIS loop-back delay tau_RB", cal.loopback_delay * 1e9, cal.loopback_delay_std * 1e9, "ns"),
             ("RIS amplification zeta", cal.amplification_db, cal.amplification_db_std, "dB"),

@@ -132,8 +132,9 @@ def _import(args: argparse.Namespace) -> int:
     capture = import_capture(args.raw, args.config, args.sweep, lanes=args.lanes, iq_swap=args.iq_swap,
                              form=args.form, first_frame=first, leakage=args.leakage, gate_range=args.gate_range,
                              channels=channels, min_confidence=args.min_confidence)
-    with output_file(target, force=args.force, flag="-o"):
-        path = save_capture(capture, target)
+    with output_file(target, force=args.force, flag="-o") as staged:
+        save_capture(capture, staged)
+    path = target
     reader = capture.provenance["reader"]
     M, K, N = capture.cube.shape
     az = capture.sweep.angles[:, 0]

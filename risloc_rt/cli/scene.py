@@ -103,7 +103,7 @@ def _cmd_show(args: argparse.Namespace) -> int:
     if paths is not None:
         extra = (f" with {fig.counts['monostatic_paths']} traced echoes and {fig.counts['ris_legs']} radar->RIS legs "
                  f"of radar position {args.paths}")
-    print(f"wrote {fig.path}{extra}")
+    print(f"wrote {args.output}{extra}")
     return 0
 
 

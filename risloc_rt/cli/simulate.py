@@ -89,9 +89,10 @@ def _run(args: argparse.Namespace) -> int:
             summary = _simulate(args, stage)
         print(f"wrote {folder}: {summary}")
         return 0
-    with output_file(npz_target(args.output), force=args.force, flag="-o") as target:
+    path = npz_target(args.output)
+    with output_file(path, force=args.force, flag="-o") as target:
         summary = _simulate(args, target)
-    print(f"wrote {target}: {summary}")
+    print(f"wrote {path}: {summary}")
     return 0
 
 

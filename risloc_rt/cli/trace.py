@@ -37,8 +37,8 @@ def _run(args: argparse.Namespace) -> int:
         meta = {"scene": str(hs.scene_xml), "scene_hash": traced.trace.scene_hash, "radar_position": ue.tolist(),
                 "ris": hs.base.ris.to_dict(), "trace_settings": hs.trace.to_dict(), "model": hs.model.to_dict()}
         with output_file(output, force=args.force, flag="-o") as target:
-            written = save_path_set(target, traced.candidates, traced.report, metadata=meta)
-        print(f"wrote {written}")
+            save_path_set(target, traced.candidates, traced.report, metadata=meta)
+        print(f"wrote {output}")
     if args.plot:
         with output_file(args.plot, force=args.force, flag="--plot") as target:
             plot_traced_profile(hs, traced, Path(target))

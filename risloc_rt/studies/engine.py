@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
 
+from .._workers import init_worker
 from .kernel import PreparedPoint, run_once
 from .store import RunLog
 
@@ -448,29 +449,6 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
             "warnings": list(prep.params.get("warnings", ()))}
 
 
-def _init_worker(parent: int) -> None:
-    """Worker start-up: single-threaded BLAS, and die with the study process (a SIGKILLed study
-    leaves no orphan workers running): Linux's parent-death signal, else a watchdog thread."""
-    import signal
-    import threading
-
-    for name in _ONE_THREAD:
-        os.environ.setdefault(name, "1")
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # pragma: no cover - not Linux
-        pass
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
-
-
 def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, dask: Any = None, quiet: bool = False,
             notice: Callable[[str], None] | None = None, long_ok: bool = False) -> dict[str, Any]:
     """Run every missing run of ``spec`` and append it to ``log``.
@@ -582,7 +560,7 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
         b: Batch | None = next_batch()
         while b is not None:
             pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_init_worker, initargs=(os.getpid(),))
+                                       initializer=init_worker, initargs=(os.getpid(), _ONE_THREAD))
             running: dict[Any, Batch] = {}
             broken: list[Batch] = []
             try:
