@@ -166,8 +166,8 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
 
     Enter the block before the expensive work, so a refused output costs nothing. The block
     writes the file to the path it is given: a hidden name beside ``path`` with the same suffix
-    (``.NAME.*.risloc-tmp.SUFFIX``, so writers that choose a format by the suffix or append one
-    keep working). When the block ends without an exception, the file is hashed, then moved over
+    (``.NAME.*.risloc-tmp.SUFFIX``, or none when ``path`` has none, so writers that choose a
+    format by the suffix or append one keep working). When the block ends without an exception, the file is hashed, then moved over
     ``path`` and recorded in the ledger with ``SIGINT``/``SIGTERM`` held back, so Ctrl-C can never
     leave a new file the ledger does not name (the rerun would be refused). On an exception the
     hidden file is removed and ``path`` is as it was.
@@ -187,7 +187,10 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
     p = check_output_file(path, force=force, flag=flag)
     made = [d for d in (p.parent, *p.parent.parents) if not d.exists()]
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=f".risloc-tmp{p.suffix}")
+    if p.suffix:
+        fd, name = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=f".risloc-tmp{p.suffix}")
+    else:  # no suffix for a writer to read either: '.NAME-*', no dot after the first
+        fd, name = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name.replace('.', '_')}-risloc-tmp-")
     os.close(fd)
     staged = Path(name)
     try:

@@ -210,3 +210,12 @@ def test_a_failed_single_file_output_leaves_the_previous_file(tmp_path):
             staged.write_bytes(b"new")
             raise KeyboardInterrupt
     assert out.read_bytes() == b"old" and sorted(p.name for p in out.parent.iterdir()) == [LEDGER, "plot.png"]
+
+
+@pytest.mark.parametrize(("name", "suffix"), [("plot.png", ".png"), ("cap.npz", ".npz"), ("plot", ""),
+                                              (".hidden", ""), ("a.b.toml", ".toml")])
+def test_the_staged_file_keeps_the_suffix_a_writer_reads(tmp_path, name, suffix):
+    with output_file(tmp_path / name, force=False, flag="-o") as staged:
+        assert staged.suffix == suffix and staged.name.startswith(".") and staged.parent == tmp_path
+        staged.write_bytes(b"x")
+    assert (tmp_path / name).read_bytes() == b"x"

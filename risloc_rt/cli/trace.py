@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from .._outputs import check_output_file, output_file
-from .common import add_force_flag, add_trace_flags, npz_target, plot_traced_profile, quiet_hall_paths, trace_cache, trace_settings, vector
+from .common import (add_force_flag, add_trace_flags, npz_target, plot_traced_profile, quiet_hall_paths, trace_cache,
+                     trace_settings, vector)
 
 __all__ = ["add_parser"]
 
