@@ -171,22 +171,36 @@ def _classify(exc: BaseException) -> tuple[int, str]:
                           "please report it with the output of RISLOC_DEBUG=1")
 
 
-def _redeliver_interrupt(previous: Any) -> Any:
+def _redeliver_interrupt(previous: Any, state: dict[str, Any]) -> Any:
     """A ``sys.unraisablehook`` that re-delivers a Ctrl-C swallowed in a ``__del__`` or callback.
 
     Python cannot raise an exception out of a finalizer: a ``KeyboardInterrupt`` that lands there
     would print "Exception ignored ..." with a traceback and the run would go on. This hook prints
     nothing for it and interrupts the main thread again, so the interrupt reaches :func:`main`.
+    Once Ctrl-C has been received (``state["interrupted"]``), it also silences the finalizers of
+    objects whose construction the interrupt cut short (an ``AttributeError`` in the ``__del__`` of a
+    half-built object, e.g. pyparsing's ``Forward`` while matplotlib is imported): they are the
+    interrupt's consequence, and the one line says what happened.
     """
     import _thread
 
     def hook(unraisable: Any) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
             _thread.interrupt_main()
-        else:
+        elif not state.get("interrupted"):
             previous(unraisable)
 
     return hook
+
+
+def _note_interrupt(state: dict[str, Any]) -> Any:
+    """A ``SIGINT`` handler: note the interrupt in ``state``, then raise ``KeyboardInterrupt`` as Python's does."""
+
+    def handler(signum: int, frame: Any) -> None:
+        state["interrupted"] = True
+        raise KeyboardInterrupt
+
+    return handler
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -214,12 +228,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     import threading
 
     program = argv is None and threading.current_thread() is threading.main_thread()
+    state: dict[str, Any] = {"args": None, "interrupted": False}
     if program:
-        sys.unraisablehook = _redeliver_interrupt(sys.unraisablehook)
-    state: dict[str, Any] = {"args": None}
+        sys.unraisablehook = _redeliver_interrupt(sys.unraisablehook, state)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _note_interrupt(state))
     try:
         return _main(list(sys.argv[1:] if argv is None else argv), state)
     except KeyboardInterrupt:
+        state["interrupted"] = True
         if program:  # the one line below must not be cut by a second Ctrl-C
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         print(f"{_command(state['args'])}: interrupted; each file it wrote is complete (atomic writes), "
