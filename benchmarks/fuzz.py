@@ -590,6 +590,16 @@ def _classify(run: Callable, inp: Any, ws: Workspace, errors: tuple[type, ...], 
         signal.signal(signal.SIGALRM, old)
 
 
+def _peak_rss() -> int:
+    """This process image's peak RSS [bytes]: ``VmHWM`` on Linux (``ru_maxrss`` also counts the RSS a
+    vfork'ed child inherits from its parent, e.g. a large pytest process), else ``ru_maxrss``."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            return 1024 * int(next(line for line in fh if line.startswith("VmHWM:")).split()[1])
+    except (OSError, StopIteration, ValueError, IndexError):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
 def run_entry_point(name: str, examples: int, seed: int, limit: float, queue: Any = None) -> dict[str, Any]:
     """Run ``examples`` generated inputs of entry point ``name``; returns its counts and peak memory."""
     import warnings
@@ -604,16 +614,22 @@ def run_entry_point(name: str, examples: int, seed: int, limit: float, queue: An
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         rng = np.random.default_rng([seed, zlib.crc32(name.encode())])  # stable across processes
         start = time.perf_counter()
+        biggest = (0, "")  # the input that raised the peak RSS most, and by how much [bytes]
         for _ in range(examples):
             inp = gen(rng, ws)
+            before = _peak_rss()
             outcome = _classify(run, inp, ws, errors, time_limit(name, limit))
+            rise = _peak_rss() - before
+            if rise > biggest[0]:
+                biggest = (rise, f"{outcome}: {repr(inp)[:150]}")
             counts[outcome] += 1
             if outcome in ("traceback", "wrong", "hang") and len(examples_wrong) < 3:
                 examples_wrong.append(f"{_LAST_EXCEPTION[0]} <- {repr(inp)[:150]}")
         peak = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
     out = {"name": name, "examples": examples, **counts, "peak_memory": peak,
-           "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
-           "seconds": time.perf_counter() - start, "samples": examples_wrong}
+           "peak_rss": _peak_rss(),
+           "seconds": time.perf_counter() - start, "samples": examples_wrong,
+           "peak_input": f"+{biggest[0] / 2**20:.0f} MiB at {biggest[1]}"}
     if queue is not None:
         queue.put(out)
     return out

@@ -125,4 +125,4 @@ def test_declared_sizes_keep_peak_memory_within_the_limit(tmp_path):
     r = json.loads(done.stdout.strip().splitlines()[-1])
     assert r["traceback"] == r["wrong"] == r["hang"] == 0, r["samples"]
     assert r["error"] > 0 and r["correct"] > 0                     # both sides of the limit were reached
-    assert r["peak_rss"] <= 512 * 2**20 + 200e6, f"peak RSS {r['peak_rss'] / 2**20:.0f} MiB"
+    assert r["peak_rss"] <= 512 * 2**20 + 200e6, f"peak RSS {r['peak_rss'] / 2**20:.0f} MiB ({r['peak_input']})"
