@@ -314,17 +314,18 @@ def output_folder(folder: str | os.PathLike[str], *, force: bool, flag: str,
             more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
             raise OutputError(f"{flag} {root}: {bad[0]}{more}; nothing was written: give another folder, "
                               "or --force to replace it")
+        digests = {rel: _sha256(stage / rel) for rel in rels}  # before the signals are held: big files take time
         with _HoldSignals():
-            by_folder: dict[Path, list[str]] = {}
+            by_folder: dict[Path, dict[str, str]] = {}
             for rel in rels:
                 target = root / rel
                 target.parent.mkdir(parents=True, exist_ok=True)
                 if target.is_symlink():
                     target.unlink()
                 os.replace(stage / rel, target)
-                by_folder.setdefault(target.parent, []).append(target.name)
+                by_folder.setdefault(target.parent, {})[target.name] = digests[rel]
             for where, names in by_folder.items():
-                record_outputs(where, names)
+                record_outputs(where, list(names), digests=names)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
         if created:
