@@ -111,18 +111,27 @@ def test_issue_19_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path):
         "demo": ["demo", "--analytic", "--out", str(tmp_path / "demo")],
         "simulate": ["simulate", "-o", str(tmp_path / "x.npz")],
     }
-    checked = 0
+    checked, finished = 0, False
     for verb, command in commands.items():
         for delay in (0.15, 0.4, 1.0, 2.0):
             status, err = _interrupt_after(command, delay)
             if status is None:
+                continue
+            if status == 0 and not err:
+                # the signal came as the command was exiting, its work done: risloc ignores Ctrl-C
+                # then (so the exit cannot be cut); the output must be whole
+                finished = True
+                if verb == "simulate":
+                    from risloc_rt.io.capture_file import load_capture
+
+                    assert load_capture(tmp_path / "x.npz").cube.shape == (61, 128, 600)
                 continue
             checked += 1
             assert status == 130, (verb, delay, status, err)
             assert len(err) == 1 and "Traceback" not in err[0], (verb, delay, err)
             assert err[0].startswith("risloc") and "interrupted" in err[0], (verb, delay, err)
     assert checked >= 6
-    assert not (tmp_path / "x.npz").exists()
+    assert finished or not (tmp_path / "x.npz").exists()
 
 
 def test_issue_19_a_call_from_python_leaves_the_signal_handling_as_it_was(monkeypatch, capsys, tmp_path):
