@@ -167,10 +167,11 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
     Enter the block before the expensive work, so a refused output costs nothing. The block
     writes the file to the path it is given: a hidden name beside ``path`` with the same suffix
     (``.NAME.*.risloc-tmp.SUFFIX``, or none when ``path`` has none, so writers that choose a
-    format by the suffix or append one keep working). When the block ends without an exception, the file is hashed, then moved over
-    ``path`` and recorded in the ledger with ``SIGINT``/``SIGTERM`` held back, so Ctrl-C can never
-    leave a new file the ledger does not name (the rerun would be refused). On an exception the
-    hidden file is removed and ``path`` is as it was.
+    format by the suffix or append one keep working). When the block ends without an exception,
+    the file is hashed, then moved over ``path`` and recorded in the ledger with
+    ``SIGINT``/``SIGTERM`` held back, so Ctrl-C can never leave a new file the ledger does not name
+    (the rerun would be refused). On an exception the hidden file is removed and ``path`` is as it
+    was.
 
     Parameters
     ----------
@@ -192,6 +193,9 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
     else:  # no suffix for a writer to read either: '.NAME-*', no dot after the first
         fd, name = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name.replace('.', '_')}-risloc-tmp-")
     os.close(fd)
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(name, 0o666 & ~mask)  # the mode an ordinary open gives, whether the writer replaces the file or not
     staged = Path(name)
     try:
         yield staged

@@ -219,3 +219,13 @@ def test_the_staged_file_keeps_the_suffix_a_writer_reads(tmp_path, name, suffix)
         assert staged.suffix == suffix and staged.name.startswith(".") and staged.parent == tmp_path
         staged.write_bytes(b"x")
     assert (tmp_path / name).read_bytes() == b"x"
+
+
+def test_a_file_written_in_place_gets_an_ordinary_files_mode(tmp_path):
+    out = tmp_path / "x.json"
+    with output_file(out, force=False, flag="-o") as staged:
+        with open(staged, "w") as fh:             # a writer that writes the given path itself
+            fh.write("{}")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~mask
