@@ -10,13 +10,14 @@ removes the temporary file. After SIGKILL a hidden ``.NAME.*.tmp`` may remain, n
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO, Iterator
 
-__all__ = ["atomic_open", "atomic_write_bytes", "stage_bytes"]
+__all__ = ["atomic_open", "atomic_write_bytes", "file_sha256", "stage_bytes"]
 
 
 def _umask() -> int:
@@ -78,3 +79,12 @@ def stage_bytes(path: str | os.PathLike[str], data: bytes, *, suffix: str = ".tm
         os.unlink(tmp)
         raise
     return Path(tmp)
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """The SHA-256 of a file's bytes (hex), read in 4 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 22), b""):
+            h.update(block)
+    return h.hexdigest()

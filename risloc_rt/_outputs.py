@@ -30,7 +30,6 @@ can lose one entry, which makes that file count as foreign next time (refused wi
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -43,7 +42,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import ClassVar
 
-from ._files import atomic_write_bytes
+from ._files import atomic_write_bytes, file_sha256
 
 __all__ = ["LEDGER", "OutputError", "check_output_file", "output_file", "output_folder", "record_outputs",
            "safe_name", "written_by_risloc"]
@@ -57,14 +56,6 @@ _STAGE_PREFIX = ".risloc-stage-"
 class OutputError(ValueError):
     """An output path holds a file risloc-rt did not write (or a folder where a file goes); the
     message names it and says how to proceed (another name, or ``--force``)."""
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _read_ledger(folder: Path) -> dict[str, str]:
@@ -98,7 +89,7 @@ def written_by_risloc(path: str | os.PathLike[str]) -> bool:
     if p.is_symlink() or not p.is_file():
         return False
     digest = _read_ledger(p.parent).get(p.name)
-    return digest is not None and digest == _sha256(p)
+    return digest is not None and digest == file_sha256(p)
 
 
 def check_output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Path:
@@ -153,7 +144,7 @@ def record_outputs(folder: str | os.PathLike[str], names: list[str] | tuple[str,
         if digests is not None and name in digests:
             ledger[name] = digests[name]
         elif (root / name).is_file():
-            ledger[name] = _sha256(root / name)
+            ledger[name] = file_sha256(root / name)
     doc = {"format": _FORMAT, "version": 1,
            "note": "files risloc-rt wrote here and their sha256; it replaces only these, unchanged, without --force",
            "files": dict(sorted(ledger.items()))}
@@ -200,7 +191,7 @@ def output_file(path: str | os.PathLike[str], *, force: bool, flag: str) -> Iter
     try:
         yield staged
         if staged.is_file() and staged.stat().st_size > 0:
-            digest = _sha256(staged)
+            digest = file_sha256(staged)
             with _HoldSignals():
                 if p.is_symlink():
                     p.unlink()
@@ -318,7 +309,7 @@ def output_folder(folder: str | os.PathLike[str], *, force: bool, flag: str,
             more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
             raise OutputError(f"{flag} {root}: {bad[0]}{more}; nothing was written: give another folder, "
                               "or --force to replace it")
-        digests = {rel: _sha256(stage / rel) for rel in rels}  # before the signals are held: big files take time
+        digests = {rel: file_sha256(stage / rel) for rel in rels}  # before the signals are held: big files take time
         with _HoldSignals():
             by_folder: dict[Path, dict[str, str]] = {}
             for rel in rels:

@@ -15,7 +15,6 @@ complex128 in ADC counts with the project's sign convention (``I − jQ``,
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -26,6 +25,7 @@ import scipy.fft
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose
 from dsp.budget import check_memory
 
+from ..._files import file_sha256
 from ...model.capture import Capture, provenance
 from ...model.ris import RisConfig
 from ...model.scenario import Truth
@@ -83,14 +83,6 @@ def import_memory(num_beams: int, num_loops: int, num_channels: int, num_samples
         [bytes].
     """
     return 16 * int(num_beams) * int(num_loops) * int(num_samples) * (int(num_channels) + 2)
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 22), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _ris(schedule: SweepSchedule) -> RisConfig:
@@ -326,9 +318,9 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     prov = provenance(
         "measurement",
         device="TI DCA1000",
-        raw_files=[{"path": str(p), "sha256": _sha256(p), "bytes": p.stat().st_size} for p in info.files],
+        raw_files=[{"path": str(p), "sha256": file_sha256(p), "bytes": p.stat().st_size} for p in info.files],
         config={"path": None if config_path is None else str(config_path),
-                "sha256": None if config_path is None else _sha256(config_path), "text": config_text},
+                "sha256": None if config_path is None else file_sha256(config_path), "text": config_text},
         schedule=format_sweep_schedule(sched),
         alignment=align.to_dict(),
         leakage={"method": leakage, "gate_range": gate_range if leakage == "gate" else None,
