@@ -39,6 +39,10 @@ FLAG_CODES: dict[str, str] = {
     "elevation-assumed": "a 1-D sweep cannot see elevation: the position assumes the sweep plane",
     "unobservable": "the sweep cannot observe an angle: its 1σ and the position's are infinite, not a number",
     "ris-facing-away": "the capture's true radar position lies behind the RIS plane: the RIS faces away from it",
+    "pattern-mismatch": "the measured P_ave profile departs from the RIS model's beam pattern beyond the noise",
+    "schedule-mismatch": "the recording does not support the sweep schedule's first_frame: the beams may be shifted",
+    "damaged-beams": "frames of some beams hold zero-filled lost packets: their power and phase are wrong",
+    "uncalibrated": "measured data without a calibration file: range offset and tau_RB are nominal",
     # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
     "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
     "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",
