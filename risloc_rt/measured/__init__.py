@@ -47,7 +47,7 @@ from .sweep.leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, 
 from .sweep.ris_timing import RisProgram, chirp_states
 from .sweep.schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
                              write_sweep_schedule)
-from .ti.chirp_config import TiChirp, TiChirpConfig, slope_step, start_frequency_step
+from .ti.chirp_config import TiChirp, TiChirpConfig, device_steps, slope_step, start_frequency_step
 from .ti.config_file import load_config
 from .ti.sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
 from .ti.studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
@@ -64,5 +64,5 @@ __all__ = [
     "combine_channels", "decode_frames", "detect_payload_size", "encode_frames", "format_sdk_cfg",
     "inspect_capture", "iter_frames", "load_config", "open_raw", "pack_header", "parse_sdk_cfg",
     "parse_studio_json", "plot_inspection", "quantize_cube", "read_raw", "read_sdk_cfg", "read_studio_json",
-    "slope_step", "start_frequency_step", "write_raw_capture",
+    "device_steps", "slope_step", "start_frequency_step", "write_raw_capture",
 ]

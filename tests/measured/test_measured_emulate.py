@@ -66,22 +66,28 @@ def test_noise_is_seeded_and_needs_a_generator(make_config, make_tone):
 
 def test_emulated_target_lands_in_its_range_and_doppler_bin_and_metres(tmp_path, make_config):
     cfg = make_config()
-    radar = cfg.to_radar_config()
-    distance, velocity = 3.0, 10.0                             # [m] (< 5 m unambiguous), [m/s] receding
-    tau, nu = 2 * distance / 299_792_458.0, 2 * velocity / 299_792_458.0
+    c = 299_792_458.0
+    # By hand from the configuration (not from to_radar_config): the slow-time phase advances at the
+    # centre of the ADC window, f0 + S (adc_start + N/(2 fs)) = 60.25 GHz + 60 MHz/µs · 14 µs, once per
+    # TDM loop of one virtual channel, 2 × (7 µs idle + 24 µs ramp) = 62 µs (not the 24 µs ramp).
+    fc, t_loop, slope, fs = 60.25e9 + 60e12 * 14e-6, 62e-6, 60e12, 2e6
+    bin_velocity = c / fc / (2 * cfg.num_loops * t_loop)        # one Doppler bin [m/s]
+    distance, velocity = 3.0, 2 * bin_velocity                   # [m] (< 5 m unambiguous), receding, on bin 2
+    tau, nu = 2 * distance / c, 2 * velocity / c
     n, k = np.arange(cfg.num_samples), np.arange(cfg.num_loops)
-    # eq. (1): exp(-j2π (S τ + f_c ν) n T_s) exp(-j2π f_c ν k T)
-    y = 0.3 * np.exp(-2j * np.pi * ((radar.slope * tau + radar.carrier_frequency * nu) * n[None, :] / radar.sample_rate
-                                    + radar.carrier_frequency * nu * k[:, None] * radar.chirp_duration))
+    # eq. (1): exp(-j2π (S τ + f_c ν) n T_s) exp(-j2π f_c ν k T_loop)
+    y = 0.3 * np.exp(-2j * np.pi * ((slope * tau + fc * nu) * n[None, :] / fs + fc * nu * k[:, None] * t_loop))
     cube = np.broadcast_to(y[None, :, None, :], (2, cfg.num_loops, cfg.num_virtual, cfg.num_samples))
     em = write_raw_capture(cube, cfg, tmp_path, impairments=AdcImpairments(noise_rms=1e-3),
                            rng=np.random.default_rng(0))
     res = inspect_capture(em.files[0], em.cfg_path)
-    expect_bin = round(radar.slope * tau * cfg.num_samples / radar.sample_rate)
+    expect_bin = round(slope * tau * cfg.num_samples / fs)
     assert res.peak.range_bin == expect_bin
-    assert res.peak.range == pytest.approx(distance, abs=radar.range_resolution)
-    assert res.peak.doppler_bin == round(radar.carrier_frequency * nu * cfg.num_loops * radar.chirp_duration) > 0
-    assert res.peak.velocity == pytest.approx(velocity, abs=radar.velocity_resolution)
+    assert res.peak.range == pytest.approx(distance, abs=c / (2 * slope * cfg.num_samples / fs))
+    assert res.peak.doppler_bin == 2
+    # exactly on its bin: the reported velocity is the injected one (with the ramp instead of the loop,
+    # 5.02 m/s would be read; with the start frequency instead of the centre, 1.4 % more)
+    assert res.peak.velocity == pytest.approx(velocity, rel=1e-6)
     doc = json.loads(res.to_json())
     assert doc["peak"]["range_bin"] == expect_bin and doc["frames"] == 2 and doc["channels"] == 8
     out = tmp_path / "inspect.png"

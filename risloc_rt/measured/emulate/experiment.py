@@ -20,8 +20,10 @@ not the noise actually drawn, so ``--no-noise`` gives the same scaling.
 N/f_s + 1 µs``; Table I's 600 samples at 10 Msps (60 µs) do not fit its 50 µs chirp.
 :func:`dca1000_radar` keeps the slope, N and f_s (which set the beat signal and the range axis)
 and lengthens ``chirp_period`` to the ramp plus ≥ 3 µs idle, rounded up to a whole µs (Table I:
-70 µs; only the velocity axis changes). It also rounds the slope to the device's programmable
-step (``slope_step``), so that the slope the importer reads back is the one simulated.
+70 µs; only the velocity axis changes). It also truncates the slope to the device's programmable
+step (``slope_step``), as TI's firmware does, and puts the start frequency on its step so that the
+centre of the ADC window is the radar's carrier (within 40 Hz): the slope and carrier the importer
+reads back are the ones simulated.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from dsp import RadarConfig, db_to_linear
 from ...model.capture import Capture
 from ..errors import MeasuredFormatError
 from ..sweep.schedule import SweepSchedule, write_sweep_schedule
-from ..ti.chirp_config import TiChirpConfig, slope_step
+from ..ti.chirp_config import TiChirpConfig, device_steps, slope_step, start_frequency_step
 from .raw_files import AdcImpairments, EmulatedCapture, Recording, write_raw_capture
 
 __all__ = ["ADC_START_TIME", "FULL_SCALE_OVER_NOISE", "MIN_IDLE", "PREFIX", "RAMP_MARGIN", "SCHEDULE_NAME",
@@ -75,23 +77,30 @@ class EmulatedExperiment:
 
 
 def dca1000_radar(radar: RadarConfig) -> RadarConfig:
-    """``radar`` with a chirp period a TI device can run and its slope on the device's step (see the module doc).
+    """The radar a TI device runs when programmed for ``radar`` (see the module doc).
 
     Parameters
     ----------
     radar : RadarConfig
-        The radar to simulate.
+        The radar to simulate; its slope is the one a user writes in the ``.cfg``, its carrier the
+        frequency at the centre of the ADC window.
 
     Returns
     -------
     RadarConfig
-        The slope rounded to :func:`~risloc_rt.measured.ti.chirp_config.slope_step` [Hz/s] (bandwidth
-        adjusted); the chirp period lengthened to ramp + 3 µs idle, rounded up to a whole µs [s], when
-        the ramp does not fit (and the frame period with it).
+        The slope truncated to the device's step (:func:`~risloc_rt.measured.ti.chirp_config.slope_step`,
+        as TI's firmware does: Table I's 68.69 MHz/µs becomes 68.6538) [Hz/s], bandwidth adjusted;
+        the carrier the centre of the ADC window of the truncated start frequency
+        ``f_0 = f_c − S·(ADC_START_TIME + N/(2 f_s))`` (within one 40 Hz step of ``f_c``) [Hz]; the
+        chirp period lengthened to ramp + 3 µs idle, rounded up to a whole µs [s], when the ramp does
+        not fit (and the frame period with it). Reading back the ``.cfg`` the emulator writes for it
+        gives this radar (``TiChirpConfig.to_radar_config``).
     """
-    step = slope_step(radar.carrier_frequency)
-    slope = round(radar.slope / step) * step
-    out = replace(radar, bandwidth=slope * radar.chirp_duration)
+    slope = device_steps(radar.slope, slope_step(radar.carrier_frequency)) * slope_step(radar.carrier_frequency)
+    offset = ADC_START_TIME + radar.adc_window / 2
+    f_step = start_frequency_step(radar.carrier_frequency)
+    start = device_steps(radar.carrier_frequency - slope * offset, f_step) * f_step
+    out = replace(radar, bandwidth=slope * radar.chirp_duration, carrier_frequency=start + slope * offset)
     ramp = ADC_START_TIME + radar.adc_window + RAMP_MARGIN
     if radar.chirp_interval < ramp + MIN_IDLE * (1 - 1e-9):
         period = math.ceil((ramp + MIN_IDLE) * 1e6 - 1e-6) * 1e-6

@@ -8,13 +8,14 @@ Room 1 of :mod:`risloc_rt.measured` (imports only :mod:`..errors` and ``dsp``):
 - :mod:`.config_file`: either file, by its suffix.
 """
 
-from .chirp_config import ADC_FORMATS, AdcFormat, TiChirp, TiChirpConfig, slope_step, start_frequency_step
+from .chirp_config import (ADC_FORMATS, AdcFormat, TiChirp, TiChirpConfig, device_steps, slope_step,
+                           start_frequency_step)
 from .config_file import load_config
 from .sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
 from .studio_json import ParsedStudioJson, parse_studio_json, read_studio_json
 
 __all__ = [
     "ADC_FORMATS", "AdcFormat", "ParsedSdkCfg", "ParsedStudioJson", "TiChirp", "TiChirpConfig", "format_sdk_cfg",
-    "load_config", "parse_sdk_cfg", "parse_studio_json", "read_sdk_cfg", "read_studio_json", "slope_step",
+    "load_config", "parse_sdk_cfg", "parse_studio_json", "read_sdk_cfg", "read_studio_json", "device_steps", "slope_step",
     "start_frequency_step",
 ]

@@ -8,6 +8,7 @@ raw-data layout (:class:`risloc_rt.measured.dca1000.raw_layout.RawLayout`), the 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -18,7 +19,8 @@ from ..errors import MeasuredFormatError
 if TYPE_CHECKING:                       # dsp is imported where it is used, so parsing works without it
     import dsp
 
-__all__ = ["ADC_BITS", "ADC_FORMATS", "AdcFormat", "TiChirp", "TiChirpConfig", "slope_step", "start_frequency_step"]
+__all__ = ["ADC_BITS", "ADC_FORMATS", "AdcFormat", "STEP_TOLERANCE", "TiChirp", "TiChirpConfig", "device_steps",
+           "slope_step", "start_frequency_step"]
 
 AdcFormat = Literal["real", "complex1x", "complex2x"]
 ADC_FORMATS: tuple[str, ...] = ("real", "complex1x", "complex2x")
@@ -63,6 +65,31 @@ def start_frequency_step(start_frequency: float) -> float:
         The start-frequency step [Hz].
     """
     return _band_reference(start_frequency) / 2**26
+
+
+#: Relative tolerance [steps] of :func:`device_steps`: a value within 1e-6 of a step below a whole
+#: number of steps is that number (a value written back from an exact multiple, e.g. by
+#: ``format_sdk_cfg``, must not lose a step to the last bit of its decimal text).
+STEP_TOLERANCE = 1e-6
+
+
+def device_steps(value: float, step: float) -> int:
+    """Whole device steps of ``value``, truncated toward zero as TI's firmware casts (C ``(int)``).
+
+    Parameters
+    ----------
+    value : float
+        The ``.cfg`` value [Hz/s or Hz].
+    step : float
+        The register's LSB (:func:`slope_step`, :func:`start_frequency_step`) [same unit].
+
+    Returns
+    -------
+    int
+        ``trunc(value/step)``, with :data:`STEP_TOLERANCE` for values written from exact multiples.
+    """
+    ratio = value / step
+    return int(math.trunc(ratio + math.copysign(STEP_TOLERANCE, ratio)))
 
 
 @dataclass(frozen=True)
@@ -267,9 +294,45 @@ class TiChirpConfig:
 
     @property
     def quantized_slope(self) -> float:
-        """The slope the device actually programs: S rounded to :func:`slope_step` [Hz/s]."""
+        """The slope the device actually programs: S truncated to :func:`slope_step` [Hz/s].
+
+        TI's firmware converts the ``.cfg`` value to its register with a C cast, which truncates:
+        ``trunc(S[MHz/µs] · 2^26 / (f_ref[MHz] · 900))`` steps (:func:`device_steps`). A ``.cfg``
+        slope of 68.69 MHz/µs is 1896.9991 steps of 36.21 kHz/µs, so the device sweeps
+        68.6538 MHz/µs: −0.054 %, −7 mm at 13 m if the file's value were used.
+        """
         step = slope_step(self.start_frequency)
-        return round(self.slope / step) * step
+        return device_steps(self.slope, step) * step
+
+    @property
+    def quantized_start_frequency(self) -> float:
+        """The start frequency the device programs: f_0 truncated to :func:`start_frequency_step` [Hz]
+        (``trunc(f_0[GHz] · 2^26 / f_ref[GHz])`` steps of 40.2 Hz at 60 GHz, as :attr:`quantized_slope`)."""
+        step = start_frequency_step(self.start_frequency)
+        return device_steps(self.start_frequency, step) * step
+
+    def band_centre(self, *, quantized: bool = True) -> float:
+        """Frequency at the middle of the ADC window, ``f_0 + S·(adc_start_time + N/(2 f_s))`` [Hz].
+
+        The slow-time phase of a moving target advances at the frequency the samples are taken at:
+        the 2-D transform's Doppler sees the window's centre (the Hann window is symmetric), not
+        f_0 — 62.13 GHz for an IWR6843 profile starting at 60 GHz with 68.69 MHz/µs, 6 µs ADC start
+        and 256 samples at 10 Msps (3.5 % in velocity).
+
+        Parameters
+        ----------
+        quantized : bool, default True
+            Use the device's truncated f_0 and S (:attr:`quantized_start_frequency`,
+            :attr:`quantized_slope`) rather than the file's values.
+
+        Returns
+        -------
+        float
+            [Hz].
+        """
+        f0 = self.quantized_start_frequency if quantized else self.start_frequency
+        slope = self.quantized_slope if quantized else self.slope
+        return f0 + slope * (self.adc_start_time + self.adc_sampling_time / 2)
 
     def device_issues(self) -> tuple[str, ...]:
         """Timing a real device would refuse or that makes the data suspect (empty when none).
@@ -301,7 +364,7 @@ class TiChirpConfig:
         return tuple(issues)
 
     # ------------------------------------------------------------------ mapping
-    def to_radar_config(self, *, carrier: Literal["start", "center"] = "start", quantize_slope: bool = True,
+    def to_radar_config(self, *, carrier: Literal["start", "center"] = "center", quantize_slope: bool = True,
                         **radar_fields: Any) -> "dsp.RadarConfig":
         """The project's radar parameters (``dsp.RadarConfig``) for this configuration.
 
@@ -313,12 +376,15 @@ class TiChirpConfig:
 
         Parameters
         ----------
-        carrier : {"start", "center"}, default "start"
-            f_c = the start frequency, or the frequency at the middle of the ADC window
-            ``f_0 + S·(adc_start_time + N/(2 f_s))``.
+        carrier : {"center", "start"}, default "center"
+            f_c = the frequency at the middle of the ADC window ``f_0 + S·(adc_start_time +
+            N/(2 f_s))`` (:meth:`band_centre`: the frequency the slow-time phase advances at, which
+            sets the velocity, the delay rate and the wavelength), or the start frequency f_0
+            (velocities too high by the ratio, 3.5 % for a typical IWR6843 profile).
         quantize_slope : bool, default True
-            Use the slope the device programs (:attr:`quantized_slope`) rather than the value
-            written in the file. Convert bins to metres with the quantized one.
+            Use the slope and start frequency the device programs (:attr:`quantized_slope`,
+            :attr:`quantized_start_frequency`: truncated, as TI's firmware does) rather than the
+            values written in the file. Convert bins to metres with the quantized ones.
         **radar_fields
             Other ``RadarConfig`` fields (``tx_power_dbm``, ``noise_power_dbm``, …), nominal.
 
@@ -333,9 +399,9 @@ class TiChirpConfig:
 
         slope = self.quantized_slope if quantize_slope else self.slope
         if carrier == "start":
-            fc = self.start_frequency
+            fc = self.quantized_start_frequency if quantize_slope else self.start_frequency
         elif carrier == "center":
-            fc = self.start_frequency + slope * (self.adc_start_time + self.adc_sampling_time / 2)
+            fc = self.band_centre(quantized=quantize_slope)
         else:
             raise MeasuredFormatError(f"carrier={carrier!r} must be 'start' or 'center'")
         frame = self.frame_periodicity if self.frame_periodicity and \
@@ -357,12 +423,17 @@ class TiChirpConfig:
                    adc_start_time: float = 6e-6, ramp_margin: float = 1e-6, num_frames: int = 0,
                    frame_periodicity: float | None = None, adc_bits: int = 16,
                    adc_format: AdcFormat = "complex1x") -> "TiChirpConfig":
-        """A TI configuration that reproduces ``radar``'s S, f_s, N, K and chirp spacing.
+        """A TI configuration that reproduces ``radar``'s f_c, S, f_s, N, K and chirp spacing.
 
         The loop holds one chirp per entry of ``tx_order`` (Tx masks); the chirp spacing
         ``radar.chirp_interval`` is split evenly among them as idle + ramp, the ramp being
-        ``adc_start_time + N/f_s + ramp_margin``. Raises if T is too short for that ramp
-        (Table I: 600 samples at 10 Msps need 60 µs, more than its 50 µs chirp).
+        ``adc_start_time + N/f_s + ramp_margin``. The start frequency is chosen so that the ADC
+        window's centre is ``radar.carrier_frequency`` (f_0 = f_c − S·(adc_start_time + N/(2 f_s)):
+        :meth:`to_radar_config` maps the carrier back to that centre). The values are written as
+        given; a device programs them truncated to its steps (:attr:`quantized_slope`), so pass a
+        radar whose slope and carrier are already on them (``risloc_rt.measured.dca1000_radar``)
+        for a lossless round trip. Raises if T is too short for that ramp (Table I: 600 samples at
+        10 Msps need 60 µs, more than its 50 µs chirp).
         """
         tx_order = tuple(tx_order)
         ramp = adc_start_time + radar.adc_window + ramp_margin
@@ -377,7 +448,8 @@ class TiChirpConfig:
         for m in tx_order:
             tx_mask |= m
         period = radar.frame_interval if frame_periodicity is None else frame_periodicity
-        return cls(start_frequency=radar.carrier_frequency, slope=radar.slope, idle_time=per_chirp - ramp,
+        start = radar.carrier_frequency - radar.slope * (adc_start_time + radar.adc_window / 2)
+        return cls(start_frequency=start, slope=radar.slope, idle_time=per_chirp - ramp,
                    adc_start_time=adc_start_time, ramp_end_time=ramp, num_samples=radar.num_samples,
                    sample_rate=radar.sample_rate, rx_mask=rx_mask, tx_mask=tx_mask, chirps=chirps,
                    num_loops=radar.num_chirps, num_frames=num_frames, frame_periodicity=period,
