@@ -8,6 +8,14 @@ Confidence intervals (95 %): percentile bootstrap with :data:`BOOTSTRAP` resampl
 detected runs, its generator seeded from the study seed and the point
 (``SeedSequence(seed, spawn_key=(point, 2**32 - 1))``), so the interval is reproducible; the
 detection probability gets the Wilson score interval.
+
+Coverage (:func:`coverage`): how honest the stated 1σ is. Over the detected runs with a finite
+error and a finite, positive σ, the share whose |error| is within 1, 2 and 3 σ — distance
+(``distance_error`` / ``std_distance``), azimuth (``aod_az_error`` / ``std_aod_az``) and position
+(``position_error`` / ``peb``) — each with its Wilson 95 % interval. A Gaussian error has
+68.3 / 95.4 / 99.7 % (:data:`GAUSSIAN_COVERAGE`); the position's ‖e‖ ≤ k·PEB has between that
+(all of the error along one axis) and 1 − exp(−k²) = 63.2 / 98.2 / 99.99 % (a circular error in
+two axes) (``docs/studies.md``).
 """
 
 from __future__ import annotations
@@ -20,11 +28,18 @@ import numpy as np
 
 from .spec import StudySpec
 
-__all__ = ["summarize", "BOOTSTRAP"]
+__all__ = ["summarize", "coverage", "BOOTSTRAP", "COVERAGE_LEVELS", "GAUSSIAN_COVERAGE"]
 
 #: Bootstrap resamples per interval.
 BOOTSTRAP = 1000
 _QUANTITIES = {"distance": "distance_error", "angle": "angle_error", "position": "position_error"}
+#: Error column and stated-1σ column of each quantity whose coverage is counted.
+_COVERED = {"distance": ("distance_error", "std_distance"), "angle": ("aod_az_error", "std_aod_az"),
+            "position": ("position_error", "peb")}
+#: The multiples of the stated σ whose coverage is counted.
+COVERAGE_LEVELS = (1, 2, 3)
+#: P(|e| <= kσ) for a Gaussian e, k = 1, 2, 3 [unitless].
+GAUSSIAN_COVERAGE = (0.682689, 0.954500, 0.997300)
 
 
 def _wilson(k: int, n: int, z: float = 1.959964) -> list[float]:
@@ -50,6 +65,36 @@ def _intervals(err: np.ndarray, rng: np.random.Generator) -> tuple[list[float], 
     return np.percentile(mae, q).tolist(), np.percentile(rmse, q).tolist()
 
 
+def coverage(errors: Any, sigmas: Any) -> dict[str, Any]:
+    """Share of errors within 1, 2 and 3 stated σ, with Wilson 95 % intervals.
+
+    Parameters
+    ----------
+    errors : float array [R]
+        Signed or absolute errors (any unit).
+    sigmas : float array [R]
+        The stated 1σ of each, same unit. Pairs with a non-finite error or a σ that is not finite
+        and positive (no σ, an unobservable angle) are left out.
+
+    Returns
+    -------
+    dict
+        ``n`` (pairs counted), ``levels`` [1, 2, 3], ``share`` [3] (|e| <= kσ) [unitless] and ``ci95``
+        [3][2] (Wilson score intervals; [0, 1] when n = 0).
+    """
+    e = np.abs(np.asarray(errors, dtype=float)).ravel()
+    s = np.asarray(sigmas, dtype=float).ravel()
+    if e.shape != s.shape:
+        raise ValueError(f"errors ({e.size}) and sigmas ({s.size}) must have one σ per error")
+    keep = np.isfinite(e) & np.isfinite(s) & (s > 0)
+    e, s = e[keep], s[keep]
+    n = int(e.size)
+    counts = [int(np.count_nonzero(e <= k * s)) for k in COVERAGE_LEVELS]
+    return {"n": n, "levels": list(COVERAGE_LEVELS),
+            "share": [c / n if n else math.nan for c in counts],
+            "ci95": [_wilson(c, n) for c in counts]}
+
+
 def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, Any]:
     """The ``summary.json`` object: ``{"study": ..., "points": [...]}`` (module docstring).
 
@@ -68,7 +113,8 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
         ``study``, ``key``, ``x`` (the figures' x parameter), ``units``, ``intervals``, ``retried``
         and ``points``: per point its parameters, detection probability (Wilson 95 % interval),
         MAE and RMSE of distance [m], angle [rad] and position [m] with bootstrap 95 % intervals,
-        the CRB and the random-phase bound, their ratios, mean SNR [dB], flag counts and times [s].
+        the CRB and the random-phase bound, their ratios, ``coverage`` of the stated 1σ (:func:`coverage`
+        per quantity), mean SNR [dB], flag counts and times [s].
 
     Raises
     ------
@@ -117,6 +163,9 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             "rmse_over_crb": ratio,
             "bound_random_phase": random_phase,  # the per-beam phases random: dsp.sweep_crb(phases="random")
             "rmse_over_bound_random_phase": over(random_phase) if random_phase else {},
+            # the stated 1σ's honesty: share of detected runs with |error| <= 1, 2, 3 σ (Wilson 95 %)
+            "coverage": {name: coverage([r.get(ce, math.nan) for r in det], [r.get(cs, math.nan) for r in det])
+                         for name, (ce, cs) in _COVERED.items()},
             "mean_snr_db": float(np.nanmean([r["snr_db"] for r in rs])) if rs else math.nan,
             "flags": dict(sorted(flags.items())),
             "seconds_per_run": seconds + prepare / len(rs),
@@ -128,7 +177,8 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
         "key": spec.key,
         "x": spec.x_name,
         "units": {"distance": "m", "angle": "rad", "position": "m", "seconds_per_run": "s (one core)"},
-        "intervals": f"95 % percentile bootstrap ({BOOTSTRAP} resamples) over the detected runs; Wilson for the detection probability",
+        "intervals": f"95 % percentile bootstrap ({BOOTSTRAP} resamples) over the detected runs; Wilson for the "
+                     "detection probability and the coverage",
         "points": out,
         "retried": list(info.get("retried", [])),
     }
