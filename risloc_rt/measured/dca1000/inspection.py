@@ -27,7 +27,7 @@ from ..ti.config_file import load_config
 from .raw_layout import RawLayout
 from .reader import CaptureInfo, Form, iter_frames, open_raw
 
-__all__ = ["CaptureInspection", "Peak", "inspect_capture", "plot_inspection"]
+__all__ = ["CaptureInspection", "Peak", "file_iq_swap", "inspect_capture", "plot_inspection"]
 
 
 #: Peak bytes per sample of a block while it is inspected: the raw words and the complex64 cube
@@ -80,7 +80,8 @@ class CaptureInspection:
     truncated_bytes : int
         Bytes of a dropped, incomplete final frame.
     dropped_packets : int
-        Packets lost (zero-filled); ``damaged_frames`` lists the frames holding the zeros.
+        Packets lost (zero-filled), certain and probable; ``damaged_frames`` lists the frames
+        holding the zeros.
     peak : Peak
     range_profile : ndarray, [N]
         Mean power per range bin over frames, loops and channels, window-normalised [counts²].
@@ -100,6 +101,11 @@ class CaptureInspection:
         decoded right puts targets at positive ones (NaN for real data).
     flags : tuple of Flag
     notes : tuple of str
+    probable_dropped_packets : int
+        Of ``dropped_packets``, those found as whole packets of zeros in a raw-mode stream.
+    config_iq_swap : bool or None
+        The configuration's swap flag (``adcbufCfg`` SampleSwap or Studio ``iqSwapSel``; None
+        without a configuration), recorded next to the order the file was read with.
     """
 
     files: tuple[Path, ...]
@@ -123,6 +129,8 @@ class CaptureInspection:
     positive_frequency_excess_db: float
     flags: tuple[Flag, ...]
     notes: tuple[str, ...]
+    probable_dropped_packets: int = 0
+    config_iq_swap: bool | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON summary (no arrays): counts, peak, impairments, flags.
@@ -140,7 +148,9 @@ class CaptureInspection:
             "channels": lay.num_virtual, "adc_format": lay.adc_format, "lanes": lay.lanes, "iq_swap": lay.iq_swap,
             "peak": {"range_bin": self.peak.range_bin, "doppler_bin": self.peak.doppler_bin,
                      "snr_db": round(self.peak.snr_db, 2), "range": self.peak.range, "velocity": self.peak.velocity},
-            "dropped_packets": self.dropped_packets, "damaged_frames": list(self.damaged_frames),
+            "config_iq_swap": self.config_iq_swap,
+            "dropped_packets": self.dropped_packets, "probable_dropped_packets": self.probable_dropped_packets,
+            "damaged_frames": list(self.damaged_frames),
             "truncated_bytes": self.truncated_bytes,
             "clipping": {"words": self.clipped_words, "fraction": self.clipped_fraction},
             "dc_offset": {"i": self.dc_offset.real, "q": self.dc_offset.imag},
@@ -166,20 +176,52 @@ class CaptureInspection:
         return json.dumps(self.to_dict(), indent=indent)
 
 
+def file_iq_swap(config: str | Path | TiChirpConfig, *, iq_swap: bool | None = None) -> bool:
+    """The I/Q order to read a capture with: ``iq_swap`` when given, else what the configuration says of the LVDS stream.
+
+    - mmWave Studio ``.json``: its ``rlDevDataFmtCfg_t.iqSwapSel`` (mmWaveLink ``rl_device.h``:
+      0 = I first, 1 = Q first; ``rlDeviceSetDataFmtConfig`` sets the LVDS/CSI2 output format).
+    - mmWave SDK ``.cfg`` or a parsed ``TiChirpConfig``: False (I first). ``adcbufCfg``
+      SampleSwap is the ADC *buffer*'s word order for the on-chip DSP/HWA (mmWave SDK user's
+      guide: "Q in LSB, I in MSB", the only value the demos accept), not the LVDS order; the
+      corner-reflector capture, made with it, has I first.
+
+    Parameters
+    ----------
+    config : path or TiChirpConfig
+    iq_swap : bool, optional
+        An explicit order overrides the configuration.
+
+    Returns
+    -------
+    bool
+        True: the file stores Q before I.
+    """
+    if iq_swap is not None:
+        return bool(iq_swap)
+    if isinstance(config, TiChirpConfig):
+        return False
+    if Path(config).suffix.lower() == ".json":
+        return bool(load_config(config)[0].iq_swap)
+    return False
+
+
 def _layout_of(config: str | Path | TiChirpConfig | RawLayout, lanes: int | None,
-               iq_swap: bool) -> tuple[RawLayout, TiChirpConfig | None]:
+               iq_swap: bool | None) -> tuple[RawLayout, TiChirpConfig | None]:
     """The file's layout and the configuration (None for a bare layout) of :func:`inspect_capture`'s ``config``."""
     if isinstance(config, RawLayout):
-        layout = config if lanes is None and not iq_swap else RawLayout(
+        layout = config if lanes is None and iq_swap is None else RawLayout(
             config.num_samples, config.num_rx, config.chirps_per_loop, config.num_loops, config.adc_format,
-            lanes or config.lanes, iq_swap)
+            lanes or config.lanes, config.iq_swap if iq_swap is None else bool(iq_swap))
         return layout, None
     file_lanes = None
     if isinstance(config, TiChirpConfig):
         cfg = config
+        swap = file_iq_swap(cfg, iq_swap=iq_swap)
     else:
         cfg, file_lanes = load_config(config)
-    return RawLayout.from_config(cfg, lanes=lanes or file_lanes or 2, iq_swap=iq_swap), cfg
+        swap = bool(cfg.iq_swap) if iq_swap is None and Path(config).suffix.lower() == ".json" else bool(iq_swap)
+    return RawLayout.from_config(cfg, lanes=lanes or file_lanes or 2, iq_swap=swap), cfg
 
 
 @dataclass(frozen=True)
@@ -199,6 +241,7 @@ class _CaptureSums:
     clipped: int
     frames_read: int
     dropped: int
+    probable: int
     damaged: tuple[int, ...]
 
 
@@ -213,7 +256,7 @@ def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, f
     rd = np.zeros((K, N))
     s1 = np.zeros(2)
     s2 = np.zeros(3)                                  # Σ I², Σ Q², Σ I·Q
-    count = clipped = frames_read = dropped = 0
+    count = clipped = frames_read = dropped = probable = 0
     damaged: list[int] = []
     for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=max_frames):
         y = block.cube                                # complex64 [f, K, V, N], paper convention
@@ -228,13 +271,15 @@ def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, f
         rd += (np.abs(z) ** 2).sum(axis=(0, 2)) / gain
         frames_read += len(y)
         dropped += sum(d.count for d in block.dropped)
+        probable += sum(d.count for d in block.dropped if d.probable)
         damaged += [block.first_frame + int(i) for i in np.flatnonzero(block.damaged)]
     if frames_read == 0:
         raise MeasuredFormatError("no frame to inspect (max_frames=0?)")
     rd /= frames_read * layout.num_virtual
     rd = np.fft.fftshift(rd, axes=0)
     return _CaptureSums(range_doppler=rd, s1=s1, s2=s2, count=count, words=2 if layout.is_complex else 1,
-                        clipped=clipped, frames_read=frames_read, dropped=dropped, damaged=tuple(damaged))
+                        clipped=clipped, frames_read=frames_read, dropped=dropped, probable=probable,
+                        damaged=tuple(damaged))
 
 
 def _iq_statistics(sums: _CaptureSums, profile: np.ndarray,
@@ -262,7 +307,11 @@ def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig 
     dropped, damaged = sums.dropped, list(sums.damaged)
     flags = []
     if dropped:
-        flags.append(Flag("dropped-packets", f"{dropped} packets lost; frames {damaged[:10]}"
+        certain = dropped - sums.probable
+        what = " and ".join(([f"{certain} packets lost"] if certain else []) +
+                            ([f"{sums.probable} probable lost packets (whole packets of exact zeros on the packet "
+                              "grid of a raw-mode stream, which an ADC with noise cannot give)"] if sums.probable else []))
+        flags.append(Flag("dropped-packets", f"{what}; frames {damaged[:10]}"
                           f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
     if info.truncated_bytes:
         flags.append(Flag("truncated-frame", f"final frame incomplete ({info.truncated_bytes} bytes), dropped"))
@@ -275,8 +324,12 @@ def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig 
         flags.append(Flag("iq-imbalance", f"I/Q imbalance {g_db:+.2f} dB, {np.rad2deg(phase):+.1f} deg: images "
                           "of strong targets appear mirrored in range"))
     if not np.isnan(excess) and excess < 0:
+        read = "Q first" if info.layout.iq_swap else "I first"
+        cfg_says = ("" if cfg is None else f" (read {read}; the configuration's swap flag is {int(cfg.iq_swap)}, "
+                    "which for an SDK .cfg describes the on-chip ADC buffer, not the file)")
         flags.append(Flag("iq-order", f"{-excess:.1f} dB more power at negative beat frequencies: I and Q are "
-                          "probably swapped (iq_swap=True) or the lane interleave is wrong (lanes=)"))
+                          f"probably swapped (iq_swap={not info.layout.iq_swap}) or the lane interleave is wrong "
+                          f"(lanes=){cfg_says}"))
     if peak_bin <= 1 and min_range_bin == 0:
         flags.append(Flag("peak-at-dc", "the strongest return is at range bin 0-1 (DC offset or Tx-Rx leakage): "
                           "pass min_range_bin="))
@@ -286,7 +339,7 @@ def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig 
 
 
 def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig | RawLayout, *,
-                    lanes: int | None = None, iq_swap: bool = False, form: Form = "auto",
+                    lanes: int | None = None, iq_swap: bool | None = None, form: Form = "auto",
                     payload_size: int | None = None, max_frames: int | None = None, window: str = "hann",
                     min_range_bin: int = 0, frames_per_block: int = 4) -> CaptureInspection:
     """Inspect a DCA1000 raw capture.
@@ -300,8 +353,10 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         layout (then no metres, no m/s and no frame-count check).
     lanes : {2, 4}, optional
         LVDS lanes; default: the Studio JSON's ``laneEn``, else 2 (xWR16xx/18xx/68xx).
-    iq_swap : bool, default False
-        The file stores Q first (the config's swap flag is not trusted, see the docs).
+    iq_swap : bool, optional
+        The file stores Q first. Default (None): a Studio ``.json``'s ``iqSwapSel`` (it sets the
+        LVDS order), else False: an SDK ``.cfg``'s ``adcbufCfg`` SampleSwap sets the on-chip ADC
+        buffer's order, not the file's (:func:`file_iq_swap`); a bare ``RawLayout`` keeps its own.
     form : {"auto", "raw", "packets"}, default "auto"
     payload_size : int, optional
         Packet payload [bytes]; detected when omitted.
@@ -355,7 +410,8 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         doppler_bins=doppler_bins, clipped_words=sums.clipped,
         clipped_fraction=sums.clipped / (sums.count * sums.words),
         dc_offset=dc, iq_gain_imbalance_db=g_db, iq_phase_imbalance=phase, positive_frequency_excess_db=excess,
-        flags=flags, notes=info.notes)
+        flags=flags, notes=info.notes, probable_dropped_packets=sums.probable,
+        config_iq_swap=None if cfg is None else bool(cfg.iq_swap))
 
 
 def plot_inspection(result: CaptureInspection, path: str | Path | None = None, *, dynamic_range_db: float = 60.0):

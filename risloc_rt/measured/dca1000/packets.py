@@ -32,24 +32,32 @@ _ZERO_BLOCK = 1 << 22
 
 @dataclass(frozen=True)
 class DroppedPackets:
-    """Consecutive packets missing from a packet-recorded capture (zero-filled in the stream).
+    """Consecutive packets missing from a capture (zero-filled in the stream).
+
+    Packet form: a gap in the headers' sequence numbers and byte count, certain. Raw form
+    (``probable=True``): whole packets of exact zero words on the payload grid of a stream whose
+    other words show ADC noise (:mod:`.zero_packets`); a raw-mode file has no headers to prove it.
 
     Attributes
     ----------
     first_sequence : int
-        Sequence number of the first missing packet.
+        Sequence number of the first missing packet (raw form: the number it would have had,
+        ``stream_offset // payload + 1``).
     count : int
         Packets missing.
     stream_offset : int
         Byte offset in the sample stream where the zeros start.
     num_bytes : int
         Bytes zero-filled.
+    probable : bool, default False
+        Found as zeros in a raw-mode stream, not from packet headers.
     """
 
     first_sequence: int
     count: int
     stream_offset: int
     num_bytes: int
+    probable: bool = False
 
 
 @dataclass(frozen=True)

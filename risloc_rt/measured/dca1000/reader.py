@@ -22,10 +22,11 @@ from dsp.budget import check_memory
 from dsp.validation import integer
 
 from ..errors import MeasuredFormatError
-from .packets import (HEADER_BYTES, DroppedPackets, PacketIssue, detect_payload_size, iter_packet_stream,
+from .packets import (HEADER_BYTES, MAX_PAYLOAD, DroppedPackets, PacketIssue, detect_payload_size, iter_packet_stream,
                       packet_stream_length)
 from .raw_layout import Convention, RawLayout, decode_frames
 from .split_files import capture_files, iter_file_bytes
+from .zero_packets import scan_zero_packets
 
 __all__ = ["CaptureInfo", "Form", "FrameBlock", "RawCapture", "iter_frames", "open_raw", "read_raw"]
 
@@ -55,7 +56,12 @@ class CaptureInfo:
     configured_frames : int or None
         Frames the configuration asked for (``frameCfg`` numFrames; None for 0 = until stopped).
     notes : tuple of str
-        Findings that do not stop reading (a truncated final frame, fewer frames than configured).
+        Findings that do not stop reading (a truncated final frame, fewer frames than configured,
+        all-zero packets in a digitally silent raw stream).
+    probable_dropped : tuple of DroppedPackets
+        Raw form: probable lost packets, whole packets of exact zeros on the payload grid of a
+        stream that shows ADC noise (``probable=True``; :mod:`.zero_packets`). Empty for the
+        packet form, whose gaps come from the headers while reading.
     """
 
     files: tuple[Path, ...]
@@ -67,6 +73,7 @@ class CaptureInfo:
     truncated_bytes: int
     configured_frames: int | None
     notes: tuple[str, ...]
+    probable_dropped: tuple[DroppedPackets, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -79,9 +86,10 @@ class FrameBlock:
         Index of ``cube[0]`` in the capture.
     cube : ndarray of complex64, [f, K, V, N]
     damaged : ndarray of bool, [f]
-        Frames holding zero-filled bytes of lost packets.
+        Frames holding zero-filled bytes of lost packets (packet form) or probable lost packets
+        (raw form).
     dropped : tuple of DroppedPackets
-        Gaps starting in this block.
+        Gaps starting in this block (``probable=True``: found as zeros in a raw stream).
     issues : tuple of PacketIssue
         Late, duplicate or inconsistent packets met while reading this block.
     """
@@ -103,8 +111,9 @@ class RawCapture:
         ADC counts; frames, loops, virtual channels, samples.
     info : CaptureInfo
     damaged_frames : tuple of int
-        Frames holding zero-filled bytes.
+        Frames holding zero-filled bytes (lost or probably lost packets).
     dropped : tuple of DroppedPackets
+        Lost packets; ``probable=True`` for those found as zeros in a raw-mode stream.
     issues : tuple of PacketIssue
     convention : {"paper", "ti"}
     """
@@ -118,8 +127,13 @@ class RawCapture:
 
     @property
     def dropped_packets(self) -> int:
-        """Packets lost in total."""
+        """Packets lost in total (certain and probable)."""
         return sum(d.count for d in self.dropped)
+
+    @property
+    def probable_dropped_packets(self) -> int:
+        """Packets probably lost: whole packets of zeros in a raw-mode stream."""
+        return sum(d.count for d in self.dropped if d.probable)
 
 
 def _split_missing(files: Sequence[Path], total: int, expected: int | None) -> bool:
@@ -183,7 +197,8 @@ def _check_zero_fill(files: Sequence[Path], sizes: Sequence[int], payload_size: 
 
 
 def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form: Form = "auto",
-             payload_size: int | None = None, expected_frames: int | None = None) -> CaptureInfo:
+             payload_size: int | None = None, expected_frames: int | None = None,
+             find_zero_packets: bool = True) -> CaptureInfo:
     """Find a capture's files, tell raw from packet-recorded, and check the size against ``layout``.
 
     Parameters
@@ -195,14 +210,19 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     form : {"auto", "raw", "packets"}, default "auto"
         ``"auto"`` takes the packet form when the first bytes are consistent DCA1000 headers.
     payload_size : int, optional
-        Packet payload [bytes]; detected from the first headers when not given.
+        Packet payload [bytes]; detected from the first headers when not given. Raw form: the
+        packet grid of the lost-packet search (default 1456, the DCA1000's payload).
     expected_frames : int, optional
         Frames the configuration asked for (``frameCfg`` numFrames; 0 or None: unknown).
+    find_zero_packets : bool, default True
+        Raw form: scan the stream once for probable lost packets (whole packets of exact zeros
+        on the payload grid, with noise elsewhere; :func:`~.zero_packets.scan_zero_packets`).
 
     Returns
     -------
     CaptureInfo
-        The files, form, payload size, stream length [bytes], complete frames and notes.
+        The files, form, payload size, stream length [bytes], complete frames, notes and the
+        probable lost packets of a raw stream.
 
     Raises
     ------
@@ -255,9 +275,18 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     frames, truncated = divmod(total, fb)
     if truncated:
         notes.append(f"final frame {frames} is truncated ({truncated} of {fb} bytes) and dropped")
+    probable: tuple[DroppedPackets, ...] = ()
+    if resolved == "raw" and find_zero_packets:
+        grid = payload_size or MAX_PAYLOAD
+        if grid % 2:
+            raise MeasuredFormatError(f"payload_size={grid} must be even (whole int16 words per packet)")
+        scan = scan_zero_packets(files, length=min(total, -(-frames * fb // grid) * grid), payload_size=grid)
+        probable = scan.dropped
+        if scan.note():
+            notes.append(scan.note())
     return CaptureInfo(files=files, form=resolved, payload_size=detected if resolved == "packets" else None,
                        layout=layout, stream_bytes=total, num_frames=frames, truncated_bytes=truncated,
-                       configured_frames=expected, notes=tuple(notes))
+                       configured_frames=expected, notes=tuple(notes), probable_dropped=probable)
 
 
 def _stream(info: CaptureInfo, block: int) -> Iterator[tuple[np.ndarray, DroppedPackets | PacketIssue | None]]:
@@ -316,6 +345,10 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
 
     if last == 0:
         return
+    for event in info.probable_dropped:               # raw form: found by open_raw's scan, in stream order
+        dropped.append(event)
+        damaged.update(range(event.stream_offset // fb,
+                             min((event.stream_offset + event.num_bytes - 1) // fb + 1, last)))
     for data, event in _stream(info, 1 << 22):
         if isinstance(event, DroppedPackets):
             dropped.append(event)
@@ -341,11 +374,12 @@ def iter_frames(info: CaptureInfo, *, frames_per_block: int = 8, convention: Con
 
 def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form: Form = "auto",
              payload_size: int | None = None, expected_frames: int | None = None,
-             convention: Convention = "paper", max_frames: int | None = None) -> RawCapture:
+             convention: Convention = "paper", max_frames: int | None = None,
+             find_zero_packets: bool = True) -> RawCapture:
     """Read a whole capture into ``complex64 [F, K, V, N]`` (see :func:`open_raw`, :func:`iter_frames`).
 
-    Lost packets are zero-filled in place and listed; a truncated final frame is dropped and noted
-    in ``info.notes``. For files larger than memory use :func:`iter_frames`.
+    Lost packets are zero-filled in place and listed (in a raw-mode stream, whole packets of zeros
+    are listed as probable losses); a truncated final frame is dropped and noted in ``info.notes``. For files larger than memory use :func:`iter_frames`.
 
     Parameters
     ----------
@@ -363,6 +397,8 @@ def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
         Sign of Q (:func:`~.raw_layout.decode_frames`).
     max_frames : int, optional
         Read only the first frames.
+    find_zero_packets : bool, default True
+        Raw form: report probable lost packets (:func:`open_raw`).
 
     Returns
     -------
@@ -375,7 +411,8 @@ def read_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
     dsp.budget.BudgetError
         The cube (``8·F·K·V·N`` bytes) and one block being decoded would exceed the memory limit.
     """
-    info = open_raw(path, layout, form=form, payload_size=payload_size, expected_frames=expected_frames)
+    info = open_raw(path, layout, form=form, payload_size=payload_size, expected_frames=expected_frames,
+                    find_zero_packets=find_zero_packets)
     nf = info.num_frames if max_frames is None else min(info.num_frames, max_frames)
     shape = layout.cube_shape(nf)
     fpb = 16

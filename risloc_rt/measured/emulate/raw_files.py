@@ -8,12 +8,20 @@ convention, ``s = y`` for ``convention="ti"``)::
     code = clip(rint(x / full_scale · 2^(b−1)), −2^(b−1), 2^(b−1) − 1)                    (b-bit ADC)
 
 then the codes are laid out (:mod:`~risloc_rt.measured.dca1000.raw_layout`: lanes, I/Q swap), written raw or as
-packets (sequence numbers, losses), cut at a file-size limit and optionally truncated.
+packets (sequence numbers, losses), cut at a file-size limit and optionally truncated. A packet lost in
+the raw form leaves its ``payload_size`` bytes zero at their place on the packet grid, as the DCA1000's
+recording does (no header tells it; the reader finds it as a probable loss).
+
+The ``.cfg`` written says ``adcbufCfg … SampleSwap 1``: the only value TI's SDK demos accept, which
+sets the on-chip ADC buffer's word order (mmWave SDK user's guide), not the LVDS stream; a real SDK
+capture made with it has I first on the LVDS lanes (the corner-reflector capture). A Q-first file
+(``Recording.iq_swap=True``, what Studio's ``iqSwapSel = 1`` gives) cannot be stated in an SDK
+``.cfg``; its comment line says so.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -29,7 +37,11 @@ from ..errors import MeasuredFormatError
 from ..ti.chirp_config import TiChirpConfig
 from ..ti.sdk_cfg import format_sdk_cfg
 
-__all__ = ["AdcImpairments", "EmulatedCapture", "QuantizedCube", "Recording", "quantize_cube", "write_raw_capture"]
+#: ``adcbufCfg`` SampleSwap the emulated ``.cfg`` states: 1, the only value TI's SDK demos accept (ADC buffer
+#: "Q in LSB, I in MSB"); it does not set the LVDS order the files are written in.
+SDK_SAMPLE_SWAP = True
+
+__all__ = ["SDK_SAMPLE_SWAP", "AdcImpairments", "EmulatedCapture", "QuantizedCube", "Recording", "quantize_cube", "write_raw_capture"]
 
 
 @dataclass(frozen=True)
@@ -84,11 +96,12 @@ class Recording:
     iq_swap : bool, default False
         Write Q before I.
     payload_size : int, default 1456
-        Packet payload [bytes] (packet form).
+        Packet payload [bytes]: the packets of the packet form, the loss grid of the raw form.
     drop_packets : tuple of int
-        Sequence numbers (1-based) of packets lost on the link (packet form).
+        Sequence numbers (1-based) of packets lost on the link: left out of the packet form,
+        zero-filled in place in the raw form (packet j holds stream bytes ``[(j−1)·P, j·P)``).
     drop_probability : float, default 0
-        Independent loss probability of every packet (packet form); needs ``rng``.
+        Independent loss probability of every packet (either form); needs ``rng``.
     max_file_size : int or None
         Split the recording into ``<prefix>_Raw_<i>.bin`` files of at most this size [bytes].
     truncate_bytes : int, default 0
@@ -115,9 +128,8 @@ class Recording:
         p = non_negative(self.drop_probability, "drop_probability", "1", error=MeasuredFormatError)
         if p >= 1:
             raise MeasuredFormatError(f"drop_probability={p} must be < 1")
-        if self.form == "raw" and (self.drop_packets or p):
-            raise MeasuredFormatError("lost packets need form='packets': a raw-mode file has no sequence numbers "
-                                      "to detect them")
+        if self.payload_size % 2 or not 2 <= self.payload_size <= MAX_PAYLOAD:
+            raise MeasuredFormatError(f"payload_size={self.payload_size} must be even and in [2, {MAX_PAYLOAD}] bytes")
         integer(self.truncate_bytes, "truncate_bytes", minimum=0, error=MeasuredFormatError)
         if self.max_file_size is not None:
             integer(self.max_file_size, "max_file_size", minimum=2, error=MeasuredFormatError)
@@ -214,6 +226,24 @@ def quantize_cube(cube: np.ndarray, *, adc_bits: int = 16, real: bool = False,
     return QuantizedCube(i=codes[0], q=codes[1], clipped=clipped, adc_bits=adc_bits)
 
 
+def _zero_fill_lost(stream: np.ndarray, recording: Recording,
+                    rng: np.random.Generator | None) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Raw form: zero the bytes of the lost packets on the ``payload_size`` grid; (stream, lost sequence numbers)."""
+    P = recording.payload_size
+    packets = -(-stream.size // P)
+    lost = {s for s in recording.drop_packets if s <= packets}
+    if recording.drop_probability:
+        if rng is None:
+            raise MeasuredFormatError("drop_probability > 0 needs rng=numpy.random.default_rng(seed)")
+        lost |= {int(j) + 1 for j in np.flatnonzero(rng.random(packets) < recording.drop_probability)}
+    if not lost:
+        return stream, ()
+    out = stream.copy()
+    for s in sorted(lost):
+        out[(s - 1) * P:s * P] = 0
+    return out, tuple(sorted(lost))
+
+
 @dataclass(frozen=True)
 class EmulatedCapture:
     """What :func:`write_raw_capture` wrote.
@@ -230,7 +260,7 @@ class EmulatedCapture:
     quantized : QuantizedCube
         The codes before the recording's losses: what a reader must give back.
     dropped_sequences : tuple of int
-        Sequence numbers of the packets left out.
+        Sequence numbers of the packets lost: left out (packet form) or zero-filled in place (raw form).
     stream_bytes : int
         Bytes of sample stream written (after truncation).
     """
@@ -296,17 +326,17 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
         raise MeasuredFormatError(f"truncate_bytes={recording.truncate_bytes} removes the whole stream "
                                   f"({stream.size} bytes)")
     stream = stream[:stream.size - recording.truncate_bytes]
-    cfg = config.with_frames(F)
+    cfg = replace(config.with_frames(F), iq_swap=SDK_SAMPLE_SWAP)
     cfg_path = folder / f"{recording.prefix}.cfg"
     if cfg_path.exists() and not overwrite:
         raise MeasuredFormatError(f"{cfg_path} exists; risloc does not overwrite a capture: give a new or empty "
                                   "folder, remove it, or pass overwrite=True")
     if recording.form == "raw":
+        stream, dropped = _zero_fill_lost(stream, recording, rng)
         with SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size,
                          overwrite=overwrite) as writer:
             writer.write(stream.data)
             files = writer.close()
-        dropped: tuple[int, ...] = ()
     else:
         writer = SplitWriter(folder, recording.prefix, max_file_size=recording.max_file_size,
                              record_size=HEADER_BYTES + recording.payload_size, overwrite=overwrite)
@@ -316,7 +346,9 @@ def write_raw_capture(cube: np.ndarray, config: TiChirpConfig, folder: str | Pat
             rec.write(stream.data)
             files = rec.close()
         dropped = tuple(rec.dropped)
+    order = ("LVDS order Q first (iq_swap=True), which an SDK .cfg cannot state: read it with iq_swap=True"
+             if layout.iq_swap else "LVDS order I first; adcbufCfg SampleSwap 1 is the ADC buffer's order")
     atomic_write_bytes(cfg_path, format_sdk_cfg(
-        cfg, comment=f"written by risloc_rt.measured.emulate.raw_files: {layout.describe()}").encode("utf-8"))
+        cfg, comment=f"written by risloc_rt.measured.emulate.raw_files: {layout.describe()}; {order}").encode("utf-8"))
     return EmulatedCapture(files=files, cfg_path=cfg_path, config=cfg, layout=layout, quantized=quant,
                            dropped_sequences=dropped, stream_bytes=int(stream.size))
