@@ -21,7 +21,7 @@ import scipy.stats
 from .radar import RadarConfig
 from .dtft_subspace import dtft_phasors
 
-__all__ = ["DelayDrift", "delay_drift"]
+__all__ = ["DelayDrift", "delay_drift", "motion_rate"]
 
 
 @dataclass(frozen=True)
@@ -100,3 +100,25 @@ def delay_drift(cube: np.ndarray, radar: RadarConfig, *, delay: float, delay_rat
     scatter = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
     std = scatter / float(np.sqrt(np.sum((times - times.mean()) ** 2)))
     return DelayDrift(rate=float(rate), std=std, beams=beams, delays=delays)
+
+
+def motion_rate(radar: RadarConfig, delay_rate: float, drift: DelayDrift | None) -> float:
+    """The rate at which the return's delay moves across the sweep [s/s]: the Doppler ν̂, unwrapped by the drift.
+
+    The Doppler is precise but known only modulo 2 ν_max; the drift is coarse but unambiguous. When
+    they disagree by more than ν_max and five drift σ (the ``aliased`` test of :mod:`dsp.flags`), ν̂ is
+    moved by the whole number of spans 2 ν_max nearest the drift; otherwise ν̂ itself.
+
+    Parameters
+    ----------
+    radar : RadarConfig
+    delay_rate : float
+        ν̂ [s/s].
+    drift : DelayDrift or None
+        :func:`delay_drift`'s fit, if any.
+    """
+    nu = float(delay_rate)
+    if drift is None or not abs(drift.rate - nu) > max(radar.max_delay_rate, 5.0 * drift.std):
+        return nu
+    span = 2.0 * radar.max_delay_rate
+    return nu + span * round((drift.rate - nu) / span)

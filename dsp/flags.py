@@ -276,7 +276,9 @@ def _second_return_nearby(c: FlagContext) -> str | None:
         return None
     stat, thr = c.unresolved
     radar = c.radar
-    return (f"after removing the fitted RIS tone the residual within half a resolution cell is "
+    moving = (f" (whether it stays at one delay or follows the radar's motion across the sweep at "
+              f"{c.delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s)" if c.delay_rate != 0 else "")
+    return (f"after removing the fitted RIS tone{moving} the residual within half a resolution cell is "
             f"{10 * np.log10(max(stat, 1e-30)):.1f} dB (threshold {10 * np.log10(thr):.1f} dB): a second "
             f"return lies within {radar.range_resolution * 100:.1f} cm / {radar.velocity_resolution:.2f} m/s "
             "and biases delay and AoD; move the radar or use more bandwidth/chirps")

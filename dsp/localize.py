@@ -16,7 +16,7 @@ import numpy as np
 from .validation import finite, non_negative, positive
 from .beamscan import scan_beams
 from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_validated
-from .drift import delay_drift
+from .drift import delay_drift, motion_rate
 from .estimators import ESTIMATORS, SweepEstimate, SweepInputs
 from .flags import FlagContext, sweep_flags
 from .geometry import RisPose, direction_from_angles
@@ -180,11 +180,25 @@ def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
     arr, radar = inp.cube, inp.radar
     weights = np.abs(inp.pattern.amplitude(aod, inp.sweep.angles))
     f1, f2 = residual_frequency(inp, est)
-    unresolved = residual_test(arr, radar, f1, f2, weights, cell_noise=det.noise_power * arr.shape[1] * arr.shape[2],
-                               pfa=inp.pfa)
     drift = delay_drift(arr, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights)
+    unresolved = _unresolved(inp, f1, f2, weights, det.noise_power, motion_rate(radar, est.delay_rate, drift))
     return FlagContext(detection=det, fit=est.fit, magnitudes=est.magnitudes, sweep=inp.sweep, radar=radar,
                        pose=inp.pose, delay=est.delay, apparent_delay=f1 / (radar.slope * radar.sample_period),
                        delay_rate=est.delay_rate, loopback_delay=inp.loopback_delay, distance=distance, aod=aod,
                        unresolved=unresolved, ue_height=ue_height, height_solved=height_solved,
                        height_range=height_range, drift=drift, std=std)
+
+
+def _unresolved(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noise_power: float,
+                rate: float) -> tuple[float, float] | None:
+    """The residual test (:func:`dsp.residual_test`) under both models of the return: the same tone in
+    every beam (eq. (1), frozen geometry) and, when the radar moves (ν ≠ 0), a tone whose delay
+    follows the motion across the sweep, τ + ν (t_m − t̄) at each beam's frame time. A second return
+    is one neither explains: the flag needs both to fire, and reports the moving model's residual."""
+    arr, radar = inp.cube, inp.radar
+    cell_noise = noise_power * arr.shape[1] * arr.shape[2]
+    frozen = residual_test(arr, radar, f1, f2, weights, cell_noise=cell_noise, pfa=inp.pfa)
+    if frozen is None or rate == 0.0:
+        return frozen
+    return residual_test(arr, radar, f1, f2, weights, cell_noise=cell_noise, pfa=inp.pfa, drift_rate=rate,
+                         beam_times=radar.beam_times(arr.shape[0]))
