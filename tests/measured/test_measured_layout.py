@@ -1,11 +1,28 @@
-"""Byte layouts checked word by word against hand-built frames, and the int16 sign."""
+"""Byte layouts checked word by word against hand-built frames (TI SWRA581 s.4-5), the int16 sign, and both
+directions judged by the test-side reference decoder ``ti_reference`` (never by each other)."""
 
 from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from risloc_rt.measured import MeasuredFormatError, RawLayout, decode_frames, encode_frames
+
+
+def _load_reference():
+    """``ti_reference`` next to this file (--import-mode=importlib: the test folder is not on sys.path)."""
+    if "ti_reference" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
+        sys.modules["ti_reference"] = module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    return sys.modules["ti_reference"]
+
+
+ref = _load_reference()
 
 
 def _layout(**kw):
@@ -71,28 +88,37 @@ def test_tdm_chirps_become_virtual_channels_chirp_major():
             np.testing.assert_array_equal(cube[0, 1, 2 * c + r], [1000 + 100 * c + 10 * r, 1001 + 100 * c + 10 * r])
 
 
+def _shape(lay: RawLayout):
+    return ref.Shape(N=lay.num_samples, R=lay.num_rx, C=lay.chirps_per_loop, K=lay.num_loops,
+                     complex_=lay.is_complex, lanes=lay.lanes, q_first=lay.iq_swap)
+
+
 @pytest.mark.parametrize("lanes", [2, 4])
 @pytest.mark.parametrize("fmt", ["complex1x", "complex2x", "real"])
 @pytest.mark.parametrize("swap", [False, True])
-def test_encode_decode_round_trip_exact(lanes, fmt, swap):
+def test_decoder_and_encoder_each_agree_with_the_reference(lanes, fmt, swap):
     lay = RawLayout(num_samples=6, num_rx=3, chirps_per_loop=2, num_loops=3, adc_format=fmt, lanes=lanes, iq_swap=swap)
     rng = np.random.default_rng(1)
     shape = lay.cube_shape(2)
-    i = rng.integers(-32768, 32768, shape).astype(np.int16)
-    q = rng.integers(-32768, 32768, shape).astype(np.int16) if fmt != "real" else None
-    words = encode_frames(i, q, lay)
-    assert words.nbytes == 2 * lay.frame_bytes
-    out = decode_frames(words, lay, convention="ti")
+    i = rng.integers(-32768, 32768, shape)
+    q = rng.integers(-32768, 32768, shape) if fmt != "real" else None
+    data = ref.encode(i, q, _shape(lay))                                    # the reference writes the bytes
+    assert len(data) == 2 * lay.frame_bytes
+    out = decode_frames(np.frombuffer(data, "<i2"), lay, convention="ti")   # the project reads them
     np.testing.assert_array_equal(out.real, i)
     np.testing.assert_array_equal(out.imag, q if q is not None else 0)
+    words = encode_frames(i.astype(np.int16), None if q is None else q.astype(np.int16), lay)
+    i2, q2 = ref.decode(words.tobytes(), _shape(lay))                       # the project writes, the reference reads
+    np.testing.assert_array_equal(i2, i)
+    np.testing.assert_array_equal(q2, q if q is not None else 0)
 
 
 def test_tone_lands_in_its_range_bin():
     lay = RawLayout(num_samples=64, num_rx=1, chirps_per_loop=1, num_loops=1)
     n = np.arange(64)
     ti = 8000 * np.exp(2j * np.pi * 11 * n / 64)            # TI data: target at a positive beat frequency
-    i, q = np.rint(ti.real).astype(np.int16), np.rint(ti.imag).astype(np.int16)
-    words = encode_frames(i.reshape(1, 1, 1, 64), q.reshape(1, 1, 1, 64), lay)
+    i, q = np.rint(ti.real).astype(int), np.rint(ti.imag).astype(int)
+    words = np.frombuffer(ref.encode(i.reshape(1, 1, 1, 64), q.reshape(1, 1, 1, 64), _shape(lay)), "<i2")
     paper = decode_frames(words, lay)[0, 0, 0]
     assert np.argmax(np.abs(np.fft.ifft(paper))) == 11        # eq. (2DDFT) sign, e^{+j2πpn/N}
     assert np.argmax(np.abs(np.fft.fft(decode_frames(words, lay, convention="ti")[0, 0, 0]))) == 11

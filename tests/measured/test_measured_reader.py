@@ -1,7 +1,13 @@
-"""The streaming reader: the real corner-reflector capture, split files, sizes that do not fit."""
+"""The streaming reader: the real corner-reflector capture, split files, sizes that do not fit.
+
+Expected samples come from the test-side reference decoder (``ti_reference``, written from TI's
+documents) reading the same files, never from the emulator's codes.
+"""
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +15,20 @@ import pytest
 
 from risloc_rt.measured import (MeasuredFormatError, RawLayout, Recording, capture_files, inspect_capture, iter_frames,
                                 open_raw, read_raw, write_raw_capture)
+
+
+
+def _load_reference():
+    """``ti_reference`` next to this file (--import-mode=importlib: the test folder is not on sys.path)."""
+    if "ti_reference" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
+        sys.modules["ti_reference"] = module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    return sys.modules["ti_reference"]
+
+
+ref = _load_reference()
+SHAPE = ref.Shape(N=32, R=4, C=2, K=8)          # make_config(): 32 complex samples, 4 rx, 2 chirps, 8 loops
 
 #: The shared folder lives next to the repository: <repo>/../shared.
 CORNER = Path(__file__).resolve().parents[2].parent / "shared" / "captures" / "iwr6843_corner_reflector" / \
@@ -31,6 +51,7 @@ def test_corner_reflector_peaks_at_range_bin_38_and_zero_doppler():
 @needs_corner
 def test_corner_reflector_wrong_decodings_move_the_peak():
     cube = read_raw(CORNER, CORNER_LAYOUT, convention="ti").cube[0]    # [K, V, N]
+    np.testing.assert_array_equal(cube, ref.ti_complex(CORNER.read_bytes(), ref.Shape(N=256, R=4, C=3, K=64))[0])
     words = np.fromfile(CORNER, "<i2").reshape(64, 12, 256, 2)         # the wrong I0 Q0 I1 Q1 interleave
     wrong = words[..., 0] + 1j * words[..., 1]
     w = np.hanning(256)
@@ -55,8 +76,9 @@ def test_split_files_read_as_one_stream(tmp_path, make_config, make_tone):
     em = _emulated(tmp_path, make_config, make_tone, max_file_size=3001)     # cut mid-sample on purpose
     assert len(em.files) > 3 and all(f.stat().st_size <= 3001 for f in em.files)
     assert capture_files(em.files[0]) == em.files
-    cap = read_raw(em.files[0], em.layout, expected_frames=5)
-    np.testing.assert_array_equal(cap.cube, em.quantized.as_complex())
+    cap = read_raw(em.files[0], em.layout, expected_frames=5, convention="ti")
+    assert [f.name for f in em.files] == ref.split_names("adc_data", len(em.files))
+    np.testing.assert_array_equal(cap.cube, ref.ti_complex(ref.read_split(tmp_path, "adc_data"), SHAPE))
 
 
 def test_blocks_stream_every_frame_once(tmp_path, make_config, make_tone):
@@ -64,7 +86,8 @@ def test_blocks_stream_every_frame_once(tmp_path, make_config, make_tone):
     info = open_raw(em.files[0], em.layout)
     blocks = list(iter_frames(info, frames_per_block=3))
     assert [b.first_frame for b in blocks] == [0, 3, 6] and [len(b.cube) for b in blocks] == [3, 3, 1]
-    np.testing.assert_array_equal(np.concatenate([b.cube for b in blocks]), em.quantized.as_complex())
+    np.testing.assert_array_equal(np.concatenate([b.cube for b in blocks]),
+                                  np.conj(ref.ti_complex(ref.read_split(tmp_path, "adc_data"), SHAPE)))
     assert sum(len(b.cube) for b in iter_frames(info, max_frames=4, frames_per_block=3)) == 4
 
 
@@ -80,7 +103,9 @@ def test_truncated_final_frame_is_reported_and_dropped(tmp_path, make_config, ma
     cap = read_raw(em.files[0], em.layout, expected_frames=5)
     assert cap.info.num_frames == 4 and cap.info.truncated_bytes == em.layout.frame_bytes - 100
     assert any("final frame 4 is truncated" in n for n in cap.info.notes)
-    np.testing.assert_array_equal(cap.cube, em.quantized.as_complex()[:4])   # nothing shifted
+    want = ref.ti_complex(ref.read_split(tmp_path, "adc_data"), SHAPE)      # whole frames only: 4
+    assert want.shape[0] == 4
+    np.testing.assert_array_equal(cap.cube, np.conj(want))                   # nothing shifted
 
 
 def test_size_errors_give_expected_actual_and_cause(tmp_path, make_config, make_tone):

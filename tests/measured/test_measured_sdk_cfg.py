@@ -85,3 +85,34 @@ def test_loop_count_is_bounded():
     bad = "\n".join("frameCfg 0 0 100000 3 0.4 1 0" if ln.startswith("frameCfg") else ln for ln in text.splitlines())
     with pytest.raises(MeasuredFormatError, match=r"numLoops=100000 must be 1…255"):
         parse_sdk_cfg(bad)
+
+
+# ----------------------------------------------------------------------------- SampleSwap (issue 20)
+CORNER = __import__("pathlib").Path(__file__).resolve().parents[2].parent / "shared" / "captures" / \
+    "iwr6843_corner_reflector" / "adc_data_Raw_0.bin"
+
+
+def test_sample_swap_must_be_0_or_1(cfg_text):
+    assert not parse_sdk_cfg(cfg_text.replace("adcbufCfg -1 0 1 1 1", "adcbufCfg -1 0 0 1 1")).config.iq_swap
+    with pytest.raises(MeasuredFormatError, match=r":7: adcbufCfg sampleSwap=2 must be 0 \(I in LSB\) or 1"):
+        parse_sdk_cfg(cfg_text.replace("adcbufCfg -1 0 1 1 1", "adcbufCfg -1 0 2 1 1"), source="x.cfg")
+
+
+@pytest.mark.skipif(not CORNER.is_file(), reason="shared corner-reflector capture absent")
+def test_sdk_sample_swap_is_the_adc_buffer_order_not_the_files(cfg_text, tmp_path):
+    """mmWave SDK user's guide: SampleSwap 1 = "Q in LSB, I in MSB" of the ADC buffer (the only value the demos
+    accept). The corner-reflector capture (IWR6843, 3 Tx x 4 Rx, 256 samples, 64 loops) has I first: read with the
+    SDK cfg's flag recorded but not applied, it peaks at bin 38 with no iq-order flag; applying the flag would
+    mirror it to 256 - 38."""
+    from risloc_rt.measured.dca1000 import file_iq_swap, inspect_capture
+
+    path = tmp_path / "iwr6843.cfg"
+    path.write_text(cfg_text.replace("frameCfg 0 2 64 8 40 1 0", "frameCfg 0 2 64 1 40 1 0"))
+    assert file_iq_swap(path) is False and file_iq_swap(path, iq_swap=True) is True
+    result = inspect_capture(CORNER, path)
+    assert result.config_iq_swap is True and result.layout.iq_swap is False
+    assert result.peak.range_bin == 38 and "iq-order" not in [f.code for f in result.flags]
+    applied = inspect_capture(CORNER, path, iq_swap=True)
+    assert applied.peak.range_bin == 256 - 38
+    flag = next(f for f in applied.flags if f.code == "iq-order")
+    assert "iq_swap=False" in flag.message and "on-chip ADC buffer" in flag.message

@@ -59,3 +59,35 @@ def test_bad_json_and_bad_values(tmp_path):
     doc["mmWaveDevices"][0]["rfConfig"]["rlChirps"][1]["rlChirpCfg_t"]["txEnable"] = "0xZ"
     with pytest.raises(MeasuredFormatError, match=r"rlChirps\[1\]\.rlChirpCfg_t\.txEnable='0xZ'"):
         parse_studio_json(doc)
+
+
+# ----------------------------------------------------------------------------- iqSwapSel (issue 20)
+CORNER = __import__("pathlib").Path(__file__).resolve().parents[2].parent / "shared" / "captures" / \
+    "iwr6843_corner_reflector" / "adc_data_Raw_0.bin"
+
+
+def test_iq_swap_sel_must_be_0_or_1():
+    doc = studio_doc()
+    doc["mmWaveDevices"][0]["rawDataCaptureConfig"]["rlDevDataFmtCfg_t"]["iqSwapSel"] = 2
+    with pytest.raises(MeasuredFormatError, match=r"rlDevDataFmtCfg_t\.iqSwapSel=2 must be 0 \(I first\) or 1"):
+        parse_studio_json(doc)
+
+
+@pytest.mark.skipif(not CORNER.is_file(), reason="shared corner-reflector capture absent")
+@pytest.mark.parametrize("sel, peak", [(0, 38), (1, 256 - 38)])
+def test_studio_iq_swap_sel_sets_the_files_order(tmp_path, sel, peak):
+    """mmWaveLink rl_device.h: iqSwapSel 0 = I first, 1 = Q first, set by rlDeviceSetDataFmtConfig (the LVDS/CSI2
+    output format), so the reader applies it by default. The corner-reflector capture (I first) read through a
+    Studio export of the same chirp with iqSwapSel = 1 is mirrored and flagged, as a Q-first reading must be."""
+    from risloc_rt.measured import inspect_capture
+
+    doc = studio_doc()
+    dev = doc["mmWaveDevices"][0]
+    dev["rawDataCaptureConfig"]["rlDevDataFmtCfg_t"]["iqSwapSel"] = sel
+    dev["rfConfig"]["rlFrameCfg_t"]["numFrames"] = 1
+    path = tmp_path / "capture.mmwave.json"
+    path.write_text(json.dumps(doc))
+    result = inspect_capture(CORNER, path)
+    assert result.layout.iq_swap is bool(sel) and result.config_iq_swap is bool(sel)
+    assert result.peak.range_bin == peak
+    assert ("iq-order" in [f.code for f in result.flags]) is bool(sel)

@@ -4,6 +4,10 @@ Only the commands that describe the waveform and the ADC are mapped (``channelCf
 ``adcbufCfg``, ``profileCfg``, ``chirpCfg``, ``frameCfg``, ``dfeDataOutputMode``); the processing
 chain's commands (``cfarCfg``, ``guiMonitor``, …) are recognised and skipped. Field orders follow
 the SDK 3.5 CLI (``docs/measured-captures.md`` has the table).
+
+``adcbufCfg``'s SampleSwap is the on-chip ADC buffer's I/Q order (mmWave SDK user's guide), kept in
+``TiChirpConfig.iq_swap``; it does not say in which order the LVDS stream (the DCA1000 file) carries
+I and Q, so the reader does not apply it (``dca1000.inspection.file_iq_swap``).
 """
 
 from __future__ import annotations
@@ -234,7 +238,14 @@ def _adc_format(cmds: _CfgCommands) -> tuple[int, str, bool]:
             raise MeasuredFormatError(
                 f"{w2}: adcbufCfg says {'real' if buf_fmt else 'complex'} samples but adcCfg (line {ln}) says "
                 f"{adc_format}; make them agree")
-        iq_swap = _integer(args2[off + 1], w2, "sampleSwap") == 1
+        # SampleSwap (mmWave SDK 3.x user's guide, CLI adcbufCfg): the ADC *buffer*'s I/Q order, 0 = I in LSB,
+        # Q in MSB; 1 = Q in LSB, I in MSB (the only value the SDK demos accept). It sets how the on-chip DSP/HWA
+        # reads the buffer, not the LVDS stream the DCA1000 records (the corner-reflector capture, made with 1, has
+        # I first): recorded in TiChirpConfig.iq_swap, and not applied by the reader's defaults.
+        swap = _integer(args2[off + 1], w2, "sampleSwap")
+        if swap not in (0, 1):
+            raise MeasuredFormatError(f"{w2}: adcbufCfg sampleSwap={swap} must be 0 (I in LSB) or 1 (Q in LSB)")
+        iq_swap = swap == 1
     return (12, 14, 16)[bits_code], adc_format, iq_swap
 
 

@@ -12,7 +12,7 @@ Path read (``mmWaveDevices`` may be a list of devices or a single object)::
         idleTimeVar_usec, adcStartTimeVar_usec, txEnable
     mmWaveDevices[i].rfConfig.rlFrameCfg_t           chirpStartIdx, chirpEndIdx, numLoops, numFrames,
                                                      framePeriodicity_msec
-    mmWaveDevices[i].rawDataCaptureConfig.rlDevDataFmtCfg_t.iqSwapSel   (optional)
+    mmWaveDevices[i].rawDataCaptureConfig.rlDevDataFmtCfg_t.iqSwapSel   (optional; 0 I first, 1 Q first on LVDS)
     mmWaveDevices[i].rawDataCaptureConfig.rlDevLaneEnable_t.laneEn      (optional, lane bit mask)
 
 Masks and codes may be numbers or strings (``"0xF"``).
@@ -129,6 +129,26 @@ def read_studio_json(path: str | Path, *, device_index: int = 0) -> ParsedStudio
     return parse_studio_json(data, source=str(path), device_index=device_index)
 
 
+def _raw_capture_config(dev: _Node, source: str) -> tuple[bool, int | None]:
+    """``rawDataCaptureConfig``: (Q first on LVDS, lanes enabled or None); both optional."""
+    raw = dev.child("rawDataCaptureConfig", optional=True)
+    iq_swap, lanes = False, None
+    if raw is None:
+        return iq_swap, lanes
+    dfmt = raw.child("rlDevDataFmtCfg_t", optional=True)
+    if dfmt is not None and dfmt.child("iqSwapSel", optional=True) is not None:
+        # mmWaveLink rl_device.h, rlDevDataFmtCfg_t: 0 = I first (RL_DEV_I_FIRST), 1 = Q first (RL_DEV_Q_FIRST);
+        # rlDeviceSetDataFmtConfig sets the LVDS/CSI2 output format, so this is the file's order.
+        sel = dfmt.integer("iqSwapSel")
+        if sel not in (0, 1):
+            raise MeasuredFormatError(f"{source}: {dfmt.path}.iqSwapSel={sel} must be 0 (I first) or 1 (Q first)")
+        iq_swap = sel == 1
+    lane = raw.child("rlDevLaneEnable_t", optional=True)
+    if lane is not None and lane.child("laneEn", optional=True) is not None:
+        lanes = bin(lane.integer("laneEn")).count("1")
+    return iq_swap, lanes
+
+
 def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int = 0) -> ParsedStudioJson:
     """Map an mmWave Studio JSON export onto a :class:`TiChirpConfig`.
 
@@ -207,15 +227,7 @@ def parse_studio_json(data: dict, *, source: str = "<json>", device_index: int =
     if prof is None:
         raise MeasuredFormatError(f"{source}: {profiles.path} has no profile {pid}, which the chirps use")
 
-    raw = dev.child("rawDataCaptureConfig", optional=True)
-    iq_swap, lanes = False, None
-    if raw is not None:
-        dfmt = raw.child("rlDevDataFmtCfg_t", optional=True)
-        if dfmt is not None and dfmt.child("iqSwapSel", optional=True) is not None:
-            iq_swap = dfmt.integer("iqSwapSel") == 1
-        lane = raw.child("rlDevLaneEnable_t", optional=True)
-        if lane is not None and lane.child("laneEn", optional=True) is not None:
-            lanes = bin(lane.integer("laneEn")).count("1")
+    iq_swap, lanes = _raw_capture_config(dev, source)
     gain = prof.child("rxGain_dB", optional=True)
     try:
         config = TiChirpConfig(
