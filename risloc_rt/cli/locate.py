@@ -22,14 +22,17 @@ def _run(args: argparse.Namespace) -> int:
         capture = apply_to_capture(capture, read_calibration(args.calibration))
     processing = processing_overrides(args, capture.processing)
     name = safe_name(Path(args.capture).stem)
+    budget = None
+    if capture.provenance.get("source") == "measurement":
+        from ..measured.compare.uncertainty_budget import apply_budget as budget
     if not args.out:
-        result = report_capture(name, capture, out_dir=None, processing=processing, timing={},
+        result = report_capture(name, capture, out_dir=None, processing=processing, timing={}, budget=budget,
                                 **estimator_options(args))
         print(format_case(result))
         return 0 if result.localization.detected else EXIT_NO_DETECTION
     out = Path(args.out)
     with output_folder(out, force=args.force, flag="--out", expect=("result.json",)) as stage:
-        result = report_capture(name, capture, out_dir=stage, processing=processing, timing={},
+        result = report_capture(name, capture, out_dir=stage, processing=processing, timing={}, budget=budget,
                                 **estimator_options(args))
         write_result(stage, [result])
     print(format_case(result))

@@ -7,12 +7,12 @@ import os
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from dsp import (SPEED_OF_LIGHT, Flag, Localization, ProcessingConfig, delay_doppler_map, direction_from_angles,
-                 self_localize)
+from dsp import (FLAG_CODES, SPEED_OF_LIGHT, Flag, Localization, ProcessingConfig, delay_doppler_map,
+                 direction_from_angles, self_localize)
 
 from .._files import atomic_write_bytes
 from ..model.capture import Capture
@@ -20,7 +20,7 @@ from ..model.power_check import range_alias_flag
 from ..model.scenario import Truth
 
 __all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
-           "RESULT_FORMAT", "json_safe", "facing_away_flag"]
+           "RESULT_FORMAT", "json_safe", "facing_away_flag", "capture_flags", "significant"]
 
 RESULT_FORMAT = "risloc-result"
 RESULT_VERSION = 1
@@ -39,6 +39,9 @@ class CaseResult:
         Seconds per stage (``"synthesis"``, ``"dsp"``, …).
     plots : dict of str -> str
         Plot files written for this case, relative to the output directory.
+    uncertainty_budget : list of dict, optional
+        A measured capture's uncertainty terms (``risloc_rt.measured.compare.uncertainty_budget``),
+        plain JSON; ``localization.std`` is then their total.
     """
 
     name: str
@@ -46,6 +49,7 @@ class CaseResult:
     localization: Localization
     timing: dict[str, float] = field(default_factory=dict)
     plots: dict[str, str] = field(default_factory=dict)
+    uncertainty_budget: list[dict[str, Any]] | None = None
 
     @property
     def truth(self) -> Truth | None:
@@ -99,7 +103,41 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     away = facing_away_flag(capture)
     if away is not None:
         loc = replace(loc, flags=(*loc.flags, away))
+    if loc.detected:
+        loc = replace(loc, flags=(*loc.flags, *capture_flags(capture, loc)))
     return loc, time.perf_counter() - start
+
+
+def capture_flags(capture: Capture, loc: Localization) -> tuple[Flag, ...]:
+    """Flags a capture carries from its import: ``provenance["import_flags"]`` (e.g. ``schedule-mismatch``)
+    and ``damaged-beams`` for beams whose frames hold zero-filled lost packets
+    (``provenance["reader"]["damaged_beams"]``).
+
+    Parameters
+    ----------
+    capture : Capture
+    loc : Localization
+        Its flags already present are not repeated; the best beam is named when damaged.
+
+    Returns
+    -------
+    tuple of Flag
+    """
+    out: list[Flag] = []
+    have = set(loc.flag_codes)
+    for f in capture.provenance.get("import_flags") or ():
+        if isinstance(f, dict) and f.get("code") in FLAG_CODES and f["code"] not in have:
+            out.append(Flag(str(f["code"]), str(f.get("message", ""))))
+            have.add(f["code"])
+    damaged = sorted({int(m) for m in (capture.provenance.get("reader") or {}).get("damaged_beams") or ()})
+    if damaged and "damaged-beams" not in have:
+        best = loc.beam_index in damaged
+        listed = ", ".join(str(m) for m in damaged[:8]) + (", …" if len(damaged) > 8 else "")
+        out.append(Flag("damaged-beams", (
+            f"{len(damaged)} of {capture.sweep.num_beams} beams ({listed}) hold zero-filled lost DCA1000 packets"
+            + (f", the best beam {loc.beam_index} among them" if best else "")
+            + ": their P_ave and phase are wrong; record again or check that they lie away from the best beam")))
+    return tuple(out)
 
 
 def facing_away_flag(capture: Capture) -> Flag | None:
@@ -129,15 +167,22 @@ def facing_away_flag(capture: Capture) -> Flag | None:
 
 
 def report_capture(name: str, capture: Capture, *, out_dir: Path | None, processing: ProcessingConfig,
-                   timing: dict[str, float], **options: Any) -> CaseResult:
+                   timing: dict[str, float], budget: Callable[[Capture, Localization], tuple[Localization, Any]]
+                   | None = None, **options: Any) -> CaseResult:
     """Localize ``capture`` and, with ``out_dir``, draw its figures under ``out_dir/name/``.
 
     The figures are the delay-Doppler map of the chosen beam with its three largest peaks, P_ave
     over the sweep, and the range profile at the estimated Doppler. ``timing`` (seconds per
     stage) gains ``"dsp"`` and, with figures, ``"plots"``. ``options`` go to :func:`process_capture`
-    (``estimator``, ``ue_height``, ``pfa``).
+    (``estimator``, ``ue_height``, ``pfa``). ``budget(capture, loc) -> (loc, budget or None)``
+    (``risloc_rt.measured.compare.apply_budget`` for measured captures) replaces the σ by the
+    uncertainty budget's total; its ``to_list()`` goes to :attr:`CaseResult.uncertainty_budget`.
     """
     loc, dsp_time = process_capture(capture, processing=processing, **options)
+    terms = None
+    if budget is not None:
+        loc, made = budget(capture, loc)
+        terms = None if made is None else made.to_list()
     timing = {**timing, "dsp": dsp_time}
     plots: dict[str, str] = {}
     if out_dir is not None:
@@ -160,7 +205,8 @@ def report_capture(name: str, capture: Capture, *, out_dir: Path | None, process
         }
         plots = {k: str(v.relative_to(out_dir)) for k, v in files.items()}
         timing["plots"] = time.perf_counter() - start
-    return CaseResult(name=name, capture=capture, localization=loc, timing=timing, plots=plots)
+    return CaseResult(name=name, capture=capture, localization=loc, timing=timing, plots=plots,
+                      uncertainty_budget=terms)
 
 
 def estimation_errors(loc: Localization, truth: Truth, capture: Capture) -> dict[str, Any]:
@@ -177,7 +223,7 @@ def estimation_errors(loc: Localization, truth: Truth, capture: Capture) -> dict
     }
 
 
-def _estimate_dict(loc: Localization) -> dict[str, Any]:
+def _estimate_dict(loc: Localization, budget: list[dict[str, Any]] | None = None) -> dict[str, Any]:
     return {
         "beam_index": loc.beam_index,
         "aod": loc.aod.tolist(),
@@ -189,6 +235,8 @@ def _estimate_dict(loc: Localization) -> dict[str, Any]:
         "estimator": loc.estimator,
         "reference_time": loc.reference_time,
         "std": None if loc.std is None else loc.std.to_dict(),
+        "uncertainty_budget": budget,
+        "alternatives": [a.to_dict() for a in getattr(loc, "alternatives", None) or ()],
     }
 
 
@@ -200,7 +248,7 @@ def case_dict(case: CaseResult) -> dict[str, Any]:
         "source": case.capture.provenance.get("source"),
         "provenance": case.capture.provenance,
         "detection": None if case.localization.detection is None else case.localization.detection.to_dict(),
-        "estimate": _estimate_dict(case.localization),
+        "estimate": _estimate_dict(case.localization, case.uncertainty_budget),
         "flags": [f.to_dict() for f in case.localization.flags],
         "truth": None if case.truth is None else case.truth.to_dict(),
         "error": case.errors,
@@ -264,6 +312,21 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Pa
     return atomic_write_bytes(out / "result.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode())
 
 
+def significant(value: float, digits: int = 2) -> str:
+    """``value`` with ``digits`` significant digits, positional (a 1σ of 2.03e-5 m prints ``0.00002``, never ``0.00``).
+
+    Parameters
+    ----------
+    value : float
+    digits : int, default 2
+
+    Returns
+    -------
+    str
+    """
+    return np.format_float_positional(float(value), precision=digits, unique=False, fractional=False, trim="-")
+
+
 def format_case(case: CaseResult) -> str:
     """Human-readable table of truth, estimate ± 1σ and error for one case (degrees for angles),
     then the detection and the flags. A 1σ that is infinite (the sweep cannot observe the quantity,
@@ -276,16 +339,16 @@ def format_case(case: CaseResult) -> str:
                                   f"{value} ± unobservable" if np.isinf(sigma) else f"{value} ± {f(sigma)}")
     rows = [("quantity", "truth", "estimate", "error")]
     rows.append(("distance [m]", f"{truth.distance:.4f}" if truth else "-",
-                 pm(f"{loc.distance:.4f}", std and std.distance, lambda x: f"{x:.2g}"),
+                 pm(f"{loc.distance:.4f}", std and std.distance, significant),
                  f"{err['distance']:+.4f}" if err else "-"))
     rows.append(("velocity [m/s]", f"{truth.velocity:+.3f}" if truth else "-",
-                 pm(f"{loc.velocity:+.3f}", std and std.velocity, lambda x: f"{x:.2g}"),
+                 pm(f"{loc.velocity:+.3f}", std and std.velocity, significant),
                  f"{err['velocity']:+.3f}" if err else "-"))
     rows.append(("AoD [az, el]", deg(truth.aod) if truth else "-",
-                 pm(deg(loc.aod), std and std.aod[0], lambda x: f"{np.rad2deg(x):.2f}° az"),
+                 pm(deg(loc.aod), std and std.aod[0], lambda x: f"{significant(np.rad2deg(x))}° az"),
                  f"{np.rad2deg(err['angle']):.2f}°" if err else "-"))
     rows.append(("position [m]", fmt3(truth.ue_position) if truth else "-",
-                 pm(fmt3(loc.position), std and std.peb, lambda x: f"{x:.2g}"),
+                 pm(fmt3(loc.position), std and std.peb, significant),
                  f"{err['position']:.4f} m" if err else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {loc.scan.num_beams})"
@@ -296,6 +359,13 @@ def format_case(case: CaseResult) -> str:
                      f"SNR {det.snr_db:.1f} dB against a threshold of {det.threshold_db:.1f} dB "
                      f"(false-alarm probability {det.false_alarm_probability:.0e} per capture)")
     lines += [f"  flag {f.code}: {f.message}" for f in loc.flags]
+    for quantity in ("distance", "velocity", "aod_az", "position"):
+        terms = [t for t in case.uncertainty_budget or () if t["quantity"] == quantity]
+        if terms:
+            lines.append(f"  1σ budget, {quantity}: " + ", ".join(
+                f"{t['name']} {'not known' if t['value'] is None else significant(t['value'])}"
+                + ("" if t["value"] is not None else "" if t.get("bound") is None else
+                   f" (may bias by ~{significant(t['bound'])})") + f" {t['unit']}" for t in terms))
     if case.timing:
         lines.append("  time: " + ", ".join(f"{k} {v:.2f} s" for k, v in case.timing.items()))
     return "\n".join(lines)

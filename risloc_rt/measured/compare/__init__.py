@@ -6,7 +6,9 @@ Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``
 - :mod:`.calibration_file`: calibration files (range offset, τ_RB, ζ, noise, power offset) and applying them;
 - :mod:`.calibration_fit`: those five fitted to a capture against the model's paths;
 - :mod:`.comparison`: measured vs traced: peaks, residuals (``comparison.json``);
-- :mod:`.comparison_page`: the ``risloc compare`` folder (``index.html``, PNG figures).
+- :mod:`.comparison_page`: the ``risloc compare`` folder (``index.html``, PNG figures);
+- :mod:`.uncertainty_budget`: every term of a measured estimate's 1σ (device registers, τ_RB, range
+  offset, RIS tolerances) and the total.
 
 The names load on first use: ``import risloc_rt.measured.compare`` loads neither the hall nor ``io``.
 """
@@ -22,6 +24,9 @@ _EXPORTS = {
     "calibrate_capture": "calibration_fit",
     "Comparison": "comparison", "compare_capture": "comparison",
     "FIGURES": "comparison_page", "write_comparison": "comparison_page",
+    "BudgetTerm": "uncertainty_budget", "RisTolerances": "uncertainty_budget",
+    "UncertaintyBudget": "uncertainty_budget", "apply_budget": "uncertainty_budget",
+    "measured_budget": "uncertainty_budget", "ris_tolerances": "uncertainty_budget",
 }
 
 __all__ = sorted(_EXPORTS)

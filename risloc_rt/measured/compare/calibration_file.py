@@ -191,12 +191,15 @@ def apply_to_capture(capture: Capture, calibration: Calibration) -> Capture:
     -------
     Capture
         Its RIS with the calibrated τ_RB (+ the range offset's delay) [s] and ζ [dB]; the
-        calibration recorded in the provenance.
+        calibration recorded in the provenance (``provenance["calibration"]``: the values and,
+        where known, their 1σ as ``<name>_std``, which the uncertainty budget reads).
     """
     ris = replace(capture.ris, loopback_delay=calibration.loopback_delay + calibration_delay(calibration),
                   amplification_db=calibration.amplification_db)
     prov = dict(capture.provenance)
     prov["calibration"] = {k: float(getattr(calibration, k)) for k in _FIELDS}
+    prov["calibration"].update({f"{k}_std": float(getattr(calibration, f"{k}_std")) for k in _FIELDS
+                                if math.isfinite(getattr(calibration, f"{k}_std"))})
     return replace(capture, ris=ris, provenance=prov)
 
 
