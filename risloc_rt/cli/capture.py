@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 import numpy as np
 
@@ -99,8 +100,9 @@ def _import(args: argparse.Namespace) -> int:
     Returns
     -------
     int
-        The exit status: 0 when the capture file is written;
-        bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+        The exit status: 0 when the capture file is written (a first frame the recording
+        contradicts is a one-line ``warning:`` on stderr and the capture's ``schedule-mismatch``
+        flag); bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
     """
     from pathlib import Path
 
@@ -143,11 +145,14 @@ def _import(args: argparse.Namespace) -> int:
           f"{reader['frames_recorded']}, az {np.rad2deg(az[0]):+.2f}..{np.rad2deg(az[-1]):+.2f} deg) x {K} chirps x "
           f"{N} samples, channel {reader['channel']}, {len(reader['dropped_packets'])} dropped-packet run(s), "
           f"{len(reader['damaged_beams'])} damaged beam(s); truth: {truth}")
+    for warning in capture.provenance.get("import_warnings", []):
+        print(f"warning: {warning}", file=sys.stderr)
     a = capture.provenance["alignment"]
     conf = "given" if a["confidence"] is None else f"confidence {a['confidence']:.3f}"
     print(f"  alignment {a['method']}: first frame {a['first_frame']}, sweep start {a['start']:.3f} frames, "
           f"{a['dwell']:.4f} frames per beam (RIS clock {a['drift'] * 100:+.3f} %), {conf}, "
-          f"{len(a['mixed_beams'])} mixed beam(s); leakage removal: {capture.provenance['leakage']['method']}; "
+          f"{len(a['mixed_beams'])} mixed beam(s), {sum(len(b) > 1 for b in a['beam_chirps'])} across two frames; "
+          f"leakage removal: {capture.provenance['leakage']['method']}; "
           f"channels {capture.provenance['channels']['channels']} ({capture.provenance['channels']['combine']})")
     return 0
 

@@ -75,7 +75,7 @@ def test_sync_table_and_clock_drift_round_trip_and_bad_values():
     text += "\n[sync]\non_frames = 5\noff_frames = 4\ncycles = 3\ngap_frames = 2\n"
     s = parse_sweep_schedule(text)
     assert (s.sync_on_frames, s.sync_off_frames, s.sync_cycles, s.sync_gap_frames) == (5, 4, 3, 2)
-    assert s.max_clock_drift == 0.05 and s.program.sync_length == 3 * 9 + 2
+    assert s.max_clock_drift == 0.05 and s.program().sync_length == 3 * 9 + 2
     assert parse_sweep_schedule(format_sweep_schedule(s)) == s
     with pytest.raises(MeasuredFormatError, match=r"sync.cycles = 3 needs sync.on_frames >= 1"):
         parse_sweep_schedule(text.replace("on_frames = 5", "on_frames = 0"))

@@ -1,10 +1,11 @@
-"""A whole recording as a real experiment leaves it: lead frames, RIS on/off sync, a sweep on a drifting RIS clock.
+"""A whole recording as a real experiment leaves it: lead frames, a RIS sync code, a sweep on a drifting RIS clock.
 
 :func:`emulate_recording` synthesises every recorded frame chirp by chirp from the scenario's
 paths (frozen geometry): the paths that do not pass through the RIS (hall echoes, targets, the
 panel's structure) in every frame; the RIS re-transmission of the beam the RIS shows at that
-chirp (:func:`~risloc_rt.measured.sweep.ris_timing.chirp_states`: sync-on frames show ``sync_beam``,
-off frames nothing); a Tx→Rx leakage tone near zero range with per-chirp phase jitter; receiver noise; then the ADC
+chirp (:func:`~risloc_rt.measured.sweep.ris_timing.chirp_states`: '1' chips of the sync code show
+``sync_beam``, off time nothing; the RIS's durations in whole frames or in milliseconds of its own
+clock, ``beam_dwell_ms`` and a chip code, converted with the radar's frame period); a Tx→Rx leakage tone near zero range with per-chirp phase jitter; receiver noise; then the ADC
 and the DCA1000 files (:func:`~.experiment.write_frames`). A beam boundary inside a frame
 switches the RIS between two of its chirps, as a free-running RIS does.
 
@@ -47,9 +48,20 @@ class RecordingPlan:
     ----------
     lead_frames : float
         Radar frames recorded before the RIS program starts (fractional: the RIS's clock phase).
-    frames_per_beam : int
+    frames_per_beam : int or None
+        Nominal frames per beam (default 1 when ``beam_dwell_ms`` is None too).
+    beam_dwell_ms : float or None
+        Instead: the RIS's own time per beam [ms] (25.0 against 20 ms frames: 1.25 frames).
     sync_on, sync_off, sync_cycles, sync_gap : int
         The on/off sync pattern before the sweep (:class:`~risloc_rt.measured.sweep.ris_timing.RisProgram`).
+    sync_pattern : str
+        Instead of the on/off form: the sync code ('1' on at ``sync_beam``, '0' off), chips of ``chip_ms``.
+    chip_ms : float or None
+        One chip of ``sync_pattern`` on the RIS's clock [ms].
+    sync_gap_ms : float or None
+        Instead of ``sync_gap``: RIS off between the code and the sweep [ms].
+    repeat_after : bool
+        The sync code is sent again after the sweep (after the gap).
     clock_drift : float
         RIS clock rate error d: every RIS duration lasts ``(1 + d)`` × nominal radar frames.
     tail_frames : int
@@ -71,7 +83,7 @@ class RecordingPlan:
     """
 
     lead_frames: float = 0.0
-    frames_per_beam: int = 1
+    frames_per_beam: int | None = None
     sync_on: int = 0
     sync_off: int = 0
     sync_cycles: int = 0
@@ -85,8 +97,17 @@ class RecordingPlan:
     range_offset: float = 0.0
     power_offset_db: float = 0.0
     schedule_first_frame: str = "auto"
+    beam_dwell_ms: float | None = None
+    sync_pattern: str = ""
+    chip_ms: float | None = None
+    sync_gap_ms: float | None = None
+    repeat_after: bool = False
 
     def __post_init__(self) -> None:
+        if self.frames_per_beam is not None and self.beam_dwell_ms is not None:
+            raise MeasuredFormatError("give frames_per_beam or beam_dwell_ms, not both")
+        if bool(self.sync_pattern) != (self.chip_ms is not None):
+            raise MeasuredFormatError("sync_pattern and chip_ms go together (the code and one chip's duration [ms])")
         non_negative(self.lead_frames, "lead_frames", "frames", error=MeasuredFormatError)
         if not -0.5 < self.clock_drift < 0.5:
             raise MeasuredFormatError(f"clock_drift={self.clock_drift} must lie in (-0.5, 0.5)")
@@ -95,20 +116,35 @@ class RecordingPlan:
         if int(self.tail_frames) < 0:
             raise MeasuredFormatError(f"tail_frames={self.tail_frames} must be >= 0")
 
-    def program(self, num_beams: int) -> RisProgram:
+    @property
+    def uses_ris_clock(self) -> bool:
+        """Some RIS duration is in milliseconds of its own clock."""
+        return self.beam_dwell_ms is not None or self.chip_ms is not None or self.sync_gap_ms is not None
+
+    def program(self, num_beams: int, frame_interval: float | None = None) -> RisProgram:
         """The RIS's program for ``num_beams`` beams, in nominal frames.
 
         Parameters
         ----------
         num_beams : int
             M, beams of the sweep.
+        frame_interval : float, optional
+            The radar's frame period [s]; needed for the durations in milliseconds (``x_ms·1e-3/T_f``).
 
         Returns
         -------
         RisProgram
         """
-        return RisProgram(num_beams=num_beams, frames_per_beam=self.frames_per_beam, sync_on=self.sync_on,
-                          sync_off=self.sync_off, sync_cycles=self.sync_cycles, sync_gap=self.sync_gap)
+        if self.uses_ris_clock and frame_interval is None:
+            raise MeasuredFormatError("the plan gives RIS durations in milliseconds; give the radar's frame_interval")
+        tf = 1.0 if frame_interval is None else float(frame_interval)
+        fpb = (1 if self.frames_per_beam is None else self.frames_per_beam) if self.beam_dwell_ms is None \
+            else self.beam_dwell_ms * 1e-3 / tf
+        gap = self.sync_gap if self.sync_gap_ms is None else self.sync_gap_ms * 1e-3 / tf
+        return RisProgram(num_beams=num_beams, frames_per_beam=fpb, sync_on=self.sync_on, sync_off=self.sync_off,
+                          sync_cycles=self.sync_cycles, sync_gap=gap, sync_pattern=self.sync_pattern,
+                          chip_frames=1.0 if self.chip_ms is None else self.chip_ms * 1e-3 / tf,
+                          repeat_after=self.repeat_after)
 
     def start(self, program: RisProgram) -> float:
         """Radar time the first beam starts [frames]: the lead frames plus the stretched sync pattern.
@@ -125,10 +161,9 @@ class RecordingPlan:
         """
         return self.lead_frames + program.sync_length * (1 + self.clock_drift)
 
-    @property
-    def dwell(self) -> float:
-        """Radar frames per beam."""
-        return self.frames_per_beam * (1 + self.clock_drift)
+    def dwell(self, program: RisProgram) -> float:
+        """Radar frames per beam: ``frames_per_beam·(1 + clock_drift)`` of ``program`` (from :meth:`program`)."""
+        return float(program.frames_per_beam) * (1 + self.clock_drift)
 
 
 @dataclass(frozen=True)
@@ -176,9 +211,9 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
     folder = check_folder(folder)
     radar = dca1000_radar(scenario.radar)
     M, K, N = scenario.sweep.num_beams, radar.num_chirps, radar.num_samples
-    program = plan.program(M)
-    start, dwell = plan.start(program), plan.dwell
-    F = int(math.ceil(start + M * dwell)) + int(plan.tail_frames)
+    program = plan.program(M, radar.frame_interval)
+    start, dwell = plan.start(program), plan.dwell(program)
+    F = int(math.ceil(start + M * dwell + program.after_length * (1 + plan.clock_drift))) + int(plan.tail_frames)
     if F * K * N > 60_000_000:
         raise MeasuredFormatError(f"the recording would hold {F} frames x {K} x {N} samples; shorten it (fewer lead, "
                                   "sync or tail frames) or use a smaller radar")
@@ -212,16 +247,19 @@ def emulate_recording(scenario: Scenario, folder: str | Path, *, plan: Recording
                                    dc_offset=dc_offset, iq_gain_db=iq_gain_db, power_offset_db=plan.power_offset_db,
                                    rng=rng)
     true_index = np.ceil(start + np.arange(M) * dwell - 1e-9).astype(np.int64)
-    whole = abs(start - round(start)) < 1e-9 and abs(dwell - round(dwell)) < 1e-9
+    whole = abs(start - round(start)) < 1e-9
     first: int | None = int(round(start)) if plan.schedule_first_frame == "true" and whole else None
     ris = nominal_ris or scenario.ris
+    per_beam = ({"frames_per_beam": int(program.frames_per_beam)} if plan.beam_dwell_ms is None
+                else {"frames_per_beam": None, "beam_dwell_ms": plan.beam_dwell_ms})
     schedule = sweep_schedule_of(
-        np.rad2deg(scenario.sweep.angles), frames_per_beam=plan.frames_per_beam, first_frame=first, channel=0,
+        np.rad2deg(scenario.sweep.angles), **per_beam, first_frame=first, channel=0,
         sync_on_frames=plan.sync_on, sync_off_frames=plan.sync_off, sync_cycles=plan.sync_cycles,
-        sync_gap_frames=plan.sync_gap, max_clock_drift=max(0.02, 2 * abs(plan.clock_drift)),
-        **schedule_fields(ris, scenario.truth))
+        sync_gap_frames=plan.sync_gap, sync_gap_ms=plan.sync_gap_ms, sync_pattern=plan.sync_pattern,
+        sync_chip_ms=plan.chip_ms, sync_repeat_after=plan.repeat_after,
+        max_clock_drift=max(0.02, 2 * abs(plan.clock_drift)), **schedule_fields(ris, scenario.truth))
     path = write_sweep_schedule(schedule, folder / SCHEDULE_NAME, comment=(
-        f"risloc emulated recording: {F} frames, sweep of {M} beams x {plan.frames_per_beam} frame(s) from radar "
+        f"risloc emulated recording: {F} frames, sweep of {M} beams x {program.frames_per_beam:g} frame(s) from radar "
         f"frame {start:.3f}, RIS clock drift {plan.clock_drift:+.4%}; full scale {fs:.6g} sqrt(W)"))
     exp = EmulatedExperiment(folder=folder, raw=raw, schedule_path=path, schedule=schedule, full_scale=fs,
                              counts_per_unit=counts)

@@ -23,17 +23,34 @@ a whole number of frames, or a drifting RIS clock) is modelled, not discarded.
 sweep's end by 1/4 frame, ``t0`` in 1/4-frame steps over the recording; the eight best distinct
 alignments are refined on a 10× finer grid.
 
+**Chirps of each beam.** The cube holds K chirps per beam. A frame wholly inside the beam's
+dwell is used as it is (the one with the largest margin to the beam's edges; with a whole dwell
+and start, the beam's first frame). A beam that no frame holds wholly (a dwell that is not a whole
+number of frames, an unsynchronised RIS) is *spread over two frames*; ``assemble`` decides:
+``"span"`` takes the K consecutive chirps (in recording order, across the frame boundary) wholly
+inside the dwell with the largest margin, ``"frame"`` the frame holding most of the beam's chirps
+(then the beam is *mixed*). :data:`DEFAULT_ASSEMBLE` is the better of the two on emulated
+recordings (``docs/measured-captures.md``, "RIS timing model"). A beam holding fewer than K
+chirps falls back to ``"frame"``.
+
 **Confidence.** With Gaussian residuals of the best fit's variance ``σ̂² = RSS_best/(F − J − 2)``
 (J free levels), each refined candidate c gets the posterior weight ``w_c ∝ exp(−(RSS_c −
 RSS_best)/(2σ̂²))`` (flat prior). A frame is *among beam m's best* under c when its share of
 the beam's chirps is within ``MIX_TOLERANCE`` (5 %) of the largest share any frame has (1 when a
 frame lies wholly inside the dwell; less with one frame per beam and a RIS not synchronised to
-the radar: then every frame straddles two beams, and the beam is reported *mixed*). Each beam
-gets the frame most probably among its best; the **confidence** is the posterior probability that
-every selected frame is. It is 0 when the fitted program does not beat a constant level (noise
+the radar: then every frame straddles two beams, and the beam is reported *mixed*). The same holds
+for the K chirps of a ``"span"`` (the best any K consecutive chirps can have). Each beam gets the
+chirps the best fit selects; the **confidence** is the posterior probability that every beam's
+chirps are among its best. It is 0 when the fitted program does not beat a constant level (noise
 alone, no RIS modulation) in an F-test at ``NULL_P`` = 1e-3. Only the eight best coarse alignments are refined, so the far ones
 (worse by many σ̂²) count as zero. Without sync frames and with one frame per beam only the
 sweep's edges pin it down, and the confidence says so.
+
+**Checking a given first frame** (:func:`check_first_frame`). A first frame given in the schedule
+(or ``--first-frame``) is checked against the same fit: the data *clearly supports another frame*
+when the fit is confident (>= :data:`CHECK_CONFIDENCE`), its start lies a whole frame or more from
+the given one, it selects another first frame, and the given start (with the fitted dwell) fits
+worse by at least :data:`CHECK_DELTA_RSS` σ̂².
 """
 
 from __future__ import annotations
@@ -51,21 +68,31 @@ from ..errors import MeasuredFormatError
 from .leakage import range_gate_basis
 from .ris_timing import OFF, SYNC, RisProgram, chirp_states
 
-__all__ = ["MIX_TOLERANCE", "NULL_P", "RisPowerSeries", "SweepAlignment", "fit_alignment", "manual_alignment",
-           "ris_power_series", "select_frames"]
+__all__ = ["ASSEMBLE_MODES", "CHECK_CONFIDENCE", "CHECK_DELTA_RSS", "DEFAULT_ASSEMBLE", "MIX_TOLERANCE", "NULL_P",
+           "RisPowerSeries", "ScheduleCheck", "SweepAlignment", "check_first_frame", "fit_alignment",
+           "manual_alignment", "ris_power_series", "select_chirps"]
 
 NULL_P = 1e-3
 """The fit must beat one constant level (no RIS) at this significance (F-test), else the confidence is 0."""
 _SUB_CHIRPS = 16
 _TOP = 8
+_REFINE_STEPS = 6
 MIX_TOLERANCE = 0.05
 """Share of a frame's chirps [0…1]: a frame is among a beam's best when its share of the beam is within this of
 the largest any frame has; a beam is *mixed* when its frame has less than 1 − this of it."""
+ASSEMBLE_MODES = ("span", "frame")
+"""A beam spread over two frames: its K consecutive chirps across the boundary, or the frame holding most of it."""
+DEFAULT_ASSEMBLE = "span"
+"""Chosen by the measurement in docs/measured-captures.md ("RIS timing model")."""
+CHECK_CONFIDENCE = 0.9
+"""A given first frame is contradicted only by a fit at least this confident."""
+CHECK_DELTA_RSS = 25.0
+"""... whose misfit is at least this many σ̂² below the given alignment's (5 σ)."""
 
 
 @dataclass(frozen=True)
 class SweepAlignment:
-    """Which recorded frame holds each beam, and how sure that is.
+    """Which recorded chirps hold each beam, and how sure that is.
 
     Attributes
     ----------
@@ -74,18 +101,26 @@ class SweepAlignment:
         Radar time the first beam starts [frames from the recording's first frame].
     dwell : float
         Radar frames per beam (``frames_per_beam·(1 + drift)``; need not be whole).
-    frames_per_beam : int
-        The schedule's nominal frames per beam.
+    frames_per_beam : float
+        The program's nominal frames per beam (the schedule's ``frames_per_beam``, or
+        ``beam_dwell_ms`` over the radar's frame period).
     frame_index : int array [M]
-        Recorded frame used for each beam: the one holding most of it (manual: the first).
+        The recorded frame of each beam: the one holding most of its chirps.
+    chirp_start : int array [M]
+        Each beam's first chirp in recording order (``frame·K + k``); the beam uses the K
+        consecutive chirps from it (across a frame boundary for a ``"span"``).
+    num_chirps : int
+        K, chirps per frame.
+    assemble : {"span", "frame"}
+        How a beam spread over two frames was taken (module docstring).
     mixed_beams : tuple of int
-        Beams whose frame has more than ``MIX_TOLERANCE`` of its chirps in another state.
+        Beams whose chirps have more than ``MIX_TOLERANCE`` in another state.
     off_frames : int array
         Frames with the RIS off for every chirp (background subtraction uses them).
     confidence : float or None
-        Posterior probability that ``frame_index`` is right (module docstring); None when manual.
+        Posterior probability that every beam's chirps are right (module docstring); None when manual.
     runner_up : dict or None
-        The best alignment selecting other frames: ``first_frame``, ``start``, ``dwell``,
+        The best alignment selecting other chirps: ``first_frame``, ``start``, ``dwell``,
         ``delta_rss`` (its misfit above the best, in units of σ̂²).
     feature : dict
         The RIS return the fit used: ``range_bin``, ``range`` [m], ``snr_db`` (its strongest
@@ -95,8 +130,11 @@ class SweepAlignment:
     method: str
     start: float
     dwell: float
-    frames_per_beam: int
+    frames_per_beam: float
     frame_index: np.ndarray
+    chirp_start: np.ndarray
+    num_chirps: int
+    assemble: str = DEFAULT_ASSEMBLE
     mixed_beams: tuple[int, ...] = ()
     off_frames: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     confidence: float | None = None
@@ -113,19 +151,30 @@ class SweepAlignment:
         """RIS clock rate against the radar's, minus 1: ``dwell/frames_per_beam − 1`` [unitless]."""
         return self.dwell / self.frames_per_beam - 1.0
 
+    def beam_segments(self) -> list[list[list[int]]]:
+        """Per beam, the recorded chirps it uses: ``[[frame, first chirp, count], ...]`` (one or two segments)."""
+        return [_segments(int(g0), self.num_chirps) for g0 in self.chirp_start]
+
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON (for the capture's provenance).
 
         Returns
         -------
         dict
-            Start and dwell [frames], drift [unitless and ppm], confidence, frames, runner-up, feature.
+            Start and dwell [frames], drift [unitless and ppm], confidence, frames, each beam's chirps
+            (``beam_chirps``: ``[[frame, first chirp, count], ...]`` per beam), runner-up, feature.
         """
         return {"method": self.method, "first_frame": self.first_frame, "start": float(self.start),
-                "dwell": float(self.dwell), "frames_per_beam": self.frames_per_beam, "drift": float(self.drift),
-                "drift_ppm": float(self.drift * 1e6), "confidence": self.confidence,
-                "frame_index": [int(f) for f in self.frame_index], "mixed_beams": list(self.mixed_beams),
+                "dwell": float(self.dwell), "frames_per_beam": float(self.frames_per_beam),
+                "drift": float(self.drift), "drift_ppm": float(self.drift * 1e6), "confidence": self.confidence,
+                "frame_index": [int(f) for f in self.frame_index], "assemble": self.assemble,
+                "beam_chirps": self.beam_segments(), "mixed_beams": list(self.mixed_beams),
                 "off_frames": len(self.off_frames), "runner_up": self.runner_up, "feature": dict(self.feature)}
+
+
+def _segments(g0: int, K: int) -> list[list[int]]:
+    f, k = divmod(g0, K)
+    return [[f, k, K]] if k == 0 else [[f, k, K - k], [f + 1, 0, k]]
 
 
 @dataclass(frozen=True)
@@ -138,13 +187,55 @@ class RisPowerSeries:
     noise: float
 
 
-def select_frames(program: RisProgram, start: float, dwell: float, *, frame_width: float) -> tuple[np.ndarray, np.ndarray]:
-    """Frame of each beam and whether it is mixed: ``(frame_index [M], mixed [M])``.
+@dataclass(frozen=True)
+class ScheduleCheck:
+    """A given first frame checked against the recording (:func:`check_first_frame`).
 
-    Beam m lasts ``[start + m·D, start + (m+1)·D)``; a frame occupies ``[f, f + frame_width)``
-    (its chirps). The frame with the largest margin ``min(f − start_m, end_m − f − frame_width)``
-    is used (the earliest of equals: with a whole dwell and start, the beam's first frame); it
-    lies wholly inside the beam when the margin is >= 0, else the beam is *mixed*.
+    Attributes
+    ----------
+    given : int
+        The schedule's (or the command line's) first frame.
+    supported : int
+        The first frame the fit selects.
+    start : float
+        The fitted start [frames].
+    confidence : float
+        The fit's confidence.
+    delta_rss : float
+        The given start's misfit above the fit's (with the fitted dwell) [σ̂²].
+    mismatch : bool
+        The data clearly supports another frame (module docstring).
+    """
+
+    given: int
+    supported: int
+    start: float
+    confidence: float
+    delta_rss: float
+    mismatch: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON (for the provenance)."""
+        return {"given": self.given, "supported": self.supported, "start": float(self.start),
+                "confidence": float(self.confidence), "delta_rss": float(self.delta_rss), "mismatch": self.mismatch}
+
+
+def _check_assemble(assemble: str) -> None:
+    if assemble not in ASSEMBLE_MODES:
+        raise MeasuredFormatError(f"assemble = {assemble!r} must be one of {', '.join(ASSEMBLE_MODES)}")
+
+
+def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps: int, frame_width: float,
+                  num_frames: int | None = None, assemble: str = DEFAULT_ASSEMBLE) -> tuple[np.ndarray, np.ndarray]:
+    """Each beam's K chirps and whether they are mixed: ``(chirp_start [M], mixed [M])``.
+
+    Beam m lasts ``[start + m·D, start + (m+1)·D)``; frame f's chirp k starts at ``f + k·w/K``
+    (w = ``frame_width``) and lasts ``w/K``. A frame wholly inside the beam (margin
+    ``min(f − start_m, end_m − f − w) >= 0``) is used, the largest margin first (the earliest of
+    equals: with a whole dwell and start, the beam's first frame). Otherwise (module docstring,
+    "Chirps of each beam") ``"span"`` takes the K consecutive chirps wholly inside with the largest
+    margin, ``"frame"`` (and ``"span"`` when fewer than K chirps fit) the frame whose chirps start in
+    the beam most often; those beams are *mixed*.
 
     Parameters
     ----------
@@ -154,22 +245,67 @@ def select_frames(program: RisProgram, start: float, dwell: float, *, frame_widt
         Radar time the first beam starts [frames].
     dwell : float
         Radar frames per beam D [frames].
+    num_chirps : int
+        K, chirps per frame.
     frame_width : float
-        Part of the frame interval the chirps occupy [frames].
+        Part of the frame interval the chirps occupy, K·T_c/T_f [frames].
+    num_frames : int, optional
+        Frames recorded (chirps beyond are not used).
+    assemble : {"span", "frame"}
 
     Returns
     -------
     (int array [M], bool array [M])
-        Each beam's frame and whether it is mixed.
+        Each beam's first chirp (``frame·K + k``) and whether its chirps are mixed.
     """
+    _check_assemble(assemble)
+    K, w = int(num_chirps), float(frame_width)
+    c = w / K
+    F = np.inf if num_frames is None else num_frames
     m = np.arange(program.num_beams)
     lo, hi = start + m * dwell, start + (m + 1) * dwell
-    cand = np.floor(lo)[:, None] + np.arange(int(np.ceil(dwell)) + 2)[None, :]         # [M, C]
-    margin = np.minimum(cand - lo[:, None], hi[:, None] - cand - frame_width)
-    margin = np.where(cand >= 0, np.round(margin, 9), -np.inf)
+    cand = np.floor(lo)[:, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, :]          # [M, C] frames
+    ok = (cand >= 0) & (cand < F)
+    margin = np.where(ok, np.round(np.minimum(cand - lo[:, None], hi[:, None] - cand - w), 9), -np.inf)
     pick = np.argmax(margin, axis=1)
-    best = margin[m, pick]
-    return cand[m, pick].astype(np.int64), best < -1e-9
+    chirp_start = (cand[m, pick] * K).astype(np.int64)
+    mixed = margin[m, pick] < -1e-9
+    share = np.where(ok, _share(cand, lo[:, None], hi[:, None], w), -1.0)                    # frame holding most
+    most = (cand[m, np.argmax(share, axis=1)] * K).astype(np.int64)
+    for b in np.flatnonzero(mixed):
+        chirp_start[b] = most[b]
+        if assemble != "span":
+            continue
+        g0 = int(cand[b, 0]) * K + np.arange(int(cand.shape[1]) * K)                          # window starts
+        g0 = g0[g0 >= 0]
+        t_first = g0 // K + (g0 % K) * c
+        g1 = g0 + K - 1
+        t_end = g1 // K + (g1 % K) * c + c
+        mg = np.round(np.minimum(t_first - lo[b], hi[b] - t_end), 9)
+        mg = np.where(g1 // K < F, mg, -np.inf)
+        i = int(np.argmax(mg))
+        if mg[i] >= -1e-9:
+            chirp_start[b], mixed[b] = g0[i], False
+    return chirp_start, mixed
+
+
+def _chirp_time(x: np.ndarray, w: float) -> np.ndarray:
+    """Chirp time in ``[0, x)``: ``⌊x⌋·w + min(x − ⌊x⌋, w)`` [frames] (frames of K chirps spanning w each)."""
+    f = np.floor(x)
+    return f * w + np.minimum(x - f, w)
+
+
+def _share(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: float) -> np.ndarray:
+    """Share of the K chirps from radar time ``a`` (a chirp's start) that lies in ``[lo, hi)``: their chirp time,
+    ``[a, a + 1)`` of the recording's chirp time, inside the beam, over w [0…1]."""
+    top, bottom = np.minimum(hi, a + 1.0), np.maximum(lo, a)
+    return np.maximum(_chirp_time(top, w) - _chirp_time(bottom, w), 0.0) * (top > bottom) / w
+
+
+def _frame_of(chirp_start: np.ndarray, K: int) -> np.ndarray:
+    """The frame holding most of each beam's K chirps (the first of two equal halves)."""
+    f, k = np.divmod(np.asarray(chirp_start, np.int64), K)
+    return np.where(K - k >= k, f, f + 1).astype(np.int64)
 
 
 def _frame_times(num_frames: int, fractions: np.ndarray) -> np.ndarray:
@@ -181,30 +317,47 @@ def _off_frames(program: RisProgram, start: float, dwell: float, num_frames: int
     return np.flatnonzero(np.all(st == OFF, axis=1)).astype(np.int64)
 
 
-def manual_alignment(program: RisProgram, first_frame: int, *, num_frames: int, fractions: np.ndarray) -> SweepAlignment:
-    """The schedule's own alignment: beam m at frame ``first_frame + m·frames_per_beam``.
+def _width(fractions: np.ndarray, frame_width: float | None) -> float:
+    if frame_width is not None:
+        return float(frame_width)
+    return float(fractions.size * (fractions[1] - fractions[0])) if fractions.size > 1 else 1.0
+
+
+def manual_alignment(program: RisProgram, first_frame: int, *, num_frames: int, fractions: np.ndarray,
+                     frame_width: float | None = None, assemble: str = DEFAULT_ASSEMBLE) -> SweepAlignment:
+    """The schedule's own alignment: beam 0 starts with frame ``first_frame``, beams last the nominal dwell.
+
+    With a whole ``frames_per_beam`` beam m is frame ``first_frame + m·frames_per_beam``; with a
+    dwell that is not whole each beam's chirps follow :func:`select_chirps`.
 
     Parameters
     ----------
     program : RisProgram
-        The beams and frames per beam (the RIS-off frames follow from its sync pattern).
+        The beams and their nominal dwell (the RIS-off frames follow from its sync code).
     first_frame : int
-        The recorded frame of beam 0.
+        The recorded frame of beam 0 (its start: ``start = first_frame``).
     num_frames : int
         Frames in the recording.
     fractions : float array [K]
-        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`).
+        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`, all K).
+    frame_width : float, optional
+        K·T_c/T_f [frames]; default ``K·fractions[1]``.
+    assemble : {"span", "frame"}
 
     Returns
     -------
     SweepAlignment
         ``method="manual"``, no confidence.
     """
-    idx = first_frame + program.frames_per_beam * np.arange(program.num_beams, dtype=np.int64)
-    return SweepAlignment(method="manual", start=float(first_frame), dwell=float(program.frames_per_beam),
-                          frames_per_beam=program.frames_per_beam, frame_index=idx,
-                          off_frames=_off_frames(program, float(first_frame), float(program.frames_per_beam),
-                                                 num_frames, fractions))
+    w = _width(fractions, frame_width)
+    K = fractions.size
+    dwell = float(program.frames_per_beam)
+    g0, mixed = select_chirps(program, float(first_frame), dwell, num_chirps=K, frame_width=w, assemble=assemble)
+    return SweepAlignment(method="manual", start=float(first_frame), dwell=dwell,
+                          frames_per_beam=float(program.frames_per_beam), frame_index=_frame_of(g0, K),
+                          chirp_start=g0, num_chirps=K, assemble=assemble,
+                          mixed_beams=tuple(int(b) for b in np.flatnonzero(mixed)),
+                          off_frames=_off_frames(program, float(first_frame), dwell, num_frames, fractions))
 
 
 def ris_power_series(blocks: Callable[[], Iterable[np.ndarray]], radar: RadarConfig, *, min_range: float = 0.5,
@@ -272,9 +425,10 @@ def _exact(s: np.ndarray, program: RisProgram, start: float, dwell: float, times
     j = np.where(state >= 0, state, np.where(state == SYNC, J - 2, J - 1))
     A = np.bincount((np.arange(F)[:, None] * J + j).ravel(), minlength=F * J).reshape(F, J) / Kc
     A = A[:, A.any(axis=0)]
-    gram = A.T @ A
-    level = np.linalg.solve(gram + 1e-12 * np.trace(gram) * np.eye(gram.shape[0]), A.T @ s)
-    pred = A @ level
+    # einsum, not BLAS: these products are tiny, and a threaded BLAS on a busy machine makes them 10x slower
+    gram = np.einsum("fi,fj->ij", A, A)
+    level = np.linalg.solve(gram + 1e-12 * np.trace(gram) * np.eye(gram.shape[0]), np.einsum("fj,f->j", A, s))
+    pred = np.einsum("fj,j->f", A, level)
     return float(np.sum((np.sqrt(np.maximum(s, 0)) - np.sqrt(np.maximum(pred, 0))) ** 2))
 
 
@@ -315,13 +469,16 @@ def _candidates(s: np.ndarray, program: RisProgram, times: np.ndarray, *, max_dr
     coarse: list[tuple[float, float, float]] = []                            # (rss, start, dwell)
     fine: dict[tuple[float, float], float] = {}                             # (start, dwell) -> exact rss
 
-    def run(starts: np.ndarray, dwell: float, exact: bool = False) -> None:
+    def run(starts: np.ndarray, dwell: float, exact: bool = False) -> tuple[float, tuple[float, float]] | None:
         if exact:
+            best: tuple[float, tuple[float, float]] | None = None
             for t in starts:
                 key = (round(float(t), 6), round(float(dwell), 9))
                 if key not in fine:
                     fine[key] = _exact(s, program, float(t), dwell, times)
-            return
+                if best is None or fine[key] < best[0]:
+                    best = (fine[key], key)
+            return best
         coarse.extend(zip(_evaluate(s, program, starts, dwell, times), starts, np.full(starts.size, dwell)))
 
     for d in drifts:
@@ -340,32 +497,42 @@ def _candidates(s: np.ndarray, program: RisProgram, times: np.ndarray, *, max_dr
             if len(seeds) == _TOP:
                 break
     fine_d = step_d / 4 if n_d else 0.0
-    for _, t0, dwell in seeds:                                # the best few, finer, with least-squares levels
-        for dd in np.arange(-2, 3) * fine_d if n_d else [0.0]:
-            dw = dwell + P * dd
-            if abs(dw / P - 1) <= max_drift + 1e-12:
-                run(t0 + np.arange(-10, 11) * 0.025, dw, exact=True)
+    for _, t0, dwell in seeds:          # the best few, finer, with least-squares levels, moved to the local best
+        for _ in range(_REFINE_STEPS):
+            found = []
+            for dd in np.arange(-2, 3) * fine_d if n_d else [0.0]:
+                dw = dwell + P * dd
+                if abs(dw / P - 1) <= max_drift + 1e-12:
+                    found.append(run(t0 + np.arange(-10, 11) * 0.025, dw, exact=True))
+            rss, (t1, d1) = min(f for f in found if f is not None)
+            if abs(t1 - t0) < 0.2 and abs(d1 - dwell) < 1.5 * P * fine_d:
+                break                                           # the local best is inside the searched patch
+            t0, dwell = t1, d1
     return np.array([(t, d, r) for (t, d), r in fine.items()])                  # [C, 3]
 
 
-def _beam_frames(cand: np.ndarray, weight: np.ndarray, best_i: int, num_beams: int, *, frame_width: float,
-                 num_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(frame_index [M], ok [C], mixed [M])``: each beam's frame most probably among its best, whether candidate
-    c agrees on every beam, and whether the best fit leaves a beam's frame mixed (module docstring, "Confidence")."""
-    t0, dwell = cand[best_i, 0], cand[best_i, 1]
-    m = np.arange(num_beams)
-    options = np.floor(t0 + m * dwell)[:, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, :]     # [M, O]
-    lo = cand[:, 0][:, None, None] + m[None, :, None] * cand[:, 1][:, None, None]                     # [C, M, 1]
-    hi = lo + cand[:, 1][:, None, None]
-    share = np.clip(np.minimum(options[None] + frame_width, hi) - np.maximum(options[None], lo), 0, None) / frame_width
-    share = np.where((options[None] >= 0) & (options[None] < num_frames), share, -1.0)              # [C, M, O]
-    good = share >= share.max(axis=2, keepdims=True) - MIX_TOLERANCE
-    p_good = np.einsum("c,cmo->mo", weight, good)
-    pick = np.argmax(p_good + 1e-9 * np.arange(options.shape[1], 0, -1)[None, :], axis=1)
-    idx = options[m, pick].astype(np.int64)
-    ok = good[:, m, pick].all(axis=1)                                                               # [C]
-    mixed = share[best_i, m, pick] < 1 - MIX_TOLERANCE
-    return idx, ok, mixed
+def _agreement(cand: np.ndarray, chirp_start: np.ndarray, best_i: int, *, num_chirps: int, frame_width: float,
+               num_frames: int, assemble: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(ok [C], mixed [M])``: whether each candidate c finds every beam's chirps among its best (share within
+    ``MIX_TOLERANCE`` of the best any K consecutive chirps, or any frame, can have), and whether the best fit leaves
+    a beam's chirps mixed (module docstring, "Confidence")."""
+    K, w = int(num_chirps), float(frame_width)
+    M = chirp_start.size
+    m = np.arange(M)
+    lo = cand[:, 0][:, None] + m[None, :] * cand[:, 1][:, None]                               # [C, M]
+    hi = lo + cand[:, 1][:, None]
+    f0, r = np.divmod(chirp_start, K)
+    start = (f0 + r * (w / K))[None, :]                                                       # first chirp's time
+    share = _share(start, lo, hi, w)                                                          # [C, M]
+    if assemble == "span":
+        best = np.minimum((_chirp_time(hi, w) - _chirp_time(lo, w)) / w, 1.0)
+    else:
+        dwell = float(cand[best_i, 1])
+        f = f0[:, None] + np.arange(-2, int(np.ceil(dwell)) + 3)[None, :]                    # [M, O]
+        opt = np.where((f >= 0) & (f < num_frames), _share(f[None], lo[:, :, None], hi[:, :, None], w), 0.0)
+        best = np.maximum(opt.max(axis=2), share)
+    good = share >= best - MIX_TOLERANCE
+    return good.all(axis=1), share[best_i] < 1 - MIX_TOLERANCE
 
 
 def _no_ris_probability(s: np.ndarray, rss0: float, levels: int) -> float:
@@ -378,43 +545,27 @@ def _no_ris_probability(s: np.ndarray, rss0: float, levels: int) -> float:
     return float(scipy.stats.f.sf(stat, levels - 1, dof))
 
 
-def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray,
-                  frame_width: float, max_drift: float = 0.02) -> SweepAlignment:
-    """Fit the RIS program to the per-frame RIS power (module docstring).
-
-    Parameters
-    ----------
-    series : RisPowerSeries or float array [F]
-        The RIS return's power per recorded frame [ADC counts²].
-    program : RisProgram
-        The RIS's program in nominal frames (sync, gap, beams).
-    fractions : float array [Kc]
-        Chirp start times within a frame [frames] (:func:`~.ris_timing.chirp_fractions`).
-    frame_width : float
-        Part of the frame interval the chirps occupy [frames] (1 for back-to-back frames).
-    max_drift : float
-        Largest RIS clock rate error searched, |d| [unitless, e.g. 0.02 = 2 %].
-
-    Returns
-    -------
-    SweepAlignment
-        ``method="auto"``: start and dwell [frames], each beam's frame, the mixed beams, the
-        RIS-off frames, the confidence, the runner-up and the feature used.
-    """
+def _fit(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray, frame_width: float,
+         max_drift: float, assemble: str) -> tuple[SweepAlignment, float, np.ndarray, np.ndarray]:
+    """:func:`fit_alignment`, with σ̂² and what :func:`_exact` needs: ``(alignment, sigma2, s [F], times [F, Kc])``."""
+    _check_assemble(assemble)
     s = np.asarray(series.power if isinstance(series, RisPowerSeries) else series, float)
     F, M, P = s.size, program.num_beams, program.frames_per_beam
+    K = fractions.size
     if not 0 <= max_drift < 0.5:
         raise MeasuredFormatError(f"max_clock_drift = {max_drift!r} must lie in [0, 0.5), e.g. 0.02 (2 %)")
     sub = fractions if fractions.size <= _SUB_CHIRPS else fractions[np.unique(np.round(
         np.linspace(0, fractions.size - 1, _SUB_CHIRPS)).astype(int))]
-    cand = _candidates(s, program, _frame_times(F, sub), max_drift=max_drift, frame_width=frame_width)
+    times = _frame_times(F, sub)
+    cand = _candidates(s, program, times, max_drift=max_drift, frame_width=frame_width)
     best_i = int(np.argmin(cand[:, 2]))
     t0, dwell, rss0 = cand[best_i]
     J = M + (2 if program.has_sync else 1)
     sigma2 = max(rss0 / max(F - J - 2, 1), 1e-30)
     weight = np.exp(-0.5 * (cand[:, 2] - rss0) / sigma2)
     weight /= weight.sum()
-    idx, ok, mixed = _beam_frames(cand, weight, best_i, M, frame_width=frame_width, num_frames=F)
+    g0, _ = select_chirps(program, t0, dwell, num_chirps=K, frame_width=frame_width, num_frames=F, assemble=assemble)
+    ok, mixed = _agreement(cand, g0, best_i, num_chirps=K, frame_width=frame_width, num_frames=F, assemble=assemble)
     confidence = float(np.sum(weight[ok]))
     p_null = _no_ris_probability(s, rss0, J)         # is there a RIS at all? (F-test against noise alone)
     if p_null > NULL_P:
@@ -422,8 +573,9 @@ def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, f
     runner = None
     if not ok.all():
         j = int(np.flatnonzero(~ok)[np.argmin(cand[~ok, 2])])
-        r_idx, _ = select_frames(program, cand[j, 0], cand[j, 1], frame_width=frame_width)
-        runner = {"first_frame": int(r_idx[0]), "start": float(cand[j, 0]), "dwell": float(cand[j, 1]),
+        r_g0, _ = select_chirps(program, cand[j, 0], cand[j, 1], num_chirps=K, frame_width=frame_width,
+                                num_frames=F, assemble=assemble)
+        runner = {"first_frame": int(_frame_of(r_g0, K)[0]), "start": float(cand[j, 0]), "dwell": float(cand[j, 1]),
                   "delta_rss": float((cand[j, 2] - rss0) / sigma2)}
     feature: dict[str, Any] = {}
     if isinstance(series, RisPowerSeries):
@@ -431,7 +583,74 @@ def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, f
         feature = {"range_bin": series.range_bin, "range": series.range,
                    "snr_db": float(10 * np.log10(max(top, 1e-300) / max(3 * series.noise, 1e-300)))}
     feature["no_ris_probability"] = p_null
-    return SweepAlignment(method="auto", start=t0, dwell=dwell, frames_per_beam=P, frame_index=idx,
-                          mixed_beams=tuple(int(m) for m in np.flatnonzero(mixed)),
-                          off_frames=_off_frames(program, t0, dwell, F, fractions), confidence=confidence,
-                          runner_up=runner, feature=feature)
+    align = SweepAlignment(method="auto", start=t0, dwell=dwell, frames_per_beam=float(P),
+                           frame_index=_frame_of(g0, K), chirp_start=g0, num_chirps=K, assemble=assemble,
+                           mixed_beams=tuple(int(m) for m in np.flatnonzero(mixed)),
+                           off_frames=_off_frames(program, t0, dwell, F, fractions), confidence=confidence,
+                           runner_up=runner, feature=feature)
+    return align, sigma2, s, times
+
+
+def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray,
+                  frame_width: float, max_drift: float = 0.02, assemble: str = DEFAULT_ASSEMBLE) -> SweepAlignment:
+    """Fit the RIS program to the per-frame RIS power (module docstring).
+
+    Parameters
+    ----------
+    series : RisPowerSeries or float array [F]
+        The RIS return's power per recorded frame [ADC counts²].
+    program : RisProgram
+        The RIS's program in nominal frames (sync code, gap, beams).
+    fractions : float array [K]
+        Chirp start times within a frame, all K [frames] (:func:`~.ris_timing.chirp_fractions`).
+    frame_width : float
+        Part of the frame interval the chirps occupy, K·T_c/T_f [frames] (1 for back-to-back frames).
+    max_drift : float
+        Largest RIS clock rate error searched, |d| [unitless, e.g. 0.02 = 2 %].
+    assemble : {"span", "frame"}
+        A beam spread over two frames: its K consecutive chirps, or the frame holding most of it.
+
+    Returns
+    -------
+    SweepAlignment
+        ``method="auto"``: start and dwell [frames], each beam's chirps and frame, the mixed beams,
+        the RIS-off frames, the confidence, the runner-up and the feature used.
+    """
+    return _fit(series, program, fractions=fractions, frame_width=frame_width, max_drift=max_drift,
+                assemble=assemble)[0]
+
+
+def check_first_frame(series: RisPowerSeries | np.ndarray, program: RisProgram, first_frame: int, *,
+                      fractions: np.ndarray, frame_width: float, max_drift: float = 0.02,
+                      assemble: str = DEFAULT_ASSEMBLE, min_confidence: float = CHECK_CONFIDENCE,
+                      min_delta_rss: float = CHECK_DELTA_RSS) -> ScheduleCheck:
+    """Check a given first frame against the recording (module docstring, "Checking a given first frame").
+
+    Parameters
+    ----------
+    series : RisPowerSeries or float array [F]
+        The RIS return's power per recorded frame [ADC counts²].
+    program : RisProgram
+    first_frame : int
+        The given first frame (beam 0 starts with it).
+    fractions, frame_width, max_drift, assemble
+        As :func:`fit_alignment`.
+    min_confidence : float
+        The fit must be at least this confident to contradict the given frame.
+    min_delta_rss : float
+        ... and fit at least this many σ̂² better than the given start.
+
+    Returns
+    -------
+    ScheduleCheck
+        ``mismatch`` True when the data clearly supports another first frame (``supported``).
+    """
+    align, sigma2, s, times = _fit(series, program, fractions=fractions, frame_width=frame_width,
+                                   max_drift=max_drift, assemble=assemble)
+    rss_best = _exact(s, program, align.start, align.dwell, times)
+    rss_given = _exact(s, program, float(first_frame), align.dwell, times)
+    delta = (rss_given - rss_best) / sigma2
+    mismatch = bool(align.confidence >= min_confidence and abs(align.start - first_frame) >= 1.0
+                    and align.first_frame != int(first_frame) and delta >= min_delta_rss)
+    return ScheduleCheck(given=int(first_frame), supported=align.first_frame, start=float(align.start),
+                         confidence=float(align.confidence), delta_rss=float(delta), mismatch=mismatch)

@@ -3,11 +3,18 @@
 The one bridge from measured data to the DSP: ``risloc capture import`` writes the result with
 ``save_capture`` and ``risloc locate`` processes it like a simulated capture.
 
-Frame selection: with a manual ``first_frame``, beam m is recorded frame ``first_frame +
-m·frames_per_beam`` (the **first** frame of each beam; the others are skipped); with
-``first_frame = "auto"`` the RIS program is fitted to the recording (:mod:`.alignment`: sync frames,
-the beam-dependent power, a dwell that is not a whole number of frames, a drifting RIS clock) and
-each beam gets the frame most probably wholly inside it. One virtual channel
+Frame selection: the RIS's program (:class:`.ris_timing.RisProgram`) comes from the schedule, its
+millisecond durations (``beam_dwell_ms``, ``[sync] chip_ms``, ``gap_ms``) converted with the
+radar's frame period from the configuration. With a manual ``first_frame`` beam 0 starts with that
+frame and every beam lasts the nominal dwell (a whole ``frames_per_beam``: beam m is recorded
+frame ``first_frame + m·frames_per_beam``, the **first** frame of each beam); the given frame is
+checked against the recording (:func:`.alignment.check_first_frame`): when the data clearly
+supports another, the capture's provenance carries a one-line warning (``import_warnings``) and
+the flag ``schedule-mismatch`` (``import_flags``). With ``first_frame = "auto"`` the program is
+fitted to the recording (:mod:`.alignment`: sync code, the beam-dependent power, a dwell that is
+not a whole number of frames, a drifting RIS clock). A beam no frame holds wholly takes its K
+chirps across the frame boundary (``assemble="span"``, :func:`.alignment.select_chirps`); the
+provenance lists each beam's chirps. One virtual channel
 (``schedule.channel``), or several combined (maximal ratio), gives a cube ``[M, K, N]``
 complex128 in ADC counts with the project's sign convention (``I − jQ``,
 ``docs/measured-captures.md``); then the self-interference is removed (:mod:`.leakage`).
@@ -35,7 +42,8 @@ from ..dca1000.reader import CaptureInfo, iter_frames, open_raw
 from ..errors import MeasuredFormatError
 from ..ti.chirp_config import TiChirpConfig
 from ..ti.config_file import load_config
-from .alignment import SweepAlignment, fit_alignment, manual_alignment, ris_power_series
+from .alignment import (DEFAULT_ASSEMBLE, ScheduleCheck, SweepAlignment, check_first_frame, fit_alignment,
+                        manual_alignment, ris_power_series)
 from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .ris_timing import chirp_fractions
 from .schedule import SweepSchedule, format_sweep_schedule, read_sweep_schedule
@@ -140,17 +148,21 @@ def _first_frame(first_frame: int | str | None, sched: SweepSchedule) -> int | s
 
 
 def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, first_frame: int | str,
-               chans: tuple[int, ...], *, frames_per_block: int, gate_range: float,
-               min_confidence: float) -> SweepAlignment:
-    """Which recorded frame holds each beam: fitted (``"auto"``, refused below ``min_confidence``) or the schedule's."""
-    program = sched.program
+               chans: tuple[int, ...], *, frames_per_block: int, gate_range: float, min_confidence: float,
+               assemble: str, check: bool) -> tuple[SweepAlignment, ScheduleCheck | None]:
+    """Which recorded chirps hold each beam: fitted (``"auto"``, refused below ``min_confidence``) or the schedule's
+    (then checked against the recording when ``check``)."""
+    program = sched.program(radar.frame_interval)
     fractions = chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval)
+    width = radar.frame_duration / radar.frame_interval
+
+    def blocks():
+        return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
+
     if first_frame == "auto":
-        def blocks():
-            return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
         series = ris_power_series(blocks, radar, min_range=gate_range)
         align = fit_alignment(series, program, fractions=fractions, max_drift=sched.max_clock_drift,
-                              frame_width=radar.frame_duration / radar.frame_interval)
+                              frame_width=width, assemble=assemble)
         if align.confidence < min_confidence:
             runner = align.runner_up or {}
             raise MeasuredFormatError(
@@ -159,16 +171,31 @@ def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, firs
                 f"return at {align.feature.get('range', float('nan')):.2f} m, {align.feature.get('snr_db', 0):.1f} dB); "
                 "give first_frame in the sweep schedule (or --first-frame N), add the RIS's [sync] pattern, or "
                 "lower --min-confidence")
-        return align
-    align = manual_alignment(program, int(first_frame), num_frames=info.num_frames, fractions=fractions)
-    needed = int(align.frame_index[-1]) + 1
+        return align, None
+    align = manual_alignment(program, int(first_frame), num_frames=info.num_frames, fractions=fractions,
+                             frame_width=width, assemble=assemble)
+    needed = int((align.chirp_start[-1] + align.num_chirps - 1) // align.num_chirps) + 1
     if info.num_frames < needed:
+        per_beam = (f"frames_per_beam {sched.frames_per_beam}" if sched.beam_dwell_ms is None else
+                    f"beam_dwell_ms {sched.beam_dwell_ms:g} = {program.frames_per_beam:.4g} frames")
         raise MeasuredFormatError(
             f"{info.files[0]}: the recording holds {info.num_frames} whole frame(s) but the sweep schedule needs "
-            f"{needed} (first_frame {first_frame} + ({sched.num_beams} beams - 1) x frames_per_beam "
-            f"{sched.frames_per_beam} + 1); check first_frame, frames_per_beam and the sweep's beam count, or "
-            "whether the recording stopped early")
-    return align
+            f"{needed} (first_frame {first_frame} + ({sched.num_beams} beams - 1) x {per_beam} + 1); check "
+            "first_frame, the time per beam and the sweep's beam count, or whether the recording stopped early")
+    result = None
+    if check:
+        series = ris_power_series(blocks, radar, min_range=gate_range)
+        result = check_first_frame(series, program, int(first_frame), fractions=fractions, frame_width=width,
+                                   max_drift=sched.max_clock_drift, assemble=assemble)
+    return align, result
+
+
+def _mismatch_message(source: Path, result: ScheduleCheck) -> str:
+    """The one-line warning of a first frame the recording contradicts."""
+    return (f"{source}: the recording supports first_frame = {result.supported}, not the given {result.given} (sweep "
+            f"start fitted at frame {result.start:.2f}, confidence {result.confidence:.2f}, the given frame fits "
+            f"worse by {result.delta_rss:.0f} sigma^2); the beams may be shifted: check the sweep schedule's "
+            "first_frame or import with --first-frame auto")
 
 
 @dataclass(frozen=True)
@@ -187,16 +214,21 @@ class _BeamFrames:
     issues: tuple[dict[str, Any], ...]
 
 
-def _read_beams(info: CaptureInfo, wanted: np.ndarray, off: set[int], chans: tuple[int, ...], cfg: TiChirpConfig,
+def _read_beams(info: CaptureInfo, align: SweepAlignment, off: set[int], chans: tuple[int, ...], cfg: TiChirpConfig,
                 *, frames_per_block: int) -> _BeamFrames:
-    """Stream the recording up to the last frame needed, keeping the beams' frames and summing the off frames."""
-    last = max([int(wanted.max())] + list(off)) + 1
-    M, K, N, V = len(wanted), cfg.num_loops, cfg.num_samples, len(chans)
+    """Stream the recording up to the last frame needed, keeping each beam's chirps (one frame, or the K consecutive
+    chirps across two) and summing the off frames."""
+    segments = align.beam_segments()
+    last = max([seg[-1][0] for seg in segments] + list(off)) + 1
+    M, K, N, V = len(segments), cfg.num_loops, cfg.num_samples, len(chans)
     cube4 = np.empty((M, K, V, N), np.complex128)
     background = np.zeros((K, V, N), np.complex128)
-    beams_of: dict[int, list[int]] = {}
-    for m, f in enumerate(wanted):
-        beams_of.setdefault(int(f), []).append(m)
+    beams_of: dict[int, list[tuple[int, int, int, int]]] = {}          # frame -> (beam, first chirp, count, offset)
+    for m, seg in enumerate(segments):
+        offset = 0
+        for f, k0, n in seg:
+            beams_of.setdefault(int(f), []).append((m, k0, n, offset))
+            offset += n
     damaged_beams: list[int] = []
     dropped: list[dict[str, Any]] = []
     issues: list[dict[str, Any]] = []
@@ -206,8 +238,8 @@ def _read_beams(info: CaptureInfo, wanted: np.ndarray, off: set[int], chans: tup
         for j in range(block.cube.shape[0]):
             f = block.first_frame + j
             frame = block.cube[j][:, list(chans), :]
-            for m in beams_of.get(f, ()):
-                cube4[m] = frame
+            for m, k0, n, offset in beams_of.get(f, ()):
+                cube4[m, offset:offset + n] = frame[k0:k0 + n]
                 if block.damaged[j]:
                     damaged_beams.append(m)
             if f in off:
@@ -238,7 +270,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
                    schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool = False,
                    form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
                    leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
-                   channels: Sequence[int] | None = None, min_confidence: float = 0.5) -> Capture:
+                   channels: Sequence[int] | None = None, min_confidence: float = 0.5,
+                   assemble: str = DEFAULT_ASSEMBLE, check_schedule: bool = True) -> Capture:
     """Import a recorded RIS sweep as a :class:`~risloc_rt.model.capture.Capture`.
 
     Parameters
@@ -270,6 +303,11 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         amplitude in channel v at the strongest beam and range bin; output ``Σ w_v y_v / Σ |w_v|``).
     min_confidence : float
         ``"auto"`` refuses an alignment whose confidence is below this.
+    assemble : {"span", "frame"}
+        A beam no frame holds wholly: its K consecutive chirps across the frame boundary, or the
+        frame holding most of it (:func:`.alignment.select_chirps`).
+    check_schedule : bool
+        Check a given first frame against the recording (reads it twice more).
 
     Returns
     -------
@@ -278,7 +316,9 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         schedule's ``frames_per_beam``; the schedule's sweep and RIS; :func:`default_processing`;
         ``frame_index`` the recorded frame of each beam; provenance ``source="measurement"`` with the
         sha256 of every file, the config text, the schedule, the alignment, the leakage removal, the
-        channels and the reader's issues; ``truth`` from the schedule's ``[truth]`` or None.
+        channels and the reader's issues; ``import_warnings`` (one-line texts) and ``import_flags``
+        (``[{"code": "schedule-mismatch", "message": ...}]``) when the recording contradicts a given
+        first frame; ``truth`` from the schedule's ``[truth]`` or None.
 
     Raises
     ------
@@ -297,9 +337,12 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     lanes = lanes or cfg_lanes or 2
     layout = RawLayout.from_config(cfg, lanes=lanes, iq_swap=iq_swap)
     info = open_raw(raw, layout, form=form, expected_frames=cfg.num_frames or None)
-    radar = replace(cfg.to_radar_config(), frames_per_beam=sched.frames_per_beam)
-    align = _alignment(info, radar, sched, first_frame, chans, frames_per_block=frames_per_block,
-                       gate_range=gate_range, min_confidence=min_confidence)
+    radar = cfg.to_radar_config()
+    program = sched.program(radar.frame_interval)
+    radar = replace(radar, frames_per_beam=max(1, int(round(program.frames_per_beam))))
+    align, checked = _alignment(info, radar, sched, first_frame, chans, frames_per_block=frames_per_block,
+                                gate_range=gate_range, min_confidence=min_confidence, assemble=assemble,
+                                check=check_schedule)
     wanted = align.frame_index
     off = set(int(f) for f in align.off_frames) if leakage == "background" else set()
     if leakage == "background" and not off:
@@ -311,10 +354,18 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
                  f"channel(s) x {cfg.num_samples} samples (radar configuration) as complex128",
                  fix="check the sweep's beams and the configuration's numLoops and numAdcSamples, or import fewer "
                      "channels (--channels)")
-    beams = _read_beams(info, wanted, off, chans, cfg, frames_per_block=frames_per_block)
+    beams = _read_beams(info, align, off, chans, cfg, frames_per_block=frames_per_block)
     cube, weights = _combined_cube(beams, radar, leakage, gate_range, len(off))
     sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
     ris = _ris(sched)
+    alignment = align.to_dict()
+    warnings_: list[str] = []
+    flags: list[dict[str, str]] = []
+    if checked is not None:
+        alignment["check"] = checked.to_dict()
+        if checked.mismatch:
+            warnings_.append(_mismatch_message(info.files[0], checked))
+            flags.append({"code": "schedule-mismatch", "message": warnings_[-1]})
     prov = provenance(
         "measurement",
         device="TI DCA1000",
@@ -322,7 +373,9 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         config={"path": None if config_path is None else str(config_path),
                 "sha256": None if config_path is None else file_sha256(config_path), "text": config_text},
         schedule=format_sweep_schedule(sched),
-        alignment=align.to_dict(),
+        alignment=alignment,
+        import_warnings=warnings_,
+        import_flags=flags,
         leakage={"method": leakage, "gate_range": gate_range if leakage == "gate" else None,
                  "background_frames": len(off)},
         channels={"channels": list(chans), "combine": "single" if len(chans) == 1 else "mrc",

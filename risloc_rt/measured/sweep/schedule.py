@@ -5,7 +5,7 @@ schedule (TOML, ``docs/formats.md`` "Sweep schedule files") says where the sweep
 recording, how many frames each beam lasts, the beam angles, the virtual channel to localize
 with, the RIS pose and hardware, and optionally the truth::
 
-    frames_per_beam = 1
+    frames_per_beam = 1          # or the RIS's own time per beam: beam_dwell_ms = 25.0
     first_frame = 0              # or "auto"; also channel = 0, max_clock_drift = 0.02
     [sweep]                      # also elevation_deg, or angles_deg = [[az, el], ...]
     start_deg = -45.0
@@ -16,7 +16,7 @@ with, the RIS pose and hardware, and optionally the truth::
     facing = [0.0, 0.0, 0.0]
     loopback_delay_ns = 1.78     # and mode = "relay", rows = 16, columns = 4 ...
     [sync]                       # optional; also off_frames, cycles, gap_frames
-    on_frames = 5
+    on_frames = 5                # or pattern = "1111100110101", chip_ms = 20.0, gap_ms, repeat_after
     [truth]                      # optional
     ue_position = [0.0, 0.0, 0.0]
 
@@ -42,13 +42,15 @@ from dsp.budget import check_memory
 
 from ..._files import atomic_write_bytes
 from ..errors import MeasuredFormatError, read_text_file
-from .ris_timing import RisProgram
+from .ris_timing import MAX_SYNC_CHIPS, RisProgram
 
 __all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule", "ris_memory",
            "write_sweep_schedule"]
 
-_TOP = ("frames_per_beam", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth", "sync")
-_SYNC = ("on_frames", "off_frames", "cycles", "gap_frames")
+_TOP = ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth",
+        "sync")
+_SYNC = ("on_frames", "off_frames", "cycles", "gap_frames", "pattern", "chip_ms", "gap_ms", "repeat_after")
+_ON_OFF = ("on_frames", "off_frames", "cycles")
 _SWEEP = ("start_deg", "stop_deg", "step_deg", "elevation_deg", "angles_deg")
 _RIS = ("position", "facing", "loopback_delay_ns", "mode", "rows", "columns", "element_spacing",
         "relay_rx_angle_deg", "yaw_deg")
@@ -68,8 +70,8 @@ class SweepSchedule:
     ----------
     angles_deg : tuple of (az, el)
         RIS beam of each of the M sweep steps, RIS frame [deg].
-    frames_per_beam : int
-        Recorded frames per beam (>= 1); the import takes the first frame of each beam.
+    frames_per_beam : int or None
+        Recorded frames per beam (>= 1); None when ``beam_dwell_ms`` gives the RIS's own time.
     first_frame : int or None
         Index of the sweep's first frame in the recording; ``None`` is ``"auto"`` (found on import,
         :mod:`.alignment`).
@@ -94,10 +96,20 @@ class SweepSchedule:
         The RIS's on/off sync pattern before the sweep (``[sync]``; 0: none), nominal frames.
     max_clock_drift : float
         Largest RIS clock rate error ``first_frame = "auto"`` searches (default 0.02 = 2 %).
+    beam_dwell_ms : float or None
+        The RIS's own time per beam [ms] (instead of ``frames_per_beam``).
+    sync_pattern : str
+        The sync code, one chip a character ('1' on at the sync beam, '0' off); '' without.
+    sync_chip_ms : float or None
+        One chip of ``sync_pattern`` on the RIS's clock [ms].
+    sync_gap_ms : float or None
+        RIS off between the code and the sweep [ms] (instead of ``sync_gap_frames``).
+    sync_repeat_after : bool
+        The sync code is sent again after the sweep (after the same gap).
     """
 
     angles_deg: tuple[tuple[float, float], ...]
-    frames_per_beam: int
+    frames_per_beam: int | None
     first_frame: int | None
     ris_position: tuple[float, float, float]
     ris_facing: tuple[float, float, float]
@@ -116,13 +128,56 @@ class SweepSchedule:
     sync_cycles: int = 0
     sync_gap_frames: int = 0
     max_clock_drift: float = 0.02
+    beam_dwell_ms: float | None = None
+    sync_pattern: str = ""
+    sync_chip_ms: float | None = None
+    sync_gap_ms: float | None = None
+    sync_repeat_after: bool = False
+
+    def __post_init__(self) -> None:
+        if (self.frames_per_beam is None) == (self.beam_dwell_ms is None):
+            raise MeasuredFormatError("give exactly one of frames_per_beam (recorded frames per beam) and "
+                                      "beam_dwell_ms (the RIS's own time per beam)")
+        if bool(self.sync_pattern) != (self.sync_chip_ms is not None):
+            raise MeasuredFormatError("sync.pattern and sync.chip_ms go together (the code and one chip's duration)")
+        if self.sync_pattern and (self.sync_on_frames or self.sync_off_frames or self.sync_cycles):
+            raise MeasuredFormatError("give the sync as sync.pattern or as sync.on_frames/off_frames/cycles, not both")
+        if self.sync_gap_ms is not None and self.sync_gap_frames:
+            raise MeasuredFormatError("give sync.gap_frames or sync.gap_ms, not both")
 
     @property
-    def program(self) -> RisProgram:
-        """The RIS's program (sync cycles, gap, beams) in nominal frames (:class:`.ris_timing.RisProgram`)."""
-        return RisProgram(num_beams=self.num_beams, frames_per_beam=self.frames_per_beam,
-                          sync_on=self.sync_on_frames, sync_off=self.sync_off_frames, sync_cycles=self.sync_cycles,
-                          sync_gap=self.sync_gap_frames)
+    def uses_ris_clock(self) -> bool:
+        """Some duration is on the RIS's own clock [ms] (the radar's frame period converts it)."""
+        return self.beam_dwell_ms is not None or self.sync_chip_ms is not None or self.sync_gap_ms is not None
+
+    def program(self, frame_interval: float | None = None) -> RisProgram:
+        """The RIS's program (sync code, gap, beams) in nominal frames (:class:`.ris_timing.RisProgram`).
+
+        Parameters
+        ----------
+        frame_interval : float, optional
+            The radar's frame period T_f [s] (``TiChirpConfig.frame_periodicity``); needed when a
+            duration is in milliseconds (``beam_dwell_ms``, ``sync.chip_ms``, ``sync.gap_ms``):
+            ``x_ms·1e-3 / T_f`` nominal frames.
+
+        Returns
+        -------
+        RisProgram
+        """
+        if self.uses_ris_clock and frame_interval is None:
+            raise MeasuredFormatError("the sweep schedule gives the RIS's timing in milliseconds; the radar's frame "
+                                      "period (the configuration's frameCfg) is needed to place it in frames")
+        tf = 1.0 if frame_interval is None else float(frame_interval)
+        if not tf > 0:
+            raise MeasuredFormatError(f"frame_interval={frame_interval!r} must be > 0 [s]; check the configuration's "
+                                      "frame periodicity")
+        fpb = self.frames_per_beam if self.beam_dwell_ms is None else self.beam_dwell_ms * 1e-3 / tf
+        gap = self.sync_gap_frames if self.sync_gap_ms is None else self.sync_gap_ms * 1e-3 / tf
+        return RisProgram(num_beams=self.num_beams, frames_per_beam=fpb, sync_on=self.sync_on_frames,
+                          sync_off=self.sync_off_frames, sync_cycles=self.sync_cycles, sync_gap=gap,
+                          sync_pattern=self.sync_pattern,
+                          chip_frames=1.0 if self.sync_chip_ms is None else self.sync_chip_ms * 1e-3 / tf,
+                          repeat_after=self.sync_repeat_after)
 
     @classmethod
     def azimuth(cls, start_deg: float, stop_deg: float, step_deg: float, *, elevation_deg: float = 0.0,
@@ -148,6 +203,10 @@ class SweepSchedule:
             raise MeasuredFormatError(
                 "first_frame = \"auto\" is found from the recording on import (import_capture); give the first sweep "
                 "frame, e.g. first_frame = 0, to list the frames without the recording")
+        if self.frames_per_beam is None:
+            raise MeasuredFormatError(
+                "with beam_dwell_ms the frames of each beam depend on the radar's frame period; import_capture lists "
+                "them (the capture's frame_index and provenance)")
         return self.first_frame + self.frames_per_beam * np.arange(self.num_beams, dtype=np.int64)
 
     @property
@@ -256,12 +315,22 @@ def _angles(sweep: dict[str, Any], source: str) -> tuple[tuple[tuple[float, floa
 
 
 def _frame_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
-    """``frames_per_beam``, ``first_frame`` (None for ``"auto"``) and ``channel`` of the document's top level."""
-    if "frames_per_beam" not in doc:
+    """``frames_per_beam`` or ``beam_dwell_ms`` [ms], ``first_frame`` (None for ``"auto"``) and ``channel``."""
+    if "frames_per_beam" in doc and "beam_dwell_ms" in doc:
+        raise MeasuredFormatError(f"{source}: frames_per_beam and beam_dwell_ms both give the RIS's time per beam; "
+                                  "keep one (beam_dwell_ms when the RIS's own clock sets it, e.g. 25.0)")
+    if "frames_per_beam" not in doc and "beam_dwell_ms" not in doc:
         raise MeasuredFormatError(f"{source}: frames_per_beam is missing; add e.g. frames_per_beam = 1 (recorded "
-                                  "frames per RIS beam)")
-    fpb = _int(doc["frames_per_beam"], source, "frames_per_beam", minimum=1,
-               fix="give the number of recorded frames the RIS holds each beam, e.g. frames_per_beam = 1")
+                                  "frames per RIS beam), or beam_dwell_ms = 25.0 (the RIS's own time per beam)")
+    fpb: int | None = None
+    dwell_ms: float | None = None
+    if "frames_per_beam" in doc:
+        fpb = _int(doc["frames_per_beam"], source, "frames_per_beam", minimum=1,
+                   fix="give the number of recorded frames the RIS holds each beam, e.g. frames_per_beam = 1, or "
+                       "beam_dwell_ms = 25.0 for a time per beam that is not a whole number of frames")
+    else:
+        dwell_ms = _float(doc["beam_dwell_ms"], source, "beam_dwell_ms", positive=True,
+                          fix="give the time the RIS holds each beam on its own clock in milliseconds, e.g. 25.0")
     if "first_frame" not in doc:
         raise MeasuredFormatError(f"{source}: first_frame is missing; add the index of the sweep's first frame in "
                                   "the recording, e.g. first_frame = 0")
@@ -273,7 +342,7 @@ def _frame_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
                      fix="give the index of the sweep's first frame in the recording (0-based), or \"auto\"")
     channel = _int(doc.get("channel", 0), source, "channel", minimum=0,
                    fix="give the virtual channel index v = chirp·num_rx + rx used for localization, e.g. channel = 0")
-    return {"frames_per_beam": fpb, "first_frame": first, "channel": channel}
+    return {"frames_per_beam": fpb, "beam_dwell_ms": dwell_ms, "first_frame": first, "channel": channel}
 
 
 def _ris_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
@@ -317,19 +386,62 @@ def _sync_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
     if drift >= 0.5:
         raise MeasuredFormatError(f"{source}: max_clock_drift = {drift:g} must be below 0.5; e.g. 0.02 (2 %)")
     sync = _table(doc, "sync", source, required=False)
-    sync_values = {k: 0 for k in _SYNC}
+    sync_values: dict[str, Any] = {k: 0 for k in ("on_frames", "off_frames", "cycles", "gap_frames")}
+    out: dict[str, Any] = {"max_clock_drift": drift}
     if sync is not None:
         _check_keys(sync, _SYNC, source, "sync.")
-        for key in _SYNC:
+        for key in sync_values:
             sync_values[key] = _int(sync.get(key, 0), source, f"sync.{key}", minimum=0,
                                     fix="give whole nominal frames, e.g. [sync] on_frames = 5, off_frames = 5, "
                                         "cycles = 3, gap_frames = 2")
         if sync_values["cycles"] and not sync_values["on_frames"]:
             raise MeasuredFormatError(f"{source}: sync.cycles = {sync_values['cycles']} needs sync.on_frames >= 1 "
                                       "(the frames the RIS is on in each cycle)")
-    return {"max_clock_drift": drift, "sync_on_frames": sync_values["on_frames"],
-            "sync_off_frames": sync_values["off_frames"], "sync_cycles": sync_values["cycles"],
-            "sync_gap_frames": sync_values["gap_frames"]}
+        out.update(_sync_code(sync, source))
+    return {**out, "sync_on_frames": sync_values["on_frames"], "sync_off_frames": sync_values["off_frames"],
+            "sync_cycles": sync_values["cycles"], "sync_gap_frames": sync_values["gap_frames"]}
+
+
+def _sync_code(sync: dict[str, Any], source: str) -> dict[str, Any]:
+    """The ``[sync]`` table's code form: ``pattern``, ``chip_ms`` [ms], ``gap_ms`` [ms], ``repeat_after``."""
+    out: dict[str, Any] = {}
+    if "pattern" in sync:
+        pattern = sync["pattern"]
+        fix = 'give the chips as a string of 1 (on at the sync beam) and 0 (off), e.g. pattern = "1111100110101"'
+        if not isinstance(pattern, str) or not pattern or set(pattern) - {"0", "1"}:
+            raise MeasuredFormatError(f"{_where(source, 'sync.pattern')} = {pattern!r} must be a non-empty string of "
+                                      f"'1' and '0'; {fix}")
+        if len(pattern) > MAX_SYNC_CHIPS:
+            raise MeasuredFormatError(f"{source}: sync.pattern has {len(pattern):,} chips, more than "
+                                      f"{MAX_SYNC_CHIPS}; {fix}")
+        if "1" not in pattern:
+            raise MeasuredFormatError(f"{source}: sync.pattern = {pattern!r} has no 1 chip (the RIS is never on); {fix}")
+        on_off = [k for k in _ON_OFF if k in sync]
+        if on_off:
+            raise MeasuredFormatError(f"{source}: sync.pattern and sync.{on_off[0]} both describe the sync; keep one "
+                                      "(pattern with chip_ms, or on_frames/off_frames/cycles)")
+        if "chip_ms" not in sync:
+            raise MeasuredFormatError(f"{source}: sync.pattern needs sync.chip_ms, the duration of one chip on the "
+                                      "RIS's clock in milliseconds, e.g. chip_ms = 20.0")
+        out["sync_pattern"] = pattern
+        out["sync_chip_ms"] = _float(sync["chip_ms"], source, "sync.chip_ms", positive=True,
+                                     fix="give one chip's duration on the RIS's clock in milliseconds, e.g. 20.0")
+    elif "chip_ms" in sync:
+        raise MeasuredFormatError(f"{source}: sync.chip_ms needs sync.pattern (the chips, e.g. \"1111100110101\")")
+    if "gap_ms" in sync:
+        if "gap_frames" in sync:
+            raise MeasuredFormatError(f"{source}: sync.gap_frames and sync.gap_ms both give the gap; keep one")
+        out["sync_gap_ms"] = _float(sync["gap_ms"], source, "sync.gap_ms", minimum=0.0,
+                                    fix="give the RIS-off time between the sync code and the sweep in milliseconds")
+    if "repeat_after" in sync:
+        if not isinstance(sync["repeat_after"], bool):
+            raise MeasuredFormatError(f"{_where(source, 'sync.repeat_after')} = {sync['repeat_after']!r} must be true "
+                                      "or false (the sync code is sent again after the sweep)")
+        if not (out.get("sync_pattern") or any(k in sync for k in _ON_OFF)):
+            raise MeasuredFormatError(f"{source}: sync.repeat_after needs a sync code to repeat (sync.pattern or "
+                                      "on_frames/cycles)")
+        out["sync_repeat_after"] = sync["repeat_after"]
+    return out
 
 
 def _truth_position(doc: dict[str, Any], source: str) -> tuple[float, ...] | None:
@@ -432,9 +544,9 @@ def read_sweep_schedule(path: str | Path) -> SweepSchedule:
 # ---------------------------------------------------------------------------------------------- format
 
 def _as_document(s: SweepSchedule) -> dict[str, Any]:
-    doc: dict[str, Any] = {"frames_per_beam": s.frames_per_beam,
-                           "first_frame": "auto" if s.first_frame is None else s.first_frame,
-                           "channel": s.channel}
+    doc: dict[str, Any] = ({"frames_per_beam": s.frames_per_beam} if s.beam_dwell_ms is None
+                           else {"beam_dwell_ms": s.beam_dwell_ms})
+    doc.update({"first_frame": "auto" if s.first_frame is None else s.first_frame, "channel": s.channel})
     if s.max_clock_drift != 0.02:
         doc["max_clock_drift"] = s.max_clock_drift
     if s.grid is not None:
@@ -452,9 +564,19 @@ def _as_document(s: SweepSchedule) -> dict[str, Any]:
     if s.yaw_deg:
         ris["yaw_deg"] = s.yaw_deg
     doc["ris"] = ris
-    if s.sync_cycles or s.sync_on_frames or s.sync_off_frames or s.sync_gap_frames:
-        doc["sync"] = {"on_frames": s.sync_on_frames, "off_frames": s.sync_off_frames, "cycles": s.sync_cycles,
-                       "gap_frames": s.sync_gap_frames}
+    sync: dict[str, Any] = {}
+    if s.sync_pattern:
+        sync.update({"pattern": s.sync_pattern, "chip_ms": s.sync_chip_ms})
+    elif s.sync_cycles or s.sync_on_frames or s.sync_off_frames or s.sync_gap_frames:
+        sync.update({"on_frames": s.sync_on_frames, "off_frames": s.sync_off_frames, "cycles": s.sync_cycles})
+    if s.sync_gap_ms is not None:
+        sync["gap_ms"] = s.sync_gap_ms
+    elif sync or s.sync_gap_frames:
+        sync["gap_frames"] = s.sync_gap_frames
+    if s.sync_repeat_after:
+        sync["repeat_after"] = True
+    if sync:
+        doc["sync"] = sync
     if s.truth_ue_position is not None:
         doc["truth"] = {"ue_position": list(s.truth_ue_position)}
     return doc
@@ -489,7 +611,7 @@ def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None
     """
     doc = _as_document(schedule)
     lines = [f"# {line}" for line in (comment or "risloc sweep schedule (docs/formats.md)").splitlines()]
-    for key in ("frames_per_beam", "first_frame", "channel", "max_clock_drift"):
+    for key in ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift"):
         if key in doc:
             lines.append(f"{key} = {_toml_value(doc[key])}")
     for table in ("sweep", "ris", "sync", "truth"):
