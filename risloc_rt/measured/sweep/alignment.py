@@ -28,8 +28,10 @@ dwell is used as it is (the one with the largest margin to the beam's edges; wit
 and start, the beam's first frame). A beam that no frame holds wholly (a dwell that is not a whole
 number of frames, an unsynchronised RIS) is *spread over two frames*; ``assemble`` decides:
 ``"span"`` takes the K consecutive chirps (in recording order, across the frame boundary) wholly
-inside the dwell with the largest margin, ``"frame"`` the frame holding most of the beam's chirps
-(then the beam is *mixed*). :data:`DEFAULT_ASSEMBLE` is the better of the two on emulated
+inside the dwell with the largest margin (the automatic alignment also when the best whole frame
+lies within :data:`SPAN_PREFERENCE` of an edge and the K chirps lie that much further inside),
+``"frame"`` the frame holding most of the
+beam's chirps (then the beam is *mixed*). :data:`DEFAULT_ASSEMBLE` is the better of the two on emulated
 recordings (``docs/measured-captures.md``, "RIS timing model"). A beam holding fewer than K
 chirps falls back to ``"frame"``.
 
@@ -48,9 +50,10 @@ sweep's edges pin it down, and the confidence says so.
 
 **Checking a given first frame** (:func:`check_first_frame`). A first frame given in the schedule
 (or ``--first-frame``) is checked against the same fit: the data *clearly supports another frame*
-when the fit is confident (>= :data:`CHECK_CONFIDENCE`), its start lies a whole frame or more from
-the given one, it selects another first frame, and the given start (with the fitted dwell) fits
-worse by at least :data:`CHECK_DELTA_RSS` σ̂².
+when the fit is confident (>= :data:`CHECK_CONFIDENCE`), it selects another first frame, and every
+start that makes the given frame beam 0's first (``(first_frame − 1 + w, first_frame]``, w the
+chirps' share of the frame interval; with the fitted dwell) fits worse by at least
+:data:`CHECK_DELTA_RSS` σ̂².
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ from .leakage import range_gate_basis
 from .ris_timing import OFF, SYNC, RisProgram, chirp_states
 
 __all__ = ["ASSEMBLE_MODES", "CHECK_CONFIDENCE", "CHECK_DELTA_RSS", "DEFAULT_ASSEMBLE", "MIX_TOLERANCE", "NULL_P",
+           "SPAN_PREFERENCE",
            "RisPowerSeries", "ScheduleCheck", "SweepAlignment", "check_first_frame", "fit_alignment",
            "manual_alignment", "ris_power_series", "select_chirps"]
 
@@ -77,6 +81,7 @@ NULL_P = 1e-3
 _SUB_CHIRPS = 16
 _TOP = 8
 _REFINE_STEPS = 6
+_CHECK_STARTS = 10
 MIX_TOLERANCE = 0.05
 """Share of a frame's chirps [0…1]: a frame is among a beam's best when its share of the beam is within this of
 the largest any frame has; a beam is *mixed* when its frame has less than 1 − this of it."""
@@ -84,6 +89,9 @@ ASSEMBLE_MODES = ("span", "frame")
 """A beam spread over two frames: its K consecutive chirps across the boundary, or the frame holding most of it."""
 DEFAULT_ASSEMBLE = "span"
 """Chosen by the measurement in docs/measured-captures.md ("RIS timing model")."""
+SPAN_PREFERENCE = 0.05
+"""``"span"``, automatic alignment: a whole frame closer than this to the beam's edge [frames] gives way to K
+consecutive chirps across two frames lying this much further inside (robustness to the fitted start)."""
 CHECK_CONFIDENCE = 0.9
 """A given first frame is contradicted only by a fit at least this confident."""
 CHECK_DELTA_RSS = 25.0
@@ -226,16 +234,19 @@ def _check_assemble(assemble: str) -> None:
 
 
 def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps: int, frame_width: float,
-                  num_frames: int | None = None, assemble: str = DEFAULT_ASSEMBLE) -> tuple[np.ndarray, np.ndarray]:
+                  num_frames: int | None = None, assemble: str = DEFAULT_ASSEMBLE,
+                  span_preference: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Each beam's K chirps and whether they are mixed: ``(chirp_start [M], mixed [M])``.
 
     Beam m lasts ``[start + m·D, start + (m+1)·D)``; frame f's chirp k starts at ``f + k·w/K``
     (w = ``frame_width``) and lasts ``w/K``. A frame wholly inside the beam (margin
     ``min(f − start_m, end_m − f − w) >= 0``) is used, the largest margin first (the earliest of
-    equals: with a whole dwell and start, the beam's first frame). Otherwise (module docstring,
-    "Chirps of each beam") ``"span"`` takes the K consecutive chirps wholly inside with the largest
-    margin, ``"frame"`` (and ``"span"`` when fewer than K chirps fit) the frame whose chirps start in
-    the beam most often; those beams are *mixed*.
+    equals: with a whole dwell and start, the beam's first frame). ``"span"`` takes instead the K
+    consecutive chirps (across a frame boundary) with the largest margin when no frame is wholly
+    inside, or when the best frame's margin is below ``span_preference`` and theirs exceeds it by
+    more than that (the automatic alignment uses :data:`SPAN_PREFERENCE`; 0: never). When
+    neither fits, the frame holding most of the beam's chirp time is used (``"frame"`` always does
+    so) and the beam is *mixed*.
 
     Parameters
     ----------
@@ -252,6 +263,8 @@ def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps
     num_frames : int, optional
         Frames recorded (chirps beyond are not used).
     assemble : {"span", "frame"}
+    span_preference : float
+        [frames]; see above.
 
     Returns
     -------
@@ -272,20 +285,21 @@ def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps
     mixed = margin[m, pick] < -1e-9
     share = np.where(ok, _share(cand, lo[:, None], hi[:, None], w), -1.0)                    # frame holding most
     most = (cand[m, np.argmax(share, axis=1)] * K).astype(np.int64)
-    for b in np.flatnonzero(mixed):
-        chirp_start[b] = most[b]
-        if assemble != "span":
-            continue
-        g0 = int(cand[b, 0]) * K + np.arange(int(cand.shape[1]) * K)                          # window starts
-        g0 = g0[g0 >= 0]
+    chirp_start[mixed] = most[mixed]
+    if assemble == "span":
+        g0 = (cand[:, :1] * K).astype(np.int64) + np.arange(cand.shape[1] * K)[None, :]       # [M, G] window starts
         t_first = g0 // K + (g0 % K) * c
         g1 = g0 + K - 1
         t_end = g1 // K + (g1 % K) * c + c
-        mg = np.round(np.minimum(t_first - lo[b], hi[b] - t_end), 9)
-        mg = np.where(g1 // K < F, mg, -np.inf)
-        i = int(np.argmax(mg))
-        if mg[i] >= -1e-9:
-            chirp_start[b], mixed[b] = g0[i], False
+        mg = np.round(np.minimum(t_first - lo[:, None], hi[:, None] - t_end), 9)
+        mg = np.where((g0 >= 0) & (g1 // K < F), mg, -np.inf)
+        i = np.argmax(mg, axis=1)
+        span_margin = mg[m, i]
+        whole = margin[m, pick]
+        loose = (whole < span_preference) & (span_margin > whole + span_preference) if span_preference else False
+        take = (span_margin >= -1e-9) & (mixed | loose)
+        chirp_start = np.where(take, g0[m, i], chirp_start)
+        mixed = mixed & ~take
     return chirp_start, mixed
 
 
@@ -564,7 +578,8 @@ def _fit(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions:
     sigma2 = max(rss0 / max(F - J - 2, 1), 1e-30)
     weight = np.exp(-0.5 * (cand[:, 2] - rss0) / sigma2)
     weight /= weight.sum()
-    g0, _ = select_chirps(program, t0, dwell, num_chirps=K, frame_width=frame_width, num_frames=F, assemble=assemble)
+    g0, _ = select_chirps(program, t0, dwell, num_chirps=K, frame_width=frame_width, num_frames=F, assemble=assemble,
+                          span_preference=SPAN_PREFERENCE)
     ok, mixed = _agreement(cand, g0, best_i, num_chirps=K, frame_width=frame_width, num_frames=F, assemble=assemble)
     confidence = float(np.sum(weight[ok]))
     p_null = _no_ris_probability(s, rss0, J)         # is there a RIS at all? (F-test against noise alone)
@@ -574,7 +589,7 @@ def _fit(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions:
     if not ok.all():
         j = int(np.flatnonzero(~ok)[np.argmin(cand[~ok, 2])])
         r_g0, _ = select_chirps(program, cand[j, 0], cand[j, 1], num_chirps=K, frame_width=frame_width,
-                                num_frames=F, assemble=assemble)
+                                num_frames=F, assemble=assemble, span_preference=SPAN_PREFERENCE)
         runner = {"first_frame": int(_frame_of(r_g0, K)[0]), "start": float(cand[j, 0]), "dwell": float(cand[j, 1]),
                   "delta_rss": float((cand[j, 2] - rss0) / sigma2)}
     feature: dict[str, Any] = {}
@@ -648,9 +663,11 @@ def check_first_frame(series: RisPowerSeries | np.ndarray, program: RisProgram, 
     align, sigma2, s, times = _fit(series, program, fractions=fractions, frame_width=frame_width,
                                    max_drift=max_drift, assemble=assemble)
     rss_best = _exact(s, program, align.start, align.dwell, times)
-    rss_given = _exact(s, program, float(first_frame), align.dwell, times)
+    # every start that makes ``first_frame`` the first frame wholly inside beam 0: (first_frame - 1 + w, first_frame]
+    starts = first_frame - (1.0 - min(frame_width, 1.0)) * np.arange(_CHECK_STARTS) / _CHECK_STARTS
+    rss_given = min(_exact(s, program, float(t), align.dwell, times) for t in starts)
     delta = (rss_given - rss_best) / sigma2
-    mismatch = bool(align.confidence >= min_confidence and abs(align.start - first_frame) >= 1.0
-                    and align.first_frame != int(first_frame) and delta >= min_delta_rss)
+    mismatch = bool(align.confidence >= min_confidence and align.first_frame != int(first_frame)
+                    and delta >= min_delta_rss)
     return ScheduleCheck(given=int(first_frame), supported=align.first_frame, start=float(align.start),
                          confidence=float(align.confidence), delta_rss=float(delta), mismatch=mismatch)
