@@ -22,7 +22,7 @@ weigh as if they were signal. For large x it tends to the profiled likelihood.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -49,14 +49,22 @@ class AodFit:
     amplitude : float
         β̂ in the units of the magnitudes (|A| = 1 at the peak).
     candidates : float array [C, 2]
-        Other local maxima of the fit objective, ``[az, relative level dB]`` (<= 0), strongest
-        first; a grating lobe or a strong sidelobe shows here.
+        Other local maxima of the fit objective inside the swept span, ``[az, relative level dB]``
+        (<= 0), strongest first; a grating lobe or a strong sidelobe shows here.
+    twins : float array [T, 3]
+        The grating-lobe twins of the estimate outside the swept span: every azimuth whose direction
+        cosine differs from û by a whole number of grating periods λ/(q d) and that is visible
+        (|u| < cos el), ``[az, level dB relative to the fit at û, searched]``. The pattern cannot tell
+        them from the estimate (level 0 dB up to rounding: the array factor is periodic in u); ``searched`` is 1
+        for a twin within the fit's search range (the span ± one null width: the fit could have
+        chosen it), 0 beyond. Empty for a relay RIS at λ/2 (period 2: no twin is visible).
     """
 
     aod: np.ndarray
     direction_cosine: float
     amplitude: float
     candidates: np.ndarray
+    twins: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def __eq__(self, other: object) -> bool:
         return fields_equal(self, other)
@@ -187,6 +195,8 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
         bounds=(a, b), method="bounded", options={"xatol": 1e-9 * max(pattern.null_width, 1e-3)},
     )
     u_hat = float(res.x) if -res.fun >= obj[i] else float(grid[i])
+    u_hat = _prefer_swept_twin(u_hat, u_beams, pattern.grating_period,
+                               lambda uu: float(objective(pattern.amplitude_u(np.array([uu]), beams, w=w))[0]))
     az = float(np.arcsin(np.clip(u_hat / cos_el, -1.0, 1.0)))
     aod = np.array([az, el])
     if not one_d:
@@ -208,6 +218,8 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
                                        options={"initial_simplex": simplex, "xatol": 1e-10, "fatol": 0.0,
                                                 "maxiter": 2000})
         uu, ww = (res2.x if -res2.fun >= g2[iw, iu] else x0)
+        uu = _prefer_swept_twin(float(uu), u_beams, pattern.grating_period,
+                                lambda x: float(objective(amp_uw(x, float(ww)))[0]))
         el2 = float(np.arcsin(np.clip(ww, -1, 1)))
         aod = np.array([float(np.arcsin(np.clip(uu / np.cos(el2), -1, 1))), el2])
         u_hat = float(uu)
@@ -224,5 +236,48 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
     best = max(float(g.max()), 1e-300)
     cand = sorted(((float(np.arcsin(np.clip(grid[j] / cos_el, -1, 1))), float(10 * np.log10(max(g[j], 1e-300) / best)))
                    for j in far), key=lambda t: -t[1])
+    w_hat = float(np.sin(aod[1]))
+    cos_hat = float(np.cos(aod[1]))
+    twins = []
+    g_hat = max(float(_objective(pattern.amplitude_u(np.array([u_hat]), beams, w=w_hat), r)[0]), 1e-300)
+    for t in _twins(u_hat, pattern.grating_period, cos_hat):
+        if u_beams.min() <= t <= u_beams.max():
+            continue  # inside the span: a local maximum, among the candidates
+        level = float(_objective(pattern.amplitude_u(np.array([t]), beams, w=w_hat), r)[0])
+        twins.append((float(np.arcsin(np.clip(t / cos_hat, -1, 1))),
+                      float(10 * np.log10(max(level, 1e-300) / g_hat)), float(lo <= t <= hi)))
     return AodFit(aod=aod, direction_cosine=u_hat, amplitude=beta,
-                  candidates=np.array(cand, dtype=float).reshape(-1, 2))
+                  candidates=np.array(cand, dtype=float).reshape(-1, 2),
+                  twins=np.array(twins, dtype=float).reshape(-1, 3))
+
+
+#: Two twins' fit objectives tie when they differ by less than this fraction (the array factor is
+#: periodic in u: a twin's objective equals the estimate's up to rounding, ~1e-15).
+TWIN_TIE_RTOL = 1e-9
+
+
+def _twins(u: float, period: float, limit: float) -> list[float]:
+    """u + k·period for every whole k ≠ 0 with |u + k·period| < ``limit`` [direction cosine]."""
+    k_lo, k_hi = int(np.ceil((-limit - u) / period)), int(np.floor((limit - u) / period))
+    return [u + k * period for k in range(k_lo, k_hi + 1) if k != 0 and abs(u + k * period) < limit]
+
+
+def _prefer_swept_twin(u_hat: float, u_beams: np.ndarray, period: float, value: Any) -> float:
+    """The estimate, or its grating-lobe twin inside the swept span when the two fits tie.
+
+    A reflective RIS at λ/2 (period λ/(q d) = 1) returns exactly the same beam powers for a UE at
+    u and at u ± 1: the fit cannot choose, and its grid search took whichever came first — a twin
+    beyond the sweep (−47.5° for a UE at 15.2°), 13.9 m away. When û lies outside the span
+    [min u_m, max u_m] and a twin inside it ties (``value``, the fit objective, within
+    :data:`TWIN_TIE_RTOL`), the twin is taken: the sweep is taken to cover the UE. The other one
+    stays in :attr:`AodFit.twins` and raises ``grating-lobe``.
+    """
+    lo, hi = float(u_beams.min()), float(u_beams.max())
+    if lo <= u_hat <= hi:
+        return u_hat
+    inside = [t for t in _twins(u_hat, period, 1.0) if lo <= t <= hi]
+    if not inside:
+        return u_hat
+    best = value(u_hat)
+    tied = [t for t in inside if value(t) >= best - TWIN_TIE_RTOL * abs(best)]
+    return min(tied, key=lambda t: abs(t - 0.5 * (lo + hi))) if tied else u_hat

@@ -213,12 +213,16 @@ def _clutter_skipped(c: FlagContext) -> str | None:
 def _second_lobe(c: FlagContext) -> str | None:
     fit = c.fit
     strong = fit.candidates[fit.candidates[:, 1] >= -GRATING_LOBE_DB] if fit.candidates.size else fit.candidates
-    if not strong.size:
+    twins = fit.twins[(fit.twins[:, 2] > 0) & (fit.twins[:, 1] >= -GRATING_LOBE_DB)]
+    if not strong.size and not twins.size:
         return None
-    others = ", ".join(f"{_deg(a)} ({lvl:+.1f} dB)" for a, lvl in strong)
-    return (f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(c.aod[0])} and also at {others}; "
-            "a reflective RIS with λ/2 spacing has grating lobes beyond ±17°: use a relay RIS, a narrower "
-            "sweep, or a second sweep/RIS to decide")
+    others = [f"{_deg(a)} ({lvl:+.1f} dB)" for a, lvl in strong]
+    others += [f"{_deg(a)} ({lvl:+.1f} dB, beyond the swept span: not chosen, the sweep is taken to cover "
+               "the UE)" for a, lvl, _ in twins]
+    return (f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(c.aod[0])} and also at "
+            f"{', '.join(others)}; a reflective RIS with λ/2 spacing has grating lobes (sin φ = sin θ ∓ 1): "
+            "every candidate is in estimate.alternatives; use a relay RIS, a narrower sweep, or a second "
+            "sweep/RIS to decide")
 
 
 @_rule("beam-edge")

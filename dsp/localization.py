@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .validation import non_negative
+from typing import Any
+
+from .validation import fields_equal, non_negative
 from .beamscan import BeamScan
 from .detection import Detection
 from .flags import Flag
@@ -20,11 +22,55 @@ from .geometry import RisPose, direction_from_angles
 from .qualify import Uncertainty
 from .radar import SPEED_OF_LIGHT, RadarConfig
 
-__all__ = ["Localization", "NoPositionError", "localize", "no_position"]
+__all__ = ["Alternative", "Localization", "NoPositionError", "localize", "no_position"]
 
 
 class NoPositionError(ValueError):
     """Raised by :meth:`Localization.checked_position` when nothing was detected."""
+
+
+@dataclass(frozen=True, eq=False)
+class Alternative:
+    """A position the estimator did not choose but the data allow: another maximum of the AoD fit.
+
+    Attributes
+    ----------
+    aod : float array [2]
+        ``[az, el]`` at the RIS, RIS frame [rad] (el as the estimate's: assumed or solved from a height).
+    position : float array [3]
+        The position it gives at the estimated distance, world frame [m].
+    level_db : float
+        The beam-pattern fit there relative to the chosen estimate's fit, a power ratio [dB]
+        (profiled objective ``(Σ|A_m| r_m)²/ΣA_m²``, the least-squares fit of the per-beam
+        magnitudes): 0 dB is a tie (a grating-lobe twin), -10 dB a maximum 10 dB weaker.
+    kind : {"grating-twin", "fit-maximum"}
+        ``"grating-twin"``: the estimate's grating-lobe translate beyond the swept span, which the
+        beam powers cannot tell from it; ``"fit-maximum"``: another local maximum of the fit inside
+        the span (a grating lobe or a sidelobe).
+    reason : str
+        Why it was not chosen.
+    offset : float
+        Its distance from the estimated position [m].
+    """
+
+    aod: np.ndarray
+    position: np.ndarray
+    level_db: float
+    kind: str
+    reason: str
+    offset: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON dictionary: ``aod`` [rad], ``aod_deg`` [deg], ``position`` [m], ``level_db``, ``kind``,
+        ``reason``, ``offset`` [m]."""
+        return {"aod": [float(v) for v in self.aod], "aod_deg": [float(v) for v in np.rad2deg(self.aod)],
+                "position": [float(v) for v in self.position], "level_db": float(self.level_db),
+                "kind": self.kind, "reason": self.reason, "offset": float(self.offset)}
+
+    def __eq__(self, other: object) -> bool:
+        return fields_equal(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
 
 
 @dataclass(frozen=True)
@@ -66,6 +112,11 @@ class Localization:
     reference_time : float
         Time the position refers to, from the start of the sweep's first frame [s]
         (``docs/estimation.md``); NaN from :func:`localize`.
+    alternatives : tuple of Alternative
+        Every other AoD the beam-pattern fit allows (its other maxima in the swept span, the
+        estimate's grating-lobe twins beyond it), each with its position, fit level and why it was
+        not chosen (``grating-lobe`` in ``docs/flags.md``); empty from :func:`localize` and without
+        a detection.
 
     Notes
     -----
@@ -91,6 +142,7 @@ class Localization:
     flags: tuple[Flag, ...] = ()
     estimator: str = "paper"
     reference_time: float = math.nan
+    alternatives: tuple[Alternative, ...] = ()
 
     @property
     def detected(self) -> bool:

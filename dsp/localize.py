@@ -18,9 +18,9 @@ from .beamscan import scan_beams
 from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_validated
 from .drift import delay_drift, motion_rate
 from .estimators import ESTIMATORS, SweepEstimate, SweepInputs
-from .flags import FlagContext, sweep_flags
+from .flags import GRATING_LOBE_DB, FlagContext, sweep_flags
 from .geometry import RisPose, direction_from_angles
-from .localization import Localization, NoPositionError, localize, no_position
+from .localization import Alternative, Localization, NoPositionError, localize, no_position
 from .pattern import BeamPattern
 from .processing import ProcessingConfig
 from .qualify import EstimatorBounds, Uncertainty, solve_elevation, sweep_uncertainty
@@ -123,6 +123,7 @@ def self_localize(
         delay_rate=float(est.delay_rate), velocity=float(velocity), direction=direction, position=position,
         scan=grid, detection=det, std=std, flags=sweep_flags(context), estimator=estimator,
         reference_time=float(t_ref),
+        alternatives=_alternatives(inp, est, aod, distance, position, ue_height if height_solved else None),
     )
 
 
@@ -202,3 +203,40 @@ def _unresolved(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noi
         return frozen
     return residual_test(arr, radar, f1, f2, weights, cell_noise=cell_noise, pfa=inp.pfa, drift_rate=rate,
                          beam_times=radar.beam_times(arr.shape[0]))
+
+
+def _alternatives(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, distance: float, position: np.ndarray,
+                  solved_height: float | None) -> tuple[Alternative, ...]:
+    """Every other AoD the beam-pattern fit (``est.fit``) allows: its maxima in the span within
+    ``GRATING_LOBE_DB`` of the best (those ``grating-lobe`` names; weaker ones are sidelobe wiggles of
+    the noise) and the estimate's grating-lobe twins beyond the span; at the estimated distance, the
+    elevation as the estimate's (or solved from the height). Strongest first."""
+    fit, sweep, pose, pattern = est.fit, inp.sweep, inp.pose, inp.pattern
+    u_of = lambda a: float(np.cos(a[1]) * np.sin(a[0]))  # noqa: E731
+    u_est = u_of(aod)
+    u_span = np.cos(sweep.angles[:, 1]) * np.sin(sweep.angles[:, 0])
+    span = f"[{np.rad2deg(sweep.angles[:, 0].min()):+.1f}°, {np.rad2deg(sweep.angles[:, 0].max()):+.1f}°]"
+    rows = [(a, lvl, "fit-maximum", None) for a, lvl in fit.candidates if lvl >= -GRATING_LOBE_DB]
+    rows += [(a, lvl, "grating-twin", bool(searched)) for a, lvl, searched in fit.twins]
+    if abs(u_of(fit.aod) - u_est) > 0.5 * pattern.null_width:  # the paper's beam is not the fit's maximum
+        rows.append((float(fit.aod[0]), 0.0, "fit-maximum", None))
+    out = []
+    for az, level, kind, searched in rows:
+        cand = np.array([az, aod[1]], dtype=float)
+        if abs(u_of(cand) - u_est) <= 0.5 * pattern.null_width:
+            continue  # the estimate itself
+        if solved_height is not None:
+            cand, _ = solve_elevation(sweep, pose, distance, cand, solved_height)
+        where = pose.position + distance * pose.to_world(direction_from_angles(cand))
+        if kind == "grating-twin":
+            reason = (f"grating-lobe twin of the estimate ({round(level, 2) + 0.0:+.2f} dB: the beam powers cannot tell them "
+                      f"apart) beyond the swept span {span}"
+                      + (": the fit prefers the one inside the span" if searched else
+                         ", outside the fit's search range (the span ± one null width)"))
+        elif u_span.min() <= u_of(cand) <= u_span.max() and level >= 0.0:
+            reason = "the beam-pattern fit's maximum; the paper's estimator takes the beam of highest P_ave"
+        else:
+            reason = f"another maximum of the beam-pattern fit, {-level:.1f} dB below the estimate's"
+        out.append(Alternative(aod=cand, position=where, level_db=float(level), kind=kind, reason=reason,
+                               offset=float(np.linalg.norm(where - position))))
+    return tuple(sorted(out, key=lambda a: -a.level_db))
