@@ -238,3 +238,33 @@ def test_q_first_file_is_flagged_and_the_message_names_the_config_flag(tmp_path,
     flag = next(f for f in wrong.flags if f.code == "iq-order")
     assert "iq_swap=True" in flag.message and "swap flag is 1" in flag.message
     assert inspect_capture(em.files[0], em.cfg_path, iq_swap=True).positive_frequency_excess_db > 20
+
+
+@pytest.mark.slow
+def test_raw_losses_mark_the_imported_beams_damaged(tmp_path):
+    """The importer's damaged-beam logic (block.damaged) sees raw-form losses as it sees packet-form ones."""
+    from dsp import ProcessingConfig, RadarConfig
+    from risloc_rt.measured import dca1000_radar, emulate_capture, import_capture
+    from risloc_rt.measured.emulate.experiment import full_scale
+    from risloc_rt.model.builder import analytic_scenario
+    from risloc_rt.model.simulate import simulate
+
+    radar = dca1000_radar(RadarConfig(num_samples=128, num_chirps=16))
+    scenario = analytic_scenario(distance=9.3, aod=np.deg2rad((17.2, 0.0)), radar=radar,
+                                 processing=ProcessingConfig(n_dft=255, k_dft=64))
+    sim = simulate(scenario, rng=np.random.default_rng(5))
+    exp = emulate_capture(sim, tmp_path / "dca")                             # the .cfg and sweep.toml
+    cfg = read_sdk_cfg(exp.config_path).config
+    lost = (2, 50, 51, 52, 100, 171, 200, 250, 343)                          # 61 frames x 8192 B = 343.2 packets
+    folder = tmp_path / "lossy"
+    folder.mkdir()
+    raw = write_raw_capture(sim.cube[:, :, None, :], cfg, folder, recording=Recording(drop_packets=lost),
+                            impairments=AdcImpairments(full_scale=full_scale(sim.radar)))
+    cap = import_capture(raw.files[0], raw.cfg_path, exp.schedule_path)
+    reader = cap.provenance["reader"]
+    assert reader["form"] == "raw" and all(d["probable"] for d in reader["dropped_packets"])
+    assert sorted(s for d in reader["dropped_packets"] for s in range(d["first_sequence"],
+                                                                      d["first_sequence"] + d["count"])) == list(lost)
+    fb = 16 * 128 * 4
+    beams = sorted({f for s in lost for f in range((s - 1) * 1456 // fb, (s * 1456 - 1) // fb + 1)})
+    assert reader["damaged_beams"] == beams                                  # one frame per beam, first frame 0
