@@ -1,8 +1,9 @@
 """Sweep alignment (first_frame = "auto"): emulated recordings with a known start, dwell and RIS clock drift.
 
 The emulator (risloc_rt.measured.emulate.recording) switches the RIS chirp by chirp on its own
-clock; the truth is the program's start and dwell in radar frames. A selected frame is right when
-at most MIX_TOLERANCE of its chirps see another beam under the *true* timing.
+clock; the truth is the program's start and dwell in radar frames. A beam's selected chirps (one
+frame, or K consecutive chirps across two) are right when they lie inside the beam's *true* dwell
+(within 2·MIX_TOLERANCE frames).
 """
 
 from __future__ import annotations
@@ -29,12 +30,18 @@ def _scenario(**kw):
                              processing=ProcessingConfig(n_dft=255, k_dft=64), **kw)
 
 
-def _worst_margin(frame_index, start, dwell):
-    """Largest shortfall of a selected frame's share of its true beam below the best any frame has [0…1]."""
-    lo = start + np.arange(len(frame_index)) * dwell
-    f = frame_index[:, None] + np.arange(-3, 4)[None, :] * 0 + np.arange(-3, 4)[None, :]
-    share = lambda x: np.clip(np.minimum(x + 1.0, (lo + dwell)[:, None]) - np.maximum(x, lo[:, None]), 0, None)  # noqa: E731
-    return float(np.min(share(frame_index[:, None])[:, 0] - share(f).max(axis=1)))
+def _worst_margin(beam_chirps, start, dwell, num_chirps=16, frame_width=1.0):
+    """Worst margin of a beam's chirps inside its true dwell [frames] (negative: some chirps in another state).
+
+    ``beam_chirps``: the provenance's ``[[frame, first chirp, count], ...]`` per beam; chirp k of frame f spans
+    ``[f + k·w/K, f + (k+1)·w/K)``.
+    """
+    c = frame_width / num_chirps
+    worst = np.inf
+    for m, segments in enumerate(beam_chirps):
+        t = np.concatenate([f + (k0 + np.arange(n)) * c for f, k0, n in segments])
+        worst = min(worst, t[0] - (start + m * dwell), start + (m + 1) * dwell - (t[-1] + c))
+    return float(worst)
 
 
 def test_chirp_states_follow_the_program():
@@ -70,12 +77,12 @@ def test_auto_alignment_finds_start_and_drift_and_localizes(drifting, tmp_path, 
     cap = load_capture(out)
     a = cap.provenance["alignment"]
     print(f"auto alignment: start {a['start']:.3f} (true {rec.start:.3f}) frames, dwell {a['dwell']:.5f} (true "
-          f"{rec.dwell:.5f}), drift {a['drift']:+.5f} (true +0.01300), confidence {a['confidence']:.3f}, worst share shortfall "
-          f"{_worst_margin(cap.frame_index, rec.start, rec.dwell):+.3f}")
+          f"{rec.dwell:.5f}), drift {a['drift']:+.5f} (true +0.01300), confidence {a['confidence']:.3f}, worst chirp margin "
+          f"{_worst_margin(a['beam_chirps'], rec.start, rec.dwell):+.3f} frames")
     assert a["method"] == "auto" and 0.5 <= a["confidence"] <= 1.0
     assert abs(a["start"] - rec.start) <= 0.15                      # frames
     assert abs(a["drift"] - 0.013) <= 0.002
-    assert _worst_margin(cap.frame_index, rec.start, rec.dwell) >= -2 * MIX_TOLERANCE
+    assert _worst_margin(a["beam_chirps"], rec.start, rec.dwell) >= -2 * MIX_TOLERANCE   # frames: 1.6 chirps
     assert a["feature"]["range"] == pytest.approx(DISTANCE, abs=0.5)
     loc, _ = process_capture(cap)
     assert abs(loc.distance - DISTANCE) < 0.02 and abs(np.rad2deg(loc.aod[0]) - AOD_DEG) < 1.5
@@ -98,7 +105,7 @@ def test_no_sync_three_frames_per_beam_slow_clock(tmp_path):
     print(f"no sync: start {a['start']:.3f} (true {rec.start:.3f}), drift {a['drift']:+.5f} (true -0.00800), "
           f"confidence {a['confidence']:.3f}")
     assert abs(a["start"] - rec.start) <= 0.25 and abs(a["drift"] + 0.008) <= 0.002
-    assert _worst_margin(cap.frame_index, rec.start, rec.dwell) >= -2 * MIX_TOLERANCE
+    assert _worst_margin(a["beam_chirps"], rec.start, rec.dwell) >= -2 * MIX_TOLERANCE
 
 
 def test_a_recording_without_the_ris_is_refused_in_one_line(tmp_path, capsys):

@@ -234,17 +234,45 @@ def test_25ms_beams_on_20ms_frames_align_and_localize(dwell25):
     assert abs(err_az) <= max(4 * saz, 0.02) and abs(err_d) <= max(4 * sd, 2e-3)
 
 
-def test_25ms_beams_by_hand(dwell25):
-    """first_frame given by hand (16: the first frame inside beam 0, start 15.3): no warning, localizes."""
-    exp = dwell25.experiment
-    cap = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=16)
+@pytest.fixture(scope="module")
+def dwell25_whole(tmp_path_factory):
+    """25 ms per beam, the code from frame 2.0: the sweep starts at frame 15.0; the schedule says first_frame = 15."""
+    return _record(tmp_path_factory, "dwell25w", 23, lead_frames=2.0, beam_dwell_ms=25.0, sync_pattern=CODE,
+                   chip_ms=20.0, repeat_after=True, tail_frames=3, schedule_first_frame="true")
+
+
+def test_25ms_beams_by_hand(dwell25_whole):
+    """The issue: such a RIS could not be imported at all, not even by hand. first_frame = 15 given: no warning."""
+    exp = dwell25_whole.experiment
+    assert exp.schedule.first_frame == 15 and exp.schedule.beam_dwell_ms == 25.0
+    cap = import_capture(exp.raw_path, exp.config_path, exp.schedule_path)
     a = cap.provenance["alignment"]
     assert a["method"] == "manual" and a["check"]["mismatch"] is False and cap.provenance["import_flags"] == []
-    # beam m starts at 16 + 1.25 m (0.7 frame late): frames 16, 17 (17.25 > 17: no, 18), 18 ... by hand:
-    # beam 1 [17.25, 18.5): frame 18 [18, 18.448); beam 2 [18.5, 19.75): frame 19; beam 3 [19.75, 21): frame 20.
-    assert [seg[0][0] for seg in a["beam_chirps"][:4]] == [16, 18, 19, 20]
-    err_d, err_az, _, _ = _localize(cap)
-    assert abs(err_az) <= 1.5 and abs(err_d) <= 0.02          # within a sweep step: the beams are 0.7 frame late
+    # By hand: beam m = [15 + 1.25 m, 16.25 + 1.25 m); a frame's chirps span [f, f + 0.448). Beam 0: frame 15
+    # (margin 0); beam 1 [16.25, 17.5): frame 17; beam 2 [17.5, 18.75): 18; beam 3 [18.75, 20): 19; beam 4: 20.
+    assert [seg for seg in a["beam_chirps"][:5]] == [[[f, 0, K]] for f in (15, 17, 18, 19, 20)]
+    assert _chirps_inside_true_beams(a, 15.0, 1.25) >= -1e-9
+    err_d, err_az, sd, saz = _localize(cap)
+    assert abs(err_az) <= max(4 * saz, 0.02) and abs(err_d) <= max(4 * sd, 2e-3)
+
+
+def test_a_25ms_sweep_given_late_is_flagged(dwell25, tmp_path, capsys):
+    """first_frame = 16 is the first frame inside beam 0 (start 15.3), but beam m is then assumed at 16 + 1.25 m,
+    0.7 frame late: beam 1 [16.55, 17.8) would take frame 18, which holds beam 2 [17.8, 19.05)."""
+    exp = dwell25.experiment
+    out = tmp_path / "late.npz"
+    assert main(["capture", "import", str(exp.raw_path), "--config", str(exp.config_path), "--sweep",
+                 str(exp.schedule_path), "-o", str(out), "--first-frame", "16"]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("warning: ")
+    assert "supports first_frame = 16 but a sweep start at frame 15.3" in err, err
+    cap = load_capture(out)
+    check = cap.provenance["alignment"]["check"]
+    assert check["mismatch"] and check["beams_differ"] >= 10
+    assert [f["code"] for f in cap.provenance["import_flags"]] == ["schedule-mismatch"]
+    assert cap.provenance["alignment"]["beam_chirps"][1] == [[18, 0, K]]
+    err_d, err_az, sd, saz = _localize(cap)
+    assert abs(err_az) > 10 * saz                                           # a confident wrong angle, now flagged
 
 
 def test_chip_code_one_frame_per_beam_aligns_to_the_true_frame(coded):

@@ -49,11 +49,13 @@ alone, no RIS modulation) in an F-test at ``NULL_P`` = 1e-3. Only the eight best
 sweep's edges pin it down, and the confidence says so.
 
 **Checking a given first frame** (:func:`check_first_frame`). A first frame given in the schedule
-(or ``--first-frame``) is checked against the same fit: the data *clearly supports another frame*
-when the fit is confident (>= :data:`CHECK_CONFIDENCE`), it selects another first frame, and every
-start that makes the given frame beam 0's first (``(first_frame − 1 + w, first_frame]``, w the
-chirps' share of the frame interval; with the fitted dwell) fits worse by at least
-:data:`CHECK_DELTA_RSS` σ̂².
+(or ``--first-frame``) is checked against the same fit: the data *clearly contradicts it* when the
+fit is confident (>= :data:`CHECK_CONFIDENCE`), the posterior probability that every beam's given
+chirps are among its best is at most 1 − :data:`CHECK_CONFIDENCE` (whole frames judged against
+the best whole frames), and the given timing fits worse by at least :data:`CHECK_DELTA_RSS` σ̂²
+(with the fitted dwell; for a whole ``frames_per_beam`` the best start that makes the given frame
+beam 0's first, ``(first_frame − 1 + w, first_frame]``, w the chirps' share of the frame
+interval; else the manual alignment's start ``first_frame``).
 """
 
 from __future__ import annotations
@@ -211,8 +213,12 @@ class ScheduleCheck:
         The fit's confidence.
     delta_rss : float
         The given start's misfit above the fit's (with the fitted dwell) [σ̂²].
+    given_probability : float
+        Posterior probability that every beam's given chirps are among its best (as the confidence).
+    beams_differ : int
+        Beams whose given chirps are not among the best under the fitted timing.
     mismatch : bool
-        The data clearly supports another frame (module docstring).
+        The data clearly contradicts the given frames (module docstring).
     """
 
     given: int
@@ -220,12 +226,16 @@ class ScheduleCheck:
     start: float
     confidence: float
     delta_rss: float
+    given_probability: float
+    beams_differ: int
     mismatch: bool
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON (for the provenance)."""
         return {"given": self.given, "supported": self.supported, "start": float(self.start),
-                "confidence": float(self.confidence), "delta_rss": float(self.delta_rss), "mismatch": self.mismatch}
+                "confidence": float(self.confidence), "delta_rss": float(self.delta_rss),
+                "given_probability": float(self.given_probability), "beams_differ": self.beams_differ,
+                "mismatch": self.mismatch}
 
 
 def _check_assemble(assemble: str) -> None:
@@ -331,6 +341,10 @@ def _off_frames(program: RisProgram, start: float, dwell: float, num_frames: int
     return np.flatnonzero(np.all(st == OFF, axis=1)).astype(np.int64)
 
 
+def _whole(frames: float) -> bool:
+    return abs(frames - round(frames)) < 1e-9
+
+
 def _width(fractions: np.ndarray, frame_width: float | None) -> float:
     if frame_width is not None:
         return float(frame_width)
@@ -341,8 +355,9 @@ def manual_alignment(program: RisProgram, first_frame: int, *, num_frames: int, 
                      frame_width: float | None = None, assemble: str = DEFAULT_ASSEMBLE) -> SweepAlignment:
     """The schedule's own alignment: beam 0 starts with frame ``first_frame``, beams last the nominal dwell.
 
-    With a whole ``frames_per_beam`` beam m is frame ``first_frame + m·frames_per_beam``; with a
-    dwell that is not whole each beam's chirps follow :func:`select_chirps`.
+    With a whole ``frames_per_beam`` beam m is frame ``first_frame + m·frames_per_beam`` (its
+    first frame); with a dwell that is not whole, beam m starts at radar time ``first_frame +
+    m·frames_per_beam`` and its chirps follow :func:`select_chirps` (no span preference).
 
     Parameters
     ----------
@@ -366,7 +381,11 @@ def manual_alignment(program: RisProgram, first_frame: int, *, num_frames: int, 
     w = _width(fractions, frame_width)
     K = fractions.size
     dwell = float(program.frames_per_beam)
-    g0, mixed = select_chirps(program, float(first_frame), dwell, num_chirps=K, frame_width=w, assemble=assemble)
+    if _whole(dwell):                                         # the first frame of each beam, as the schedule says
+        g0 = (first_frame + int(round(dwell)) * np.arange(program.num_beams, dtype=np.int64)) * K
+        mixed = np.zeros(program.num_beams, bool)
+    else:
+        g0, mixed = select_chirps(program, float(first_frame), dwell, num_chirps=K, frame_width=w, assemble=assemble)
     return SweepAlignment(method="manual", start=float(first_frame), dwell=dwell,
                           frames_per_beam=float(program.frames_per_beam), frame_index=_frame_of(g0, K),
                           chirp_start=g0, num_chirps=K, assemble=assemble,
@@ -526,7 +545,7 @@ def _candidates(s: np.ndarray, program: RisProgram, times: np.ndarray, *, max_dr
 
 
 def _agreement(cand: np.ndarray, chirp_start: np.ndarray, best_i: int, *, num_chirps: int, frame_width: float,
-               num_frames: int, assemble: str) -> tuple[np.ndarray, np.ndarray]:
+               num_frames: int, assemble: str, per_beam: bool = False) -> Any:
     """``(ok [C], mixed [M])``: whether each candidate c finds every beam's chirps among its best (share within
     ``MIX_TOLERANCE`` of the best any K consecutive chirps, or any frame, can have), and whether the best fit leaves
     a beam's chirps mixed (module docstring, "Confidence")."""
@@ -541,11 +560,13 @@ def _agreement(cand: np.ndarray, chirp_start: np.ndarray, best_i: int, *, num_ch
     if assemble == "span":
         best = np.minimum((_chirp_time(hi, w) - _chirp_time(lo, w)) / w, 1.0)
     else:
-        dwell = float(cand[best_i, 1])
-        f = f0[:, None] + np.arange(-2, int(np.ceil(dwell)) + 3)[None, :]                    # [M, O]
-        opt = np.where((f >= 0) & (f < num_frames), _share(f[None], lo[:, :, None], hi[:, :, None], w), 0.0)
+        dwell = float(np.max(cand[:, 1]))
+        f = np.floor(lo)[:, :, None] + np.arange(-1, int(np.ceil(dwell)) + 2)[None, None, :]  # [C, M, O] frames near
+        opt = np.where((f >= 0) & (f < num_frames), _share(f, lo[:, :, None], hi[:, :, None], w), 0.0)
         best = np.maximum(opt.max(axis=2), share)
     good = share >= best - MIX_TOLERANCE
+    if per_beam:
+        return good[best_i]                                                                   # [M]
     return good.all(axis=1), share[best_i] < 1 - MIX_TOLERANCE
 
 
@@ -560,8 +581,9 @@ def _no_ris_probability(s: np.ndarray, rss0: float, levels: int) -> float:
 
 
 def _fit(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray, frame_width: float,
-         max_drift: float, assemble: str) -> tuple[SweepAlignment, float, np.ndarray, np.ndarray]:
-    """:func:`fit_alignment`, with σ̂² and what :func:`_exact` needs: ``(alignment, sigma2, s [F], times [F, Kc])``."""
+         max_drift: float, assemble: str) -> tuple[SweepAlignment, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`fit_alignment`, with σ̂², what :func:`_exact` needs and the posterior: ``(alignment, sigma2, s [F],
+    times [F, Kc], candidates [C, 3], weights [C])``."""
     _check_assemble(assemble)
     s = np.asarray(series.power if isinstance(series, RisPowerSeries) else series, float)
     F, M, P = s.size, program.num_beams, program.frames_per_beam
@@ -603,7 +625,7 @@ def _fit(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions:
                            mixed_beams=tuple(int(m) for m in np.flatnonzero(mixed)),
                            off_frames=_off_frames(program, t0, dwell, F, fractions), confidence=confidence,
                            runner_up=runner, feature=feature)
-    return align, sigma2, s, times
+    return align, sigma2, s, times, cand, weight
 
 
 def fit_alignment(series: RisPowerSeries | np.ndarray, program: RisProgram, *, fractions: np.ndarray,
@@ -658,16 +680,31 @@ def check_first_frame(series: RisPowerSeries | np.ndarray, program: RisProgram, 
     Returns
     -------
     ScheduleCheck
-        ``mismatch`` True when the data clearly supports another first frame (``supported``).
+        ``mismatch`` True when the data clearly contradicts the given frames; ``supported`` the fitted
+        first frame, ``beams_differ`` the beams whose given chirps the fit does not support.
     """
-    align, sigma2, s, times = _fit(series, program, fractions=fractions, frame_width=frame_width,
-                                   max_drift=max_drift, assemble=assemble)
+    align, sigma2, s, times, cand, weight = _fit(series, program, fractions=fractions, frame_width=frame_width,
+                                                 max_drift=max_drift, assemble=assemble)
+    F, K = s.size, fractions.size
+    given = manual_alignment(program, int(first_frame), num_frames=F, fractions=fractions, frame_width=frame_width,
+                             assemble=assemble)
+    whole = _whole(float(program.frames_per_beam))
+    best_i = int(np.argmin(cand[:, 2]))
+    # judged as what it is: whole frames against the best whole frames, else in the import's mode
+    ok, _ = _agreement(cand, given.chirp_start, best_i, num_chirps=K, frame_width=frame_width, num_frames=F,
+                       assemble="frame" if whole else assemble)
+    good_best = _agreement(cand[best_i:best_i + 1], given.chirp_start, 0, num_chirps=K, frame_width=frame_width,
+                           num_frames=F, assemble="frame" if whole else assemble, per_beam=True)
+    p_given = float(np.sum(weight[ok]))
     rss_best = _exact(s, program, align.start, align.dwell, times)
-    # every start that makes ``first_frame`` the first frame wholly inside beam 0: (first_frame - 1 + w, first_frame]
-    starts = first_frame - (1.0 - min(frame_width, 1.0)) * np.arange(_CHECK_STARTS) / _CHECK_STARTS
+    if whole:       # every start that makes first_frame the first frame inside beam 0: (first_frame - 1 + w, first_frame]
+        starts = first_frame - (1.0 - min(frame_width, 1.0)) * np.arange(_CHECK_STARTS) / _CHECK_STARTS
+    else:           # the manual alignment's own start
+        starts = np.array([float(first_frame)])
     rss_given = min(_exact(s, program, float(t), align.dwell, times) for t in starts)
     delta = (rss_given - rss_best) / sigma2
-    mismatch = bool(align.confidence >= min_confidence and align.first_frame != int(first_frame)
+    mismatch = bool(align.confidence >= min_confidence and p_given <= 1.0 - min_confidence
                     and delta >= min_delta_rss)
     return ScheduleCheck(given=int(first_frame), supported=align.first_frame, start=float(align.start),
-                         confidence=float(align.confidence), delta_rss=float(delta), mismatch=mismatch)
+                         confidence=float(align.confidence), delta_rss=float(delta), given_probability=p_given,
+                         beams_differ=int(np.sum(~good_best)), mismatch=mismatch)

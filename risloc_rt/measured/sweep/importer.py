@@ -192,10 +192,15 @@ def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, firs
 
 def _mismatch_message(source: Path, result: ScheduleCheck) -> str:
     """The one-line warning of a first frame the recording contradicts."""
-    return (f"{source}: the recording supports first_frame = {result.supported}, not the given {result.given} (sweep "
-            f"start fitted at frame {result.start:.2f}, confidence {result.confidence:.2f}, the given frame fits "
-            f"worse by {result.delta_rss:.0f} sigma^2); the beams may be shifted: check the sweep schedule's "
-            "first_frame or import with --first-frame auto")
+    if result.supported != result.given:
+        what = f"the recording supports first_frame = {result.supported}, not the given {result.given}"
+    else:
+        what = (f"the recording supports first_frame = {result.supported} but a sweep start at frame "
+                f"{result.start:.2f}, not at {result.given}")
+    return (f"{source}: {what} (sweep start fitted at frame {result.start:.2f}, confidence {result.confidence:.2f}; "
+            f"{result.beams_differ} beam(s) take chirps of another state, the given timing fits worse by "
+            f"{result.delta_rss:.0f} sigma^2); the beams may be shifted: check the sweep schedule's first_frame or "
+            "import with --first-frame auto")
 
 
 @dataclass(frozen=True)
