@@ -30,7 +30,6 @@ from typing import Sequence
 import numpy as np
 
 from .packets import MAX_PAYLOAD, DroppedPackets
-from .split_files import iter_file_bytes
 
 __all__ = ["NOISE_MAX_ZERO_FRACTION", "ZeroScan", "scan_zero_packets"]
 
@@ -109,30 +108,30 @@ def scan_zero_packets(files: Sequence[Path], *, length: int, payload_size: int =
         whole, rem = divmod(nbytes, P)
         if whole:
             w = buf[:whole * P].view("<i2").reshape(whole, words_per)
-            nz = np.count_nonzero(w, axis=1)
-            cand = nz == 0
+            cand = ~w.any(axis=1)
+            ncand = int(np.count_nonzero(cand))
             zero_idx.append(first_packet + np.flatnonzero(cand))
-            words_out += int(words_per * np.count_nonzero(~cand))
-            zeros_out += int(np.sum(words_per - nz[~cand]))
+            words_out += words_per * (whole - ncand)
+            zeros_out += int(w.size - np.count_nonzero(w)) - words_per * ncand
         if rem >= 2:                                   # the stream's final, partial packet
             tail = buf[whole * P:whole * P + rem - rem % 2].view("<i2")
             words_out += tail.size
             zeros_out += int(tail.size - np.count_nonzero(tail))
 
     packet0 = 0
-    for view in iter_file_bytes(files, 1 << 22):
-        data = np.frombuffer(view, np.uint8)[:max(length - pos, 0)]
-        pos += data.size
-        while data.size:
-            n = min(data.size, buf.size - fill)
-            buf[fill:fill + n] = data[:n]
-            fill, data = fill + n, data[n:]
-            if fill == buf.size:
-                examine(fill, packet0)
-                packet0 += block_packets
-                fill = 0
-        if pos >= length:
-            break
+    view = memoryview(buf)
+    for path in files:                                # read straight into the packet-aligned buffer
+        with open(path, "rb", buffering=0) as fh:
+            while pos < length:
+                n = fh.readinto(view[fill:min(buf.size, fill + length - pos)])
+                if not n:
+                    break
+                fill, pos = fill + n, pos + n
+                if fill == buf.size:
+                    examine(fill, packet0)
+                    packet0 += block_packets
+                    fill = 0
+    view.release()
     if fill:
         examine(fill, packet0)
     idx = np.concatenate(zero_idx) if zero_idx else np.empty(0, np.int64)
