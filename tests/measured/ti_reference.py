@@ -9,16 +9,16 @@ reader (which share reshapes, the header packer and constants) do not judge each
 Sources, and what each rule below comes from:
 
 [SWRA581] TI application report SWRA581, "Mmwave Radar Device ADC Raw Data Capture"
-    (first issued as "xWR1xxx ADC Raw Data Capture"): section 4 ("xWR12xx and xWR14xx Radar
-    Studio Data Format": four LVDS lanes, one receiver per lane, the lanes interleaved sample by
-    sample), section 5 ("xWR16xx Radar Studio Data Format": two LVDS lanes, per receiver and
+    (first issued as "xWR1xxx ADC Raw Data Capture"; section numbers of that 2017 issue):
+    section 4 ("xWR12xx and xWR14xx Radar Studio Data Format": four LVDS lanes, one receiver per
+    lane, the lanes interleaved sample by sample), section 5 ("xWR16xx Radar Studio Data Format": two LVDS lanes, per receiver and
     chirp the complex samples as ``I0 I1 Q0 Q1 I2 I3 Q2 Q3 ...``; real data as ``x0 x1 ...``),
     section 6 (the MATLAB reader: samples are signed 16-bit little-endian words; a chirp holds
     every enabled receiver in ascending order, chirps follow in transmission order).
-[DCA1000UG] TI "DCA1000EVM Data Capture Card" user's guide (SPRUIJ4), the raw-data UDP packet
-    format (section 5, "data packet"): a 4-byte sequence number (the first packet is 1), a 6-byte
-    byte count (the ADC bytes sent before this packet), then at most 1456 bytes of ADC data;
-    little-endian.
+[DCA1000UG] TI "DCA1000EVM Data Capture Card" user's guide (SPRUIJ4A), the data port's raw-mode
+    packet format and the file storage format (stored with or without the packet header): a 4-byte
+    sequence number (the first packet is 1), a 6-byte byte count (the ADC bytes sent before this
+    packet), then at most 1456 bytes of ADC data; little-endian.
 [STUDIO] TI mmWave Studio user's guide, DCA1000 capture: the recorded files are
     ``adc_data_Raw_0.bin``, ``adc_data_Raw_1.bin``, ... (one stream cut at a size limit), and
     the packet reorder and zero-fill post-processing step puts each packet at its byte count and
@@ -169,7 +169,7 @@ def header(sequence: int, byte_count: int) -> bytes:
 
 
 def packetize(stream: bytes, *, payload: int = MAX_PAYLOAD, lost: frozenset[int] = frozenset()) -> bytes:
-    """The packet-recorded form of ``stream``: header + payload per packet, leaving out the sequence numbers ``lost``."""
+    """The packet-recorded form of ``stream``: header + payload per packet, leaving out sequence numbers ``lost``."""
     parts = []
     for seq, at in enumerate(range(0, len(stream), payload), start=1):
         if seq not in lost:
@@ -219,7 +219,7 @@ def depacketize(data: bytes, payload: int) -> tuple[bytes, list[Lost]]:
 
 
 def zero_packets(stream: bytes, *, payload: int = MAX_PAYLOAD) -> list[int]:
-    """Sequence numbers (1-based) of the whole packets on the ``payload`` grid of a raw stream whose bytes are all zero."""
+    """Sequence numbers (1-based) of the whole packets on the ``payload`` grid of a raw stream that are all zeros."""
     return [j + 1 for j in range(len(stream) // payload) if not any(stream[j * payload:(j + 1) * payload])]
 
 

@@ -177,7 +177,7 @@ class CaptureInspection:
 
 
 def file_iq_swap(config: str | Path | TiChirpConfig, *, iq_swap: bool | None = None) -> bool:
-    """The I/Q order to read a capture with: ``iq_swap`` when given, else what the configuration says of the LVDS stream.
+    """The I/Q order to read a capture with: ``iq_swap`` when given, else the configuration's LVDS order.
 
     - mmWave Studio ``.json``: its ``rlDevDataFmtCfg_t.iqSwapSel`` (mmWaveLink ``rl_device.h``:
       0 = I first, 1 = Q first; ``rlDeviceSetDataFmtConfig`` sets the LVDS/CSI2 output format).
@@ -308,9 +308,11 @@ def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig 
     flags = []
     if dropped:
         certain = dropped - sums.probable
-        what = " and ".join(([f"{certain} packets lost"] if certain else []) +
-                            ([f"{sums.probable} probable lost packets (whole packets of exact zeros on the packet "
-                              "grid of a raw-mode stream, which an ADC with noise cannot give)"] if sums.probable else []))
+        parts = [f"{certain} packets lost"] if certain else []
+        if sums.probable:
+            parts.append(f"{sums.probable} probable lost packets (whole packets of exact zeros on the packet grid of "
+                         "a raw-mode stream, which an ADC with noise cannot give)")
+        what = " and ".join(parts)
         flags.append(Flag("dropped-packets", f"{what}; frames {damaged[:10]}"
                           f"{' …' if len(damaged) > 10 else ''} hold zeros in their place: leave them out"))
     if info.truncated_bytes:
