@@ -16,7 +16,8 @@ Criterion (:func:`scan_zero_packets`):
 An ADC whose input carries Gaussian noise of σ ≥ 1 LSB per word gives a 0 with probability
 ``p0 = erf(0.5/(σ√2)) ≤ 0.383``; a candidate then arises by chance with probability
 ``p0^(P/2) ≤ 0.383^728 ≈ 10^-303`` per packet, and rule 2 fails by chance (fraction > 1/2 with
-≥ 728 words, binomial σ ≤ 0.018) with probability < 10^-10. A digitally silent stream (a
+≥ 728 words, binomial σ ≤ 0.018) with probability < 10^-10 (rule 2 holds for any noise above
+0.74 LSB rms, where p0 = 1/2). A digitally silent stream (a
 noise-free emulation, ``--no-noise``: zeros everywhere) fails rule 2 and is not called lossy; its
 all-zero packets are only noted.
 """
