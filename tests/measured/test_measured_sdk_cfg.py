@@ -32,6 +32,12 @@ def test_write_then_parse_gives_the_same_config(cfg_text):
     text = format_sdk_cfg(cfg, comment="round trip")
     assert text.startswith("% round trip\n")
     assert parse_sdk_cfg(text).config == cfg
+    # the writer judged by the hand-written file, not by its own parser: every mapped command, field by field
+    wanted = [ln for ln in cfg_text.splitlines() if ln.split()[0] in
+              ("dfeDataOutputMode", "channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")]
+    written = [ln for ln in text.splitlines() if ln.split()[0] in
+               ("dfeDataOutputMode", "channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")]
+    assert written == wanted
 
 
 @pytest.mark.parametrize("old, new, match", [
