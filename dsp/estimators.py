@@ -13,22 +13,24 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.integrate
+import scipy.special
 
 from .aod_fit import AodFit, fit_aod
 from .beamscan import BeamScan
-from .crb import sweep_crb
+from .crb import sweep_crb, window_factors
 from .detection import Detection
 from .geometry import RisPose
 from .localization import Localization, localize
 from .pattern import BeamPattern
-from .processing import ProcessingConfig
+from .processing import ProcessingConfig, window_vector
 from .qualify import EstimatorBounds
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .refine import refine_estimate
 from .residual import beam_dtft
 from .sweep import BeamSweep
 
-__all__ = ["SweepInputs", "SweepEstimate", "Estimator", "ESTIMATORS"]
+__all__ = ["SweepInputs", "SweepEstimate", "Estimator", "ESTIMATORS", "debiased_peak_snr", "beam_choice_std"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +90,10 @@ class SweepEstimate:
     located : Localization or None
         The paper's :func:`dsp.localize` result (its direction and position are reused as they
         are when nothing moves them); None for the refined estimator.
+    delay_variance_factor : float
+        What the estimator's own processing multiplies the variance of τ̂ and ν̂ by beyond the
+        bound (the refined estimator's static template, :func:`dsp.refine.template_variance_factor`);
+        1 for the paper's (its window is in its bounds) [unitless].
     """
 
     beam_index: int
@@ -100,6 +106,7 @@ class SweepEstimate:
     time: float
     beat_frequency: tuple[float, float]
     located: Localization | None = None
+    delay_variance_factor: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -139,20 +146,154 @@ def _paper_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -> 
                          amplitude=beta, time=float(times[loc.beam_index]), beat_frequency=(f1, f2), located=loc)
 
 
+def debiased_peak_snr(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: float) -> float:
+    """The peak SNR with the noise's share of the beams' magnitudes removed [linear].
+
+    The measured ρ̂ = K N β̂²/σ̂² takes β̂ from the magnitudes r_m = |Z_m|, and E[r_m] exceeds the
+    tone's b A_m by the noise (Rice): ρ̂ is biased high, by 9 % at Table I's 0 dBm (17.8 dB),
+    which states every σ 4.5 % too small. Since E[r_m²] = b² A_m² + s² (s² = K N σ², b = K N β),
+
+        ρ̃ = Σ_m A_m² (r_m² − s²) / (s² Σ_m A_m⁴)
+
+    is unbiased (Table I, 0 dBm, 30 captures: ρ̃/ρ = 0.99 ± 0.02 against ρ̂/ρ = 1.09). σ̂² is
+    recovered from ρ̂ and β̂ (σ̂² = K N β̂²/ρ̂: what :func:`dsp.self_localize` measured).
+
+    Parameters
+    ----------
+    inp : SweepInputs
+    est : SweepEstimate
+        Its ``magnitudes`` r_m [√W·K·N] and ``amplitude`` β̂ [√W].
+    aod : float array [2]
+        Where the pattern A_m is evaluated [rad].
+    rho : float
+        ρ̂ [linear].
+
+    Returns
+    -------
+    float
+        ρ̃ in [1e-12, 1e300]; ρ̂ itself when β̂ or ρ̂ is not finite and positive.
+    """
+    kn = inp.cube.shape[1] * inp.cube.shape[2]
+    beta = float(est.amplitude)
+    if not (np.isfinite(beta) and beta > 0 and np.isfinite(rho) and rho > 0):
+        return rho
+    s2 = (kn * beta) ** 2 / rho
+    a2 = inp.pattern.amplitude(aod, inp.sweep.angles) ** 2
+    r2 = np.asarray(est.magnitudes, dtype=float) ** 2
+    den = s2 * float(a2 @ a2)
+    if not den > 0:
+        return rho
+    return float(min(max(float(a2 @ (r2 - s2)) / den, 1e-12), 1e300))
+
+
+#: :func:`beam_choice_std`: beams on each side of the chosen one that may win, truth positions per cell,
+#: magnitude quadrature points, and the SNR above which the choice is the nearest beam (noise < 10⁻⁴ of a step).
+_CHOICE_NEIGHBOURS, _CHOICE_POINTS, _CHOICE_NODES, _CHOICE_MAX_SNR = 8, 12, 240, 1e8
+#: Above this ν (a beam's amplitude over the noise's) the Rice distribution is taken as Gaussian.
+_CHOICE_GAUSSIAN = 8.0
+
+
+def beam_choice_std(pattern: BeamPattern, sweep: BeamSweep, beam: int, snr: float) -> float:
+    """RMS azimuth error of choosing the strongest beam, the truth anywhere in the chosen beam's cell [rad].
+
+    Each beam's statistic is modelled as a tone in noise, |X_m| with X_m = √ρ_w A_m(θ) + CN(0, 1):
+    Rician, independent across beams (separate frames). The probability that beam j is the
+    strongest is P_j(θ) = ∫ f_j(x) Π_{i≠j} F_i(x) dx (f, F the Rice density and distribution,
+    F from the non-central χ² of 2|X|²), over the chosen beam's neighbours on its elevation row;
+    then
+
+        σ² = mean over θ in the cell of Σ_j P_j(θ) (θ_j − θ)²,
+
+    the truth's position in its cell taken uniform (what the estimate cannot tell). At high SNR
+    this is Δ²/12, the grid's quantisation; at low SNR it adds the jumps to neighbouring beams,
+    several beams wide at Table I's 0 dBm, where a linearised boundary noise overstates them.
+
+    Parameters
+    ----------
+    pattern : BeamPattern
+        At the radar's wavelength.
+    sweep : BeamSweep
+    beam : int
+        The chosen beam.
+    snr : float
+        ρ_w: the SNR of a beam steered exactly at the UE in the statistic that chooses (the
+        paper's P_ave: ρ times the window's energy and peak factors, :func:`dsp.crb.window_factors`)
+        [linear]; above 10⁸ it is taken as 10⁸ (the choice is then the nearest beam).
+
+    Returns
+    -------
+    float
+        σ [rad]; 0 for a beam without neighbours on its row.
+    """
+    ang = sweep.angles
+    row = np.flatnonzero(np.abs(ang[:, 1] - ang[beam, 1]) < 1e-12)
+    row = row[np.argsort(ang[row, 0], kind="stable")]
+    pos = int(np.flatnonzero(row == beam)[0])
+    cand = row[max(0, pos - _CHOICE_NEIGHBOURS): pos + _CHOICE_NEIGHBOURS + 1]
+    if cand.size < 2:
+        return 0.0
+    az = ang[cand, 0]
+    j = int(np.flatnonzero(cand == beam)[0])
+    lo = (az[j] - az[j - 1]) / 2 if j > 0 else (az[j + 1] - az[j]) / 2
+    hi = (az[j + 1] - az[j]) / 2 if j + 1 < az.size else lo
+    frac = (np.arange(_CHOICE_POINTS) + 0.5) / _CHOICE_POINTS
+    thetas = az[j] - lo + frac * (lo + hi)  # midpoints of equal parts of the cell
+    amp = np.sqrt(min(max(float(snr), 0.0), _CHOICE_MAX_SNR))
+    sq = []
+    for t in thetas:
+        nu = amp * np.abs(pattern.amplitude(np.array([t, ang[beam, 1]]), ang[cand]))  # [C] in units of the noise
+        top = float(nu.max())
+        live = nu > top - 12.0  # the others are below every node: density 0, distribution 1
+        nu_l, az_l = nu[live], az[live]
+        x = np.linspace(max(0.0, top - 12.0), top + 8.0, _CHOICE_NODES)  # |X|; σ per component 1/√2
+        # Rice density of |X| with E|noise|² = 1: 2x exp(-(x - ν)²) I0e(2xν); distribution via ncx2 of 2|X|²
+        dens = 2 * x[None] * np.exp(-((x[None] - nu_l[:, None]) ** 2)) * scipy.special.i0e(2 * x[None] * nu_l[:, None])
+        if x[0] == 0.0:  # the nodes span the whole support: the distribution is the density's integral
+            dist = np.clip(scipy.integrate.cumulative_trapezoid(dens, x, axis=1, initial=0.0), 0.0, 1.0)
+        else:
+            dist = np.empty_like(dens)
+            big = nu_l > _CHOICE_GAUSSIAN
+            # far above the noise the Rice law is N(ν + 1/(4ν), 1/2) to O(1/ν²); chndtr is slow there
+            dist[big] = scipy.special.ndtr((x[None] - nu_l[big, None] - 0.25 / nu_l[big, None]) * np.sqrt(2.0))
+            dist[~big] = scipy.special.chndtr(2 * x[None] ** 2, 2, 2 * nu_l[~big, None] ** 2)
+        logd = np.log(np.clip(dist, 1e-300, 1.0))
+        others = np.exp(logd.sum(axis=0)[None] - logd)  # Π_{i≠j} F_i
+        p = scipy.integrate.trapezoid(dens * others, x, axis=1)
+        if not p.sum() > 0:
+            p, az_l = np.ones(1), az[j:j + 1]
+        sq.append(float((p / p.sum()) @ (az_l - t) ** 2))
+    return float(np.sqrt(np.mean(sq)))
+
+
 def _paper_bounds(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: float) -> EstimatorBounds:
-    """The single-beam CRB plus the grid quantisation (step²/12) of delay, Doppler and AoD."""
+    """The paper estimator's 1σ: its windowed single-beam peak and its beam choice, each on its grid.
+
+    Delay and Doppler: the Hann-windowed periodogram peak of the best beam (the single-beam
+    random-phase bound times the window's variance factor per axis, :func:`dsp.crb.window_factors`:
+    2.34 for Hann), then rounded to the N_DFT × K_DFT grid (+ step²/12). Azimuth: the RMS error of
+    the best-beam choice, grid included (:func:`beam_choice_std` at the P_ave statistic's SNR). All at the debiased SNR (:func:`debiased_peak_snr`). Half of each grid step is
+    reported as ``grid``: the largest quantisation error (``docs/estimation.md``).
+    """
     radar, sweep, pattern, processing = inp.radar, inp.sweep, inp.pattern, inp.processing
-    m = inp.cube.shape[0]
+    m, k, n = inp.cube.shape
+    rho = debiased_peak_snr(inp, est, aod, rho)
     bound = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho,
                       beams=np.arange(m) == est.beam_index, phases="random")
     bound_all = sweep_crb(radar=radar, sweep=sweep, pattern=pattern, aod=aod, peak_snr=rho, phases="random")
+    var_fast, _, energy_fast = window_factors(window_vector(processing.window, n))
+    var_slow, peak_slow, _ = window_factors(window_vector(processing.window, k))
+    coupling = radar.carrier_frequency / radar.slope  # τ = f₁/(S T_s) − (f_c/S) ν [s]
+    var_nu = var_slow * bound.delay_rate**2
+    var_tau = var_fast * max(bound.delay**2 - (coupling * bound.delay_rate) ** 2, 0.0) + coupling**2 * var_nu
     grid_tau = radar.max_delay / processing.n_dft
-    step_az = float(np.median(np.abs(np.diff(sweep.angles[:, 0])))) if m > 1 else 0.0
-    sd_dist = float(np.hypot(bound.distance, grid_tau * SPEED_OF_LIGHT / 2 / np.sqrt(12)))
     grid_nu = 2 * radar.max_delay_rate / processing.k_dft
-    sd_vel = float(np.hypot(bound.velocity, grid_nu * SPEED_OF_LIGHT / 2 / np.sqrt(12)))
-    sd_az = float(np.hypot(bound_all.aod[0], step_az / np.sqrt(12)))
-    return EstimatorBounds(distance=sd_dist, velocity=sd_vel, az=sd_az, el=bound_all.aod[1], kind="crb+grid")
+    sd_dist = float(np.sqrt(var_tau + (grid_tau**2 + (coupling * grid_nu) ** 2) / 12)) * SPEED_OF_LIGHT / 2
+    sd_vel = float(np.sqrt(var_nu + grid_nu**2 / 12)) * SPEED_OF_LIGHT / 2
+    step_az = float(np.median(np.abs(np.diff(sweep.angles[:, 0])))) if m > 1 else 0.0
+    sd_az = beam_choice_std(pattern, sweep, est.beam_index, rho * energy_fast * peak_slow)
+    half = ((grid_tau + coupling * grid_nu) * SPEED_OF_LIGHT / 4, grid_nu * SPEED_OF_LIGHT / 4, step_az / 2)
+    return EstimatorBounds(distance=sd_dist, velocity=sd_vel, az=sd_az, el=bound_all.aod[1], kind="crb+grid",
+                           grid=tuple(float(v) for v in half), peak_snr=rho)
 
 
 def _paper_residual_frequency(inp: SweepInputs, est: SweepEstimate) -> tuple[float, float]:
@@ -174,14 +315,18 @@ def _refined_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -
     beam_index = int(np.argmin(np.abs(sweep.angles[:, 0] - aod[0]) + np.abs(sweep.angles[:, 1] - aod[1])))
     return SweepEstimate(beam_index=beam_index, delay=est.delay, delay_rate=est.delay_rate, aod=aod, fit=est.aod,
                          magnitudes=est.beam_magnitude * (arr.shape[1] * arr.shape[2]), amplitude=est.amplitude,
-                         time=float(amp2 @ times / amp2.sum()), beat_frequency=est.beat_frequency)
+                         time=float(amp2 @ times / amp2.sum()), beat_frequency=est.beat_frequency,
+                         delay_variance_factor=est.delay_variance_factor)
 
 
 def _refined_bounds(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: float) -> EstimatorBounds:
-    """The sweep's CRB itself."""
+    """The sweep's random-phase CRB at the debiased SNR (:func:`debiased_peak_snr`), its distance and
+    velocity times √F, F the static template's variance factor (``est.delay_variance_factor``)."""
+    rho = debiased_peak_snr(inp, est, aod, rho)
     bound = sweep_crb(radar=inp.radar, sweep=inp.sweep, pattern=inp.pattern, aod=aod, peak_snr=rho, phases="random")
-    return EstimatorBounds(distance=bound.distance, velocity=bound.velocity, az=float(bound.aod[0]), el=bound.aod[1],
-                           kind="crb")
+    f = float(np.sqrt(est.delay_variance_factor)) if est.delay_variance_factor > 0 else 1.0
+    return EstimatorBounds(distance=bound.distance * f, velocity=bound.velocity * f, az=float(bound.aod[0]),
+                           el=bound.aod[1], kind="crb", peak_snr=rho)
 
 
 def _refined_residual_frequency(inp: SweepInputs, est: SweepEstimate) -> tuple[float, float]:

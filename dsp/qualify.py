@@ -38,12 +38,19 @@ class Uncertainty:
     position : float array [3]
         Along the world x, y, z axes [m] (elevation error not included when el is NaN).
     peak_snr_db : float
-        The measured post-integration SNR at the pattern peak the bound was evaluated at [dB].
+        The post-integration SNR at the pattern peak the bound was evaluated at [dB]: the measured
+        one with the noise's share of the beams' magnitudes removed (unbiased; the plain measured
+        one is 9 % high at 17.8 dB, ``docs/estimation.md``).
     kind : str
-        ``"crb"`` (refined estimator: the bound itself) or ``"crb+grid"`` (paper estimator: the
-        single-beam bound plus the grid quantisation, step²/12, of delay and AoD). The bound is
-        :func:`dsp.sweep_crb` with ``phases="random"``: what an estimator blind to the per-beam
-        phases can reach (above the fixed-phase CRB when many beams are near the noise).
+        ``"crb"`` (refined estimator: the bound, times the static template's variance factor for
+        distance and velocity) or ``"crb+grid"`` (paper estimator: its Hann-windowed single-beam
+        peak and its best-beam choice, plus the grid quantisation, step²/12, of delay, Doppler and
+        AoD). The bound is :func:`dsp.sweep_crb` with ``phases="random"`` at the SNR corrected for
+        the noise in the beams' magnitudes (``docs/estimation.md``, "What the stated 1σ is").
+    grid : float array [3] or None
+        A grid estimator's largest quantisation error, half its grid step, of distance [m],
+        velocity [m/s] and azimuth [rad]: its error is this quantisation (fixed for a fixed
+        geometry, a bias, not noise) plus bin jumps; None for an off-grid estimator.
     """
 
     distance: float
@@ -52,6 +59,7 @@ class Uncertainty:
     position: np.ndarray
     peak_snr_db: float
     kind: str
+    grid: np.ndarray | None = None
 
     @property
     def peb(self) -> float:
@@ -62,7 +70,9 @@ class Uncertainty:
         """Plain-JSON dictionary (NaN where not estimated)."""
         return {"distance": float(self.distance), "velocity": float(self.velocity),
                 "aod": [float(v) for v in self.aod], "position": [float(v) for v in self.position],
-                "peb": self.peb, "peak_snr_db": float(self.peak_snr_db), "kind": self.kind}
+                "peb": self.peb, "peak_snr_db": float(self.peak_snr_db), "kind": self.kind,
+                "grid_max_error": None if self.grid is None else dict(zip(("distance", "velocity", "az"),
+                                                                          (float(v) for v in self.grid)))}
 
     def __eq__(self, other: object) -> bool:
         return fields_equal(self, other)
@@ -84,6 +94,12 @@ class EstimatorBounds:
         [rad]; ``el`` NaN when the sweep cannot see it.
     kind : str
         How they were made (:attr:`Uncertainty.kind`).
+    grid : (float, float, float) or None
+        Half the grid step of distance [m], velocity [m/s] and azimuth [rad] of a grid estimator
+        (:attr:`Uncertainty.grid`); None off the grid.
+    peak_snr : float or None
+        The SNR the bounds were evaluated at when the estimator corrected the measured one
+        (:func:`dsp.estimators.debiased_peak_snr`) [linear]; None: the measured one.
     """
 
     distance: float
@@ -91,6 +107,8 @@ class EstimatorBounds:
     az: float
     el: float
     kind: str
+    grid: tuple[float, float, float] | None = None
+    peak_snr: float | None = None
 
 
 def is_one_dimensional(sweep: BeamSweep) -> bool:
@@ -191,7 +209,8 @@ def sweep_uncertainty(pose: RisPose, aod: np.ndarray, distance: float, bounds: E
     bounds : EstimatorBounds
         The estimator's 1σ of distance [m], velocity [m/s], azimuth and elevation [rad].
     peak_snr : float
-        The measured post-integration SNR at the pattern peak [linear].
+        The measured post-integration SNR at the pattern peak [linear]; ``bounds.peak_snr``, where
+        given, replaces it (the SNR the bounds were evaluated at is the one reported).
     solved_height : float or None
         The radar's height [m] when the elevation was solved from it: the position then moves
         along u = cos(el)·sin(az) and the elevation's 1σ follows from the distance's and u's.
@@ -201,6 +220,8 @@ def sweep_uncertainty(pose: RisPose, aod: np.ndarray, distance: float, bounds: E
     Uncertainty
     """
     sd_distance, sd_az, sd_el = bounds.distance, bounds.az, bounds.el
+    if bounds.peak_snr is not None:
+        peak_snr = bounds.peak_snr
     if solved_height is not None:
         u0 = float(np.cos(aod[1]) * np.sin(aod[0]))
         sd_u = sd_az * abs(np.cos(aod[0]) * np.cos(aod[1]))
@@ -220,4 +241,5 @@ def sweep_uncertainty(pose: RisPose, aod: np.ndarray, distance: float, bounds: E
             [distance, aod[0], aod[1]], [sd_distance, sd_az, sd_el])
         aod_sd = np.array([sd_az, sd_el])
     return Uncertainty(distance=sd_distance, velocity=bounds.velocity, aod=aod_sd, position=pos_sd,
-                       peak_snr_db=float(10 * np.log10(peak_snr)), kind=bounds.kind)
+                       peak_snr_db=float(10 * np.log10(peak_snr)), kind=bounds.kind,
+                       grid=None if bounds.grid is None else np.asarray(bounds.grid, dtype=float))

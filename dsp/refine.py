@@ -47,7 +47,7 @@ from .pattern import BeamPattern
 from .radar import RadarConfig
 from .sweep import BeamSweep
 
-__all__ = ["RefinedEstimate", "refine_estimate"]
+__all__ = ["RefinedEstimate", "refine_estimate", "template_variance_factor"]
 
 #: Newton stops when a step is below this fraction of an un-padded DFT bin on both axes; the
 #: steps converge quadratically, so the error left is far smaller (and far below the CRB).
@@ -75,6 +75,10 @@ class RefinedEstimate:
         Newton steps taken (all passes).
     converged : bool
         The last step was below ``STEP_TOLERANCE`` of a DFT bin on both axes.
+    delay_variance_factor : float
+        F >= 1 (in practice): how much the static template's noise raises the variance of τ̂ and ν̂
+        over what the same beams give without it (:func:`template_variance_factor`; 1 without a
+        template) [unitless].
     """
 
     delay: float
@@ -85,6 +89,7 @@ class RefinedEstimate:
     amplitude: float
     iterations: int
     converged: bool
+    delay_variance_factor: float = 1.0
 
     def peak_snr(self, noise_power: float, radar: RadarConfig) -> float:
         """ρ̂ = K N β̂² / σ² [linear], the post-integration SNR at the pattern peak."""
@@ -197,6 +202,44 @@ class _Criterion:
         x = self.c * mag
         g = bessel_ratio(x)
         return self.c * g, self.c**2 * bessel_ratio_slope(x, g)
+
+
+def template_variance_factor(z: Any, weights: Any, far: Any, num_far: int) -> float:
+    """Variance of the delay/Doppler score with the static template removed, over that without it.
+
+    The score of the delay step is Σ_m w_m ∇|Z_m|, whose noise is Re Σ_m w_m e^{-jφ_m} ∇n_m with
+    n_m beam m's noise and φ_m its tone's phase. The template T = (1/M_far) Σ_{far} n_j is
+    subtracted from every beam, so the noise becomes Σ_m ∇n_m (u_m − c/M_far·[m far]), u_m =
+    w_m e^{-jφ_m}, c = Σ_m u_m, and (white noise, every beam the same variance)
+
+        F = 1 + (|c|² − 2 Re(c̄ c_far)) / (M_far Σ_m w_m²),   c_far = Σ_{m far} u_m.
+
+    The curvature is the same with and without the template, so F multiplies var τ̂ and var ν̂
+    (``docs/estimation.md``, Limits: 1.12 for Table I, whose beams' phases are 0 or π).
+
+    Parameters
+    ----------
+    z : complex array [M']
+        Z_m of the beams of the delay step at the estimate (its phases φ_m are used).
+    weights : float array [M']
+        Their weights w_m in the score (the profiled criterion's a_m = |A_m(θ̂)|).
+    far : bool array [M']
+        Which of them are among the template's beams.
+    num_far : int
+        M_far, the template's beams [count].
+
+    Returns
+    -------
+    float
+        F [unitless]; 1 when there is no template (``num_far`` 0) or no weight.
+    """
+    w = np.asarray(weights, dtype=float)
+    if num_far <= 0 or not np.any(w > 0):
+        return 1.0
+    u = w * np.exp(-1j * np.angle(np.asarray(z, dtype=complex)))
+    c = u.sum()
+    c_far = u[np.asarray(far, dtype=bool)].sum()
+    return float(1.0 + (abs(c) ** 2 - 2.0 * (np.conj(c) * c_far).real) / (num_far * float(w @ w)))
 
 
 def _newton(ev: _Evaluator, beams: np.ndarray, crit: _Criterion, f1: float, f2: float, n: int, k: int,
@@ -387,6 +430,11 @@ def refine_estimate(
         r = ev.magnitudes(f1, f2)
         s2 = noise()
         fit = fit_at(r, s2)
+    factor = 1.0
+    if ev.far is not None:  # the template's noise, common to every beam (docs/estimation.md, Limits)
+        z = ev.derivatives(f1, f2, sel)[:, 0, 0]
+        factor = template_variance_factor(z, crit.weights(np.maximum(np.abs(z), 1e-300))[0], ev.far[sel],
+                                          int(ev.far.sum()))
     nu = f2 / fct
     # f₁ is defined modulo 1: keep the delay in [0, 1/(S T_s)).
     f1 = f1 % 1.0
@@ -394,4 +442,5 @@ def refine_estimate(
     return RefinedEstimate(
         delay=float(tau), delay_rate=float(nu), beat_frequency=(float(f1), float(f2)), aod=fit,
         beam_magnitude=r / kn, amplitude=fit.amplitude / kn, iterations=iterations, converged=converged,
+        delay_variance_factor=factor,
     )
