@@ -33,7 +33,7 @@ from .validation import as_finite_array, fields_equal, finite
 from .pattern import BeamPattern
 from .sweep import BeamSweep
 
-__all__ = ["AodFit", "fit_aod", "bessel_ratio", "log_i0"]
+__all__ = ["AodFit", "PatternFit", "fit_aod", "pattern_fit", "bessel_ratio", "log_i0"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,3 +281,92 @@ def _prefer_swept_twin(u_hat: float, u_beams: np.ndarray, period: float, value: 
     best = value(u_hat)
     tied = [t for t in inside if value(t) >= best - TWIN_TIE_RTOL * abs(best)]
     return min(tied, key=lambda t: abs(t - 0.5 * (lo + hi))) if tied else u_hat
+
+
+@dataclass(frozen=True)
+class PatternFit:
+    """Goodness of fit of the beam pattern to the per-beam magnitudes (``pattern-mismatch``).
+
+    Attributes
+    ----------
+    statistic : float
+        χ²/dof-like ratio T = Σ_m (r_m − b̂|A_m(θ̂)|)² / Σ_m e_m [unitless]: 1 on average when the
+        model is right (a little less: b̂ and θ̂ are fitted), e_m the expected squared residual of a
+        Rice magnitude r_m about its amplitude.
+    threshold : float
+        The level T exceeds with probability ``pfa`` under the right model [unitless].
+    dof : float
+        The effective degrees of freedom ν of the scaled-χ² approximation [unitless].
+    aod : float array [2]
+        θ̂ of the fit [rad].
+    """
+
+    statistic: float
+    threshold: float
+    dof: float
+    aod: np.ndarray
+
+    @property
+    def mismatch(self) -> bool:
+        """The pattern does not explain the profile: ``statistic > threshold``."""
+        return bool(self.statistic > self.threshold)
+
+    @property
+    def excess(self) -> float:
+        """sqrt(T) when the test fires, else 1: the factor the AoD's 1σ is widened by [unitless]."""
+        return float(np.sqrt(self.statistic)) if self.mismatch else 1.0
+
+
+def _rice_mean(nu: np.ndarray, s2: float) -> np.ndarray:
+    """E|ν + w|, w ~ CN(0, s²): s √π/2 · L_{1/2}(−ν²/s²) [unit of ν], with scaled Bessel functions."""
+    y = nu * nu / s2
+    return np.sqrt(np.pi * s2) / 2.0 * ((1 + y) * scipy.special.i0e(y / 2) + y * scipy.special.i1e(y / 2))
+
+
+def pattern_fit(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, noise_variance: float,
+                pfa: float = 1e-3, elevation: float | None = None) -> PatternFit:
+    """Does the RIS beam pattern explain the per-beam magnitudes within the noise?
+
+    The pattern is fitted by least squares (:func:`fit_aod`, profiled: b̂, θ̂ minimise
+    Σ (r_m − b |A_m(θ)|)²) and the residual compared with what the noise alone leaves. Under the
+    model r_m = |b A_m e^{jψ_m} + w_m|, w_m ~ CN(0, s²), is Rice distributed; its expected squared
+    residual about ν_m = b̂|A_m| is e_m = 2ν_m² + s² − 2ν_m E[r_m] (s² for a beam at the noise floor,
+    s²/2 for a strong one). T = Σ (r_m − ν_m)² / Σ e_m is compared with a scaled χ²: each term taken
+    as e_m χ²₁ (variance 2e_m², an upper bound: a noise-floor beam's is e_m²), so T ν ~ χ²_ν with
+    ν = (Σe_m)² / Σe_m² (Satterthwaite), and the threshold is χ²_ν's upper ``pfa`` quantile over ν.
+
+    A wrong mode (reflective for relay: a main lobe half as wide), spacing, size or pose leaves a
+    residual that grows with the SNR: T ≫ 1.
+
+    Parameters
+    ----------
+    magnitudes : float array [M]
+        r_m = |Z_m| [any unit].
+    sweep : BeamSweep
+    pattern : BeamPattern
+        With its wavelength set.
+    noise_variance : float
+        s² = E|w_m|² in the unit of r² (> 0).
+    pfa : float, default 1e-3
+        Probability that the test fires under the right model [unitless].
+    elevation : float, optional
+        For a 1-D sweep [rad], as :func:`fit_aod`.
+
+    Returns
+    -------
+    PatternFit
+    """
+    import scipy.stats
+
+    r = as_finite_array(magnitudes, "magnitudes", shape=(sweep.num_beams,))
+    s2 = float(noise_variance)
+    if not (np.isfinite(s2) and s2 > 0):
+        raise ValueError(f"noise_variance must be finite and > 0, got {noise_variance!r}")
+    fit = fit_aod(r, sweep, pattern, elevation=elevation)
+    a = np.abs(pattern.amplitude(fit.aod, sweep.angles))
+    nu = max(fit.amplitude, 0.0) * a
+    e = np.maximum(2 * nu * nu + s2 - 2 * nu * _rice_mean(nu, s2), 1e-6 * s2)
+    stat = float(np.sum((r - nu) ** 2) / np.sum(e))
+    dof = float(np.sum(e) ** 2 / np.sum(e * e))
+    thr = float(scipy.stats.chi2.isf(pfa, dof) / dof)
+    return PatternFit(statistic=stat, threshold=thr, dof=dof, aod=fit.aod)

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .aod_fit import AodFit
+from .aod_fit import AodFit, PatternFit
 from .detection import Detection
 from .drift import DelayDrift
 from .geometry import RisPose
@@ -140,6 +140,9 @@ class FlagContext:
     std : Uncertainty or None
         The estimate's 1σ (:func:`dsp.qualify.sweep_uncertainty`), if computed: ``unobservable`` reads its
         infinite entries.
+    pattern_fit : PatternFit or None
+        The beam pattern's goodness of fit to the per-beam magnitudes (:func:`dsp.aod_fit.pattern_fit`),
+        if computed: ``pattern-mismatch`` reads it.
     """
 
     detection: Detection
@@ -160,6 +163,7 @@ class FlagContext:
     height_range: float
     drift: DelayDrift | None = None
     std: Uncertainty | None = None
+    pattern_fit: PatternFit | None = None
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -350,3 +354,15 @@ def _angle_not_observable(c: FlagContext) -> str | None:
     return (f"the sweep cannot observe the {names}: {why}. Its 1σ is infinite (result.json: null) and so is "
             "the position's along the axes it moves; the position is not reliable there. Sweep the beams "
             "in that angle too (a 2-D sweep) and keep them away from the panel's plane")
+
+
+@_rule("pattern-mismatch")
+def _pattern_does_not_fit(c: FlagContext) -> str | None:
+    fit = c.pattern_fit
+    if fit is None or not fit.mismatch:
+        return None
+    return (f"the per-beam powers depart from the RIS model's beam pattern beyond the noise: the fit's residual "
+            f"is {fit.statistic:.1f}× what the noise leaves (threshold {fit.threshold:.2f}, "
+            f"{fit.dof:.0f} effective degrees of freedom): the AoD is the best fit of a wrong model, its 1σ (and the "
+            f"position's) is widened {np.sqrt(fit.statistic):.1f}×; check the RIS mode (relay or reflective), its "
+            "rows, columns, element spacing and facing/yaw against the hardware")

@@ -9,6 +9,7 @@ result type and the paper's method on a scan, :func:`localize`, are in ``dsp.loc
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Callable, Literal
 
 import numpy as np
@@ -23,9 +24,10 @@ from .geometry import RisPose, direction_from_angles
 from .localization import Alternative, Localization, NoPositionError, localize, no_position
 from .pattern import BeamPattern
 from .processing import ProcessingConfig
-from .qualify import EstimatorBounds, Uncertainty, solve_elevation, sweep_uncertainty
+from .aod_fit import pattern_fit
+from .qualify import EstimatorBounds, Uncertainty, elevation_for_height, solve_elevation, sweep_uncertainty
 from .radar import SPEED_OF_LIGHT, RadarConfig
-from .residual import residual_test
+from .residual import beam_values, residual_test
 from .sweep import BeamSweep
 
 __all__ = ["Localization", "NoPositionError", "localize", "self_localize"]
@@ -118,6 +120,10 @@ def self_localize(
     std = _uncertainty(inp, est, det, steps.bounds, aod, distance, ue_height if height_solved else None)
     context = _flag_context(inp, est, det, steps.residual_frequency, aod, distance, ue_height=ue_height,
                             height_solved=height_solved, height_range=height_range, std=std)
+    if context.pattern_fit is not None and context.pattern_fit.mismatch:
+        std = _widened(std, inp.pose, aod, distance, context.pattern_fit.excess,
+                       ue_height if height_solved else None)
+        context = dataclasses.replace(context, std=std)
     return Localization(
         beam_index=est.beam_index, aod=aod, delay=float(est.delay), distance=float(distance),
         delay_rate=float(est.delay_rate), velocity=float(velocity), direction=direction, position=position,
@@ -182,12 +188,17 @@ def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
     weights = np.abs(inp.pattern.amplitude(aod, inp.sweep.angles))
     f1, f2 = residual_frequency(inp, est)
     drift = delay_drift(arr, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights)
-    unresolved = _unresolved(inp, f1, f2, weights, det.noise_power, motion_rate(radar, est.delay_rate, drift))
+    rate = motion_rate(radar, est.delay_rate, drift)
+    unresolved = _unresolved(inp, f1, f2, weights, det.noise_power, rate)
+    values, noise_gain = beam_values(arr, radar, f1, f2, weights, drift_rate=rate,
+                                     beam_times=radar.beam_times(arr.shape[0]))
+    fit = pattern_fit(np.abs(values), inp.sweep, inp.pattern, noise_variance=det.noise_power * noise_gain,
+                      pfa=inp.pfa) if det.noise_power > 0 else None
     return FlagContext(detection=det, fit=est.fit, magnitudes=est.magnitudes, sweep=inp.sweep, radar=radar,
                        pose=inp.pose, delay=est.delay, apparent_delay=f1 / (radar.slope * radar.sample_period),
                        delay_rate=est.delay_rate, loopback_delay=inp.loopback_delay, distance=distance, aod=aod,
                        unresolved=unresolved, ue_height=ue_height, height_solved=height_solved,
-                       height_range=height_range, drift=drift, std=std)
+                       height_range=height_range, drift=drift, std=std, pattern_fit=fit)
 
 
 def _unresolved(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noise_power: float,
@@ -240,3 +251,30 @@ def _alternatives(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, distanc
         out.append(Alternative(aod=cand, position=where, level_db=float(level), kind=kind, reason=reason,
                                offset=float(np.linalg.norm(where - position))))
     return tuple(sorted(out, key=lambda a: -a.level_db))
+
+
+def _widened(std: Uncertainty, pose: RisPose, aod: np.ndarray, distance: float, factor: float,
+             solved_height: float | None) -> Uncertainty:
+    """``std`` with the AoD's 1σ times ``factor`` (``pattern-mismatch``: sqrt(T) of the pattern fit) and the
+    position's AoD part with it: σ_p² + (factor² − 1) (∂p/∂az σ_az)² (and el when it is finite), the
+    derivative by central differences [m/rad] (along u with the elevation re-solved when the height
+    was given)."""
+    sd_az, sd_el = float(std.aod[0]), float(std.aod[1])
+    if not np.isfinite(sd_az) or factor <= 1.0:
+        return std
+    h = 1e-6
+
+    def place(az: float, el: float) -> np.ndarray:
+        if solved_height is not None:
+            u = float(np.cos(el) * np.sin(az))
+            sol = elevation_for_height(pose, distance, u, solved_height, near=float(aod[1]))
+            az, el = sol if sol is not None else (az, el)
+        return pose.position + distance * pose.to_world(direction_from_angles(np.array([az, el])))
+
+    az0, el0 = float(aod[0]), float(aod[1])
+    extra = ((place(az0 + h, el0) - place(az0 - h, el0)) / (2 * h) * sd_az) ** 2
+    if np.isfinite(sd_el) and solved_height is None:
+        extra = extra + ((place(az0, el0 + h) - place(az0, el0 - h)) / (2 * h) * sd_el) ** 2
+    position = np.sqrt(np.square(std.position) + (factor**2 - 1.0) * extra)
+    aod_sd = np.array([sd_az * factor, sd_el * factor if solved_height is None else sd_el])
+    return dataclasses.replace(std, aod=aod_sd, position=position)

@@ -1,8 +1,9 @@
 """Per-beam DTFT magnitudes at one frequency, and the test for a second return beside the fitted tone.
 
-Both read the cube at the (off-grid) frequencies the estimators found (``docs/estimation.md``):
+All read the cube at the (off-grid) frequencies the estimators found (``docs/estimation.md``):
 :func:`beam_dtft` gives |Z_m| for the AoD fit of the paper path and the amplitude;
-:func:`residual_test` decides the ``unresolved-peaks`` flag (``docs/flags.md``).
+:func:`residual_test` decides the ``unresolved-peaks`` flag, :func:`beam_values` gives the
+windowed per-beam values the ``pattern-mismatch`` test fits (``docs/flags.md``).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 from .radar import RadarConfig
 from .dtft_subspace import contract_samples, dtft_phasors
 
-__all__ = ["beam_dtft", "residual_test"]
+__all__ = ["beam_dtft", "beam_values", "drift_shifts", "residual_test"]
 
 
 def beam_dtft(cube: Any, radar: RadarConfig, delay: float, delay_rate: float) -> tuple[np.ndarray, float, float]:
@@ -109,13 +110,8 @@ def residual_test(
         if far.sum() >= 4:
             g = g - (arr.mean(axis=0, where=far[:, None, None]) @ bn)[None]
     else:
-        if beam_times is None:
-            raise ValueError("drift_rate != 0 needs beam_times (RadarConfig.beam_times(M)) [s]")
-        t = np.asarray(beam_times, dtype=float)
-        if t.shape != (m,):
-            raise ValueError(f"beam_times has shape {t.shape}, expected ({m},): one frame time per beam")
-        t_mean = float((w**2) @ t / np.sum(w**2))
-        shift = radar.slope * radar.sample_period * rate * (t[sel] - t_mean)  # [M'] cycles/sample
+        t = _checked_times(beam_times, m)
+        shift = drift_shifts(radar, rate, t, w)[sel]  # [M'] cycles/sample
         template = arr.mean(axis=0, where=far[:, None, None]) if far.sum() >= 4 else None  # [K, N]
 
         def drifted(f: float, offsets: np.ndarray) -> np.ndarray:
@@ -147,3 +143,71 @@ def residual_test(
     thr = float(scipy.special.gammainccinv(sel.size, pfa / 8.0))
     best = float(stat.max())
     return (best, thr) if best > thr else None
+
+
+def _checked_times(beam_times: Any, m: int) -> np.ndarray:
+    if beam_times is None:
+        raise ValueError("drift_rate != 0 needs beam_times (RadarConfig.beam_times(M)) [s]")
+    t = np.asarray(beam_times, dtype=float)
+    if t.shape != (m,):
+        raise ValueError(f"beam_times has shape {t.shape}, expected ({m},): one frame time per beam")
+    return t
+
+
+def drift_shifts(radar: RadarConfig, drift_rate: float, beam_times: Any, weights: Any) -> np.ndarray:
+    """Each beam's fast-time frequency offset from a delay drifting at ``drift_rate`` [M] [cycles/sample].
+
+    ``S T_s ν_d (t_m − t̄)``, t̄ = Σ A_m² t_m / Σ A_m² the pattern-weighted mean frame time (where
+    a tone fitted over the beams refers to); ``weights`` are |A_m| [M], ``beam_times`` t_m [M] [s].
+    """
+    t = np.asarray(beam_times, dtype=float)
+    w2 = np.asarray(weights, dtype=float) ** 2
+    t_mean = float(w2 @ t / np.sum(w2))
+    return radar.slope * radar.sample_period * float(drift_rate) * (t - t_mean)
+
+
+def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: Any, *, drift_rate: float = 0.0,
+                beam_times: Any = None) -> tuple[np.ndarray, float]:
+    """The Hann-windowed 2-D DTFT of every beam at the fitted tone, and its noise per unit noise power.
+
+    Beam m is read at (f₁ + S T_s ν_d (t_m − t̄), f₂) (:func:`drift_shifts`; ν_d = 0: the same tone in
+    every beam). The Hann windows keep a return a few cells away (the panel's structure τ_RB
+    earlier, 7 cells at Table I) out of the values: −60 dB there, where the un-windowed DTFT lets
+    −27 dB through, the same complex offset in every beam, which a pattern fit would read as a
+    pattern that does not fall to zero.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+    radar : RadarConfig
+    f1, f2 : float
+        The fitted tone [cycles/sample].
+    weights : float array [M]
+        |A_m(θ̂)| (for t̄ only).
+    drift_rate : float, default 0
+        ν_d [s/s].
+    beam_times : float array [M], optional
+        Frame centres [s]; needed when ``drift_rate`` ≠ 0.
+
+    Returns
+    -------
+    values : complex array [M]
+        Z_m [√W · Σw].
+    noise_gain : float
+        Σ_n w_n² · Σ_k w_k²: the variance of Z_m's noise is ``noise_gain · σ²`` (σ² per sample).
+    """
+    import scipy.signal
+
+    arr = np.asarray(cube, dtype=complex)
+    m, k, n = arr.shape
+    wn = scipy.signal.get_window("hann", n, fftbins=False)
+    wk = scipy.signal.get_window("hann", k, fftbins=False)
+    n_idx = np.arange(n) - (n - 1) / 2.0
+    ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0] * wk  # [K]
+    rate = float(drift_rate)
+    shift = np.zeros(m) if rate == 0.0 else drift_shifts(radar, rate, _checked_times(beam_times, m), weights)
+    values = np.empty(m, dtype=complex)
+    for beam in range(m):
+        en = dtft_phasors(f1 + float(shift[beam]), n_idx, np.zeros(1))[0] * wn  # [N]
+        values[beam] = ek @ (arr[beam] @ en)
+    return values, float(np.sum(wn**2) * np.sum(wk**2))

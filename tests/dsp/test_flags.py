@@ -260,3 +260,51 @@ def test_radar_timing_defaults_and_old_files():
         dsp.RadarConfig(chirp_period=40e-6)
     with pytest.raises(ValueError, match="frame_period"):
         dsp.RadarConfig(frame_period=1e-3)
+
+
+def _context(**change):
+    """A FlagContext of a quiet estimate (a 2-D sweep, no cause of any flag), with ``change`` applied."""
+    from dsp.aod_fit import AodFit
+    from dsp.flags import FlagContext
+
+    grid = np.deg2rad([[az, el] for az in (-12.0, -6.0, 0.0, 6.0, 12.0) for el in (-6.0, 0.0, 6.0)])
+    aod = np.deg2rad([1.0, 0.5])
+    mags = np.ones(15)
+    mags[7] = 5.0
+    ctx = FlagContext(detection=dsp.Detection(True, 30.0, 15.0, 1e-3),
+                      fit=AodFit(aod=aod, direction_cosine=float(np.sin(aod[0])), amplitude=1.0,
+                                 candidates=np.zeros((0, 2))),
+                      magnitudes=mags, sweep=dsp.BeamSweep(grid), radar=RADAR, pose=POSE,
+                      delay=2 * 6.0 / C + TAU_RB, apparent_delay=0.5 * RADAR.max_delay, delay_rate=0.0,
+                      loopback_delay=TAU_RB, distance=6.0, aod=aod, unresolved=None, ue_height=None,
+                      height_solved=False, height_range=1.0)
+    return dataclasses.replace(ctx, **change)
+
+
+def test_a_searched_twin_beyond_the_span_raises_grating_lobe_and_a_far_one_does_not():
+    from dsp.aod_fit import AodFit
+    from dsp.flags import sweep_flags
+
+    quiet = _context()
+    assert sweep_flags(quiet) == ()
+
+    def with_twin(searched):
+        return AodFit(aod=quiet.aod, direction_cosine=quiet.fit.direction_cosine, amplitude=1.0,
+                      candidates=np.zeros((0, 2)), twins=np.array([[np.deg2rad(-47.5), 0.0, searched]]))
+
+    flags = sweep_flags(dataclasses.replace(quiet, fit=with_twin(1.0)))
+    assert [f.code for f in flags] == ["grating-lobe"] and "-47.50°" in flags[0].message
+    assert "beyond the swept span" in flags[0].message
+    assert sweep_flags(dataclasses.replace(quiet, fit=with_twin(0.0))) == ()
+
+
+def test_pattern_mismatch_is_raised_by_its_fit_only():
+    from dsp.aod_fit import PatternFit
+    from dsp.flags import sweep_flags
+
+    bad = PatternFit(statistic=50.0, threshold=1.5, dof=59.0, aod=np.zeros(2))
+    good = PatternFit(statistic=1.2, threshold=1.5, dof=59.0, aod=np.zeros(2))
+    flags = sweep_flags(_context(pattern_fit=bad))
+    assert [f.code for f in flags] == ["pattern-mismatch"] and "widened 7.1×" in flags[0].message
+    assert sweep_flags(_context(pattern_fit=good)) == ()
+    assert bad.excess == pytest.approx(np.sqrt(50.0)) and good.excess == 1.0
