@@ -201,8 +201,10 @@ def add_parser(sub) -> None:
     imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
                      help="plain samples or packet-recorded UDP payloads (default: detect)")
     imp.add_argument("--first-frame", metavar="N|auto",
-                     help="override the schedule's first_frame: the recorded frame of the first beam, or 'auto' to "
-                          "find the sweep from the RIS's sync frames and beam-dependent power")
+                     help="override the schedule's first_frame: the recorded frame of the first beam (checked "
+                          "against the recording: a contradiction is a one-line warning and the flag "
+                          "schedule-mismatch), or 'auto' to find the sweep from the RIS's sync code and "
+                          "beam-dependent power")
     imp.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
                      help="self-interference (Tx-Rx leakage, DC) removal: gate (range gate), background (subtract "
                           "the RIS-off frames) or none (default: %(default)s; docs/measured-captures.md)")
