@@ -22,6 +22,7 @@ weigh as if they were signal. For large x it tends to the profiled likelihood.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,7 +31,7 @@ import scipy.optimize
 import scipy.special
 
 from .validation import as_finite_array, fields_equal, finite
-from .pattern import BeamPattern
+from .pattern import BeamPattern, dirichlet
 from .sweep import BeamSweep
 
 __all__ = ["AodFit", "PatternFit", "fit_aod", "pattern_fit", "bessel_ratio", "log_i0"]
@@ -283,28 +284,35 @@ def _prefer_swept_twin(u_hat: float, u_beams: np.ndarray, period: float, value: 
     return min(tied, key=lambda t: abs(t - 0.5 * (lo + hi))) if tied else u_hat
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PatternFit:
     """Goodness of fit of the beam pattern to the per-beam magnitudes (``pattern-mismatch``).
 
     Attributes
     ----------
     statistic : float
-        χ²/dof-like ratio T = Σ_m (r_m − b̂|A_m(θ̂)|)² / Σ_m e_m [unitless]: 1 on average when the
-        model is right (a little less: b̂ and θ̂ are fitted), e_m the expected squared residual of a
-        Rice magnitude r_m about its amplitude.
+        χ²/dof-like ratio T = Σ_m (r_m − b̂|A_m|)² / Σ_m e_m [unitless], at the best fit of the
+        pattern (allowing the AoD to drift across the sweep when frame times are given): about 1
+        when the model is right (a little less: its parameters are fitted), e_m the expected squared
+        residual of a Rice magnitude r_m about its amplitude.
     threshold : float
         The level T exceeds with probability ``pfa`` under the right model [unitless].
     dof : float
         The effective degrees of freedom ν of the scaled-χ² approximation [unitless].
     aod : float array [2]
-        θ̂ of the fit [rad].
+        θ̂ of the fit, at the pattern-weighted mean frame time [rad].
+    static_statistic : float
+        T of the fit with the AoD held over the sweep [unitless] (= ``statistic`` without frame times).
+    aod_rate : float
+        The fitted du/dt of the direction cosine [1/s] (0 without frame times).
     """
 
     statistic: float
     threshold: float
     dof: float
     aod: np.ndarray
+    static_statistic: float = math.nan
+    aod_rate: float = 0.0
 
     @property
     def mismatch(self) -> bool:
@@ -316,6 +324,11 @@ class PatternFit:
         """sqrt(T) when the test fires, else 1: the factor the AoD's 1σ is widened by [unitless]."""
         return float(np.sqrt(self.statistic)) if self.mismatch else 1.0
 
+    def __eq__(self, other: object) -> bool:
+        return fields_equal(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
 
 def _rice_mean(nu: np.ndarray, s2: float) -> np.ndarray:
     """E|ν + w|, w ~ CN(0, s²): s √π/2 · L_{1/2}(−ν²/s²) [unit of ν], with scaled Bessel functions."""
@@ -323,8 +336,20 @@ def _rice_mean(nu: np.ndarray, s2: float) -> np.ndarray:
     return np.sqrt(np.pi * s2) / 2.0 * ((1 + y) * scipy.special.i0e(y / 2) + y * scipy.special.i1e(y / 2))
 
 
+def _drifting_rss(r: np.ndarray, pattern: BeamPattern, beams: np.ndarray, w: float, u0: np.ndarray,
+                  rate: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Σ (r − b̂|A_m(u0 + rate·dt_m)|)² with b̂ profiled, for every (rate, u0) pair [R, U]."""
+    c = 2 * np.pi / pattern.grating_period
+    ub = np.cos(beams[:, 1]) * np.sin(beams[:, 0])
+    wb = np.sin(beams[:, 1])
+    u = u0[None, :, None] + rate[:, None, None] * dt[None, None, :]  # [R, U, M]
+    a = np.abs(dirichlet(c * (u - ub), pattern.num_rows) * dirichlet(c * (w - wb), pattern.num_columns))
+    return float(r @ r) - _objective(a, r)
+
+
 def pattern_fit(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, noise_variance: float,
-                pfa: float = 1e-3, elevation: float | None = None) -> PatternFit:
+                pfa: float = 1e-3, elevation: float | None = None, beam_times: Any = None,
+                max_aod_rate: float = 0.0) -> PatternFit:
     """Does the RIS beam pattern explain the per-beam magnitudes within the noise?
 
     The pattern is fitted by least squares (:func:`fit_aod`, profiled: b̂, θ̂ minimise
@@ -334,6 +359,13 @@ def pattern_fit(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, nois
     s²/2 for a strong one). T = Σ (r_m − ν_m)² / Σ e_m is compared with a scaled χ²: each term taken
     as e_m χ²₁ (variance 2e_m², an upper bound: a noise-floor beam's is e_m²), so T ν ~ χ²_ν with
     ν = (Σe_m)² / Σe_m² (Satterthwaite), and the threshold is χ²_ν's upper ``pfa`` quantile over ν.
+
+    **A radar moving across the beam** turns the AoD during the sweep (1 m/s across a 13.4 m leg:
+    2.6° over 61 frames of 20 ms) and smears the profile. With ``beam_times`` and ``max_aod_rate``
+    the fit may also let the direction cosine drift, u_m = u₀ + u̇ (t_m − t̄), |u̇| <= ``max_aod_rate``
+    (a 17 × 33 grid of (u̇, u₀) around the static fit, then Nelder–Mead): T is the better of the two
+    fits. The bound matters: a drift at the sweep's own rate stretches the pattern's width, so an
+    unbounded u̇ could mimic a wrong size or mode.
 
     A wrong mode (reflective for relay: a main lobe half as wide), spacing, size or pose leaves a
     residual that grows with the SNR: T ≫ 1.
@@ -351,6 +383,10 @@ def pattern_fit(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, nois
         Probability that the test fires under the right model [unitless].
     elevation : float, optional
         For a 1-D sweep [rad], as :func:`fit_aod`.
+    beam_times : float array [M], optional
+        Frame centre of each beam [s] (``RadarConfig.beam_times``).
+    max_aod_rate : float, default 0
+        Largest |du/dt| the drifting fit may use [1/s], e.g. v_t,max / distance; 0: the AoD is held.
 
     Returns
     -------
@@ -363,10 +399,39 @@ def pattern_fit(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, nois
     if not (np.isfinite(s2) and s2 > 0):
         raise ValueError(f"noise_variance must be finite and > 0, got {noise_variance!r}")
     fit = fit_aod(r, sweep, pattern, elevation=elevation)
-    a = np.abs(pattern.amplitude(fit.aod, sweep.angles))
+    beams = sweep.angles
+    a = np.abs(pattern.amplitude(fit.aod, beams))
     nu = max(fit.amplitude, 0.0) * a
     e = np.maximum(2 * nu * nu + s2 - 2 * nu * _rice_mean(nu, s2), 1e-6 * s2)
-    stat = float(np.sum((r - nu) ** 2) / np.sum(e))
+    rss = float(np.sum((r - nu) ** 2))
+    static = rss / float(np.sum(e))
+    rate_hat = 0.0
+    if beam_times is not None and max_aod_rate > 0:
+        t = as_finite_array(beam_times, "beam_times", shape=(sweep.num_beams,))
+        dt = t - float((a * a) @ t / max(float(a @ a), 1e-300))
+        w = float(np.sin(fit.aod[1]))
+        u_fit = fit.direction_cosine
+        rates = np.linspace(-max_aod_rate, max_aod_rate, 17)
+        u0 = u_fit + np.linspace(-1.0, 1.0, 33) * pattern.null_width
+        grid = _drifting_rss(r, pattern, beams, w, u0, rates, dt)
+        i, j = np.unravel_index(int(np.argmin(grid)), grid.shape)
+
+        def cost(x: np.ndarray) -> float:
+            rate = float(np.clip(x[1], -max_aod_rate, max_aod_rate))
+            return float(_drifting_rss(r, pattern, beams, w, np.array([x[0]]), np.array([rate]), dt)[0, 0])
+
+        x0 = np.array([u0[j], rates[i]])
+        res = scipy.optimize.minimize(cost, x0, method="Nelder-Mead", options={
+            "initial_simplex": x0 + np.array([[0.0, 0.0], [pattern.null_width / 16, 0.0],
+                                              [0.0, max_aod_rate / 8 if rates[i] <= 0 else -max_aod_rate / 8]]),
+            "xatol": 1e-9, "fatol": 1e-12 * max(rss, 1e-300), "maxiter": 400})
+        best = min(float(res.fun), float(grid[i, j]))
+        if best < rss:
+            rss = best
+            rate_hat = float(np.clip(res.x[1], -max_aod_rate, max_aod_rate)) if res.fun <= grid[i, j] \
+                else float(rates[i])
+    stat = rss / float(np.sum(e))
     dof = float(np.sum(e) ** 2 / np.sum(e * e))
     thr = float(scipy.stats.chi2.isf(pfa, dof) / dof)
-    return PatternFit(statistic=stat, threshold=thr, dof=dof, aod=fit.aod)
+    return PatternFit(statistic=stat, threshold=thr, dof=dof, aod=fit.aod, static_statistic=static,
+                      aod_rate=rate_hat)

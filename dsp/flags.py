@@ -361,7 +361,8 @@ def _pattern_does_not_fit(c: FlagContext) -> str | None:
     fit = c.pattern_fit
     if fit is None or not fit.mismatch:
         return None
-    return (f"the per-beam powers depart from the RIS model's beam pattern beyond the noise: the fit's residual "
+    return (f"the per-beam powers depart from the RIS model's beam pattern beyond the noise (even with the AoD "
+            f"drifting as a radar moving across the beam would): the fit's residual "
             f"is {fit.statistic:.1f}× what the noise leaves (threshold {fit.threshold:.2f}, "
             f"{fit.dof:.0f} effective degrees of freedom): the AoD is the best fit of a wrong model, its 1σ (and the "
             f"position's) is widened {np.sqrt(fit.statistic):.1f}×; check the RIS mode (relay or reflective), its "
