@@ -60,6 +60,9 @@ def test_round_trip_recovers_distance_and_aod(experiment, tmp_path, capsys):
     assert prov["source"] == "measurement" and len(prov["raw_files"][0]["sha256"]) == 64
     assert prov["config"]["text"].startswith("%") and "frames_per_beam = 1" in prov["schedule"]
     assert prov["reader"]["dropped_packets"] == [] and prov["reader"]["truncated_bytes"] == 0
+    # each beam's chirps: frame m, chirps 0..K-1; the given first frame agrees with the recording (no flag)
+    assert prov["alignment"]["beam_chirps"] == [[[m, 0, K]] for m in range(M)]
+    assert prov["alignment"]["check"]["mismatch"] is False and prov["import_flags"] == []
     assert cap.truth.distance == pytest.approx(DISTANCE, abs=1e-9)
     np.testing.assert_allclose(np.rad2deg(cap.truth.aod), AOD_DEG, atol=1e-9)
 

@@ -149,9 +149,9 @@ def _first_frame(first_frame: int | str | None, sched: SweepSchedule) -> int | s
 
 def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, first_frame: int | str,
                chans: tuple[int, ...], *, frames_per_block: int, gate_range: float, min_confidence: float,
-               assemble: str, check: bool) -> tuple[SweepAlignment, ScheduleCheck | None]:
+               assemble: str) -> SweepAlignment:
     """Which recorded chirps hold each beam: fitted (``"auto"``, refused below ``min_confidence``) or the schedule's
-    (then checked against the recording when ``check``)."""
+    (:func:`_check_schedule` checks it against the recording)."""
     program = sched.program(radar.frame_interval)
     fractions = chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval)
     width = radar.frame_duration / radar.frame_interval
@@ -171,7 +171,7 @@ def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, firs
                 f"return at {align.feature.get('range', float('nan')):.2f} m, {align.feature.get('snr_db', 0):.1f} dB); "
                 "give first_frame in the sweep schedule (or --first-frame N), add the RIS's [sync] pattern, or "
                 "lower --min-confidence")
-        return align, None
+        return align
     align = manual_alignment(program, int(first_frame), num_frames=info.num_frames, fractions=fractions,
                              frame_width=width, assemble=assemble)
     needed = int((align.chirp_start[-1] + align.num_chirps - 1) // align.num_chirps) + 1
@@ -182,12 +182,21 @@ def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, firs
             f"{info.files[0]}: the recording holds {info.num_frames} whole frame(s) but the sweep schedule needs "
             f"{needed} (first_frame {first_frame} + ({sched.num_beams} beams - 1) x {per_beam} + 1); check "
             "first_frame, the time per beam and the sweep's beam count, or whether the recording stopped early")
-    result = None
-    if check:
-        series = ris_power_series(blocks, radar, min_range=gate_range)
-        result = check_first_frame(series, program, int(first_frame), fractions=fractions, frame_width=width,
-                                   max_drift=sched.max_clock_drift, assemble=assemble)
-    return align, result
+    return align
+
+
+def _check_schedule(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, first_frame: int,
+                    chans: tuple[int, ...], *, frames_per_block: int, gate_range: float,
+                    assemble: str) -> ScheduleCheck:
+    """A given first frame checked against the recording (:func:`.alignment.check_first_frame`; reads it twice)."""
+    def blocks():
+        return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
+
+    series = ris_power_series(blocks, radar, min_range=gate_range)
+    return check_first_frame(series, sched.program(radar.frame_interval), int(first_frame),
+                             fractions=chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval),
+                             frame_width=radar.frame_duration / radar.frame_interval,
+                             max_drift=sched.max_clock_drift, assemble=assemble)
 
 
 def _mismatch_message(source: Path, result: ScheduleCheck) -> str:
@@ -345,9 +354,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     radar = cfg.to_radar_config()
     program = sched.program(radar.frame_interval)
     radar = replace(radar, frames_per_beam=max(1, int(round(program.frames_per_beam))))
-    align, checked = _alignment(info, radar, sched, first_frame, chans, frames_per_block=frames_per_block,
-                                gate_range=gate_range, min_confidence=min_confidence, assemble=assemble,
-                                check=check_schedule)
+    align = _alignment(info, radar, sched, first_frame, chans, frames_per_block=frames_per_block,
+                       gate_range=gate_range, min_confidence=min_confidence, assemble=assemble)
     wanted = align.frame_index
     off = set(int(f) for f in align.off_frames) if leakage == "background" else set()
     if leakage == "background" and not off:
@@ -359,6 +367,10 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
                  f"channel(s) x {cfg.num_samples} samples (radar configuration) as complex128",
                  fix="check the sweep's beams and the configuration's numLoops and numAdcSamples, or import fewer "
                      "channels (--channels)")
+    checked = None
+    if check_schedule and first_frame != "auto":
+        checked = _check_schedule(info, radar, sched, int(first_frame), chans, frames_per_block=frames_per_block,
+                                  gate_range=gate_range, assemble=assemble)
     beams = _read_beams(info, align, off, chans, cfg, frames_per_block=frames_per_block)
     cube, weights = _combined_cube(beams, radar, leakage, gate_range, len(off))
     sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
