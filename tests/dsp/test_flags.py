@@ -130,7 +130,13 @@ def test_detected_estimate_carries_uncertainty_and_a_reference_time():
     assert sd.peak_snr_db == pytest.approx(30.0, abs=1.0)
     rho = 10 ** (sd.peak_snr_db / 10)
     distance, azimuth = random_phase_bound(loc.aod, rho)
-    assert sd.distance == pytest.approx(distance, rel=1e-4)
+    # the refined delay's variance carries the static template's factor F (dsp.refine_estimate; its
+    # own tests check F): the distance 1σ is the bound times √F
+    cube = cube_for(np.random.default_rng(2))
+    factor = dsp.refine_estimate(cube, sweep=SWEEP, radar=RADAR, pattern=RELAY, initial_delay=loc.delay,
+                                 initial_delay_rate=loc.delay_rate).delay_variance_factor
+    assert 1.0 <= factor < 1.2
+    assert sd.distance == pytest.approx(distance * np.sqrt(factor), rel=1e-4)
     assert sd.aod[0] == pytest.approx(azimuth, rel=1e-4)
     fixed = dsp.sweep_crb(radar=RADAR, sweep=SWEEP, pattern=RELAY, aod=loc.aod, peak_snr=rho)
     assert sd.distance > fixed.distance * (1 + 1e-4) and sd.aod[0] > fixed.aod[0] * (1 + 1e-4)
