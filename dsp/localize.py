@@ -3,8 +3,10 @@
 Detection (``dsp.detection``) -> the estimator's estimate (``dsp.estimators``: the paper's grid
 peak or the refined one, chosen once) -> distance, reference time and a known height
 (``dsp.qualify``) -> 1σ from the Cramér–Rao bound (``dsp.crb``) -> the flags (``dsp.flags``,
-``docs/flags.md``) -> :class:`Localization`. Without a detection it presents no position. The
-result type and the paper's method on a scan, :func:`localize`, are in ``dsp.localization``.
+``docs/flags.md``; the AoD's 1σ widened by the pattern fit's excess under ``pattern-mismatch``) ->
+the other candidates of the AoD fit (``Localization.alternatives``) -> :class:`Localization`.
+Without a detection it presents no position. The result type and the paper's method on a scan,
+:func:`localize`, are in ``dsp.localization``.
 """
 
 from __future__ import annotations
@@ -95,7 +97,7 @@ def self_localize(
     Returns
     -------
     Localization
-        With ``detection``, ``std`` and ``flags``; without a detection no position (NaN).
+        With ``detection``, ``std``, ``flags`` and ``alternatives``; without a detection no position (NaN).
     """
     inp, ue_height, height_range = _checked(cube, sweep=sweep, radar=radar, processing=processing, pose=pose,
                                             loopback_delay=loopback_delay, estimator=estimator, pattern=pattern,
