@@ -271,7 +271,7 @@ def test_a_25ms_sweep_given_late_is_flagged(dwell25, tmp_path, capsys):
     assert check["mismatch"] and check["beams_differ"] >= 10
     assert [f["code"] for f in cap.provenance["import_flags"]] == ["schedule-mismatch"]
     assert cap.provenance["alignment"]["beam_chirps"][1] == [[18, 0, K]]
-    err_d, err_az, sd, saz = _localize(cap)
+    _, err_az, _, saz = _localize(cap)
     assert abs(err_az) > max(5 * saz, 0.5)                                  # a confident wrong angle, now flagged
 
 

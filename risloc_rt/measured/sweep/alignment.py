@@ -537,7 +537,7 @@ def _candidates(s: np.ndarray, program: RisProgram, times: np.ndarray, *, max_dr
                 dw = dwell + P * dd
                 if abs(dw / P - 1) <= max_drift + 1e-12:
                     found.append(run(t0 + np.arange(-10, 11) * 0.025, dw, exact=True))
-            rss, (t1, d1) = min(f for f in found if f is not None)
+            _, (t1, d1) = min(f for f in found if f is not None)
             if abs(t1 - t0) < 0.2 and abs(d1 - dwell) < 1.5 * P * fine_d:
                 break                                           # the local best is inside the searched patch
             t0, dwell = t1, d1
