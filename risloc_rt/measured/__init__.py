@@ -31,7 +31,7 @@ ADC samples, in ADC counts, with the project's sign convention (``I − jQ``) un
 """
 
 from .dca1000.channels import combine_channels
-from .dca1000.inspection import CaptureInspection, Peak, inspect_capture, plot_inspection
+from .dca1000.inspection import CaptureInspection, Peak, file_iq_swap, inspect_capture, plot_inspection
 from .dca1000.packets import DroppedPackets, PacketIssue, detect_payload_size, pack_header
 from .dca1000.raw_layout import RawLayout, decode_frames, encode_frames
 from .dca1000.reader import CaptureInfo, FrameBlock, RawCapture, iter_frames, open_raw, read_raw
@@ -62,7 +62,7 @@ __all__ = [
     "FrameBlock", "MeasuredFormatError", "PacketIssue", "ParsedSdkCfg", "ParsedStudioJson", "Peak",
     "QuantizedCube", "RawCapture", "RawLayout", "Recording", "TiChirp", "TiChirpConfig", "capture_files",
     "combine_channels", "decode_frames", "detect_payload_size", "encode_frames", "format_sdk_cfg",
-    "inspect_capture", "iter_frames", "load_config", "open_raw", "pack_header", "parse_sdk_cfg",
+    "file_iq_swap", "inspect_capture", "iter_frames", "load_config", "open_raw", "pack_header", "parse_sdk_cfg",
     "parse_studio_json", "plot_inspection", "quantize_cube", "read_raw", "read_sdk_cfg", "read_studio_json",
     "device_steps", "slope_step", "start_frequency_step", "write_raw_capture",
 ]
