@@ -290,7 +290,11 @@ def _paper_bounds(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: fl
     sd_dist = float(np.sqrt(var_tau + (grid_tau**2 + (coupling * grid_nu) ** 2) / 12)) * SPEED_OF_LIGHT / 2
     sd_vel = float(np.sqrt(var_nu + grid_nu**2 / 12)) * SPEED_OF_LIGHT / 2
     step_az = float(np.median(np.abs(np.diff(sweep.angles[:, 0])))) if m > 1 else 0.0
-    sd_az = beam_choice_std(pattern, sweep, est.beam_index, rho * energy_fast * peak_slow)
+    row = np.abs(sweep.angles[:, 1] - sweep.angles[est.beam_index, 1]) < 1e-12
+    if np.isfinite(bound_all.aod[0]) and np.ptp(sweep.angles[row, 0]) > 0:
+        sd_az = beam_choice_std(pattern, sweep, est.beam_index, rho * energy_fast * peak_slow)
+    else:  # no azimuth steps on the chosen beam's row (or an unobservable azimuth): the bound and the grid
+        sd_az = float(np.hypot(bound_all.aod[0], step_az / np.sqrt(12)))
     half = ((grid_tau + coupling * grid_nu) * SPEED_OF_LIGHT / 4, grid_nu * SPEED_OF_LIGHT / 4, step_az / 2)
     return EstimatorBounds(distance=sd_dist, velocity=sd_vel, az=sd_az, el=bound_all.aod[1], kind="crb+grid",
                            grid=tuple(float(v) for v in half), peak_snr=rho)
