@@ -241,6 +241,7 @@ def dwell25_whole(tmp_path_factory):
                    chip_ms=20.0, repeat_after=True, tail_frames=3, schedule_first_frame="true")
 
 
+@pytest.mark.slow
 def test_25ms_beams_by_hand(dwell25_whole):
     """The issue: such a RIS could not be imported at all, not even by hand. first_frame = 15 given: no warning."""
     exp = dwell25_whole.experiment
@@ -256,6 +257,7 @@ def test_25ms_beams_by_hand(dwell25_whole):
     assert abs(err_az) <= max(4 * saz, 0.02) and abs(err_d) <= max(4 * sd, 2e-3)
 
 
+@pytest.mark.slow
 def test_a_25ms_sweep_given_late_is_flagged(dwell25, tmp_path, capsys):
     """first_frame = 16 is the first frame inside beam 0 (start 15.3), but beam m is then assumed at 16 + 1.25 m,
     0.7 frame late: beam 1 [16.55, 17.8) would take frame 18, which holds beam 2 [17.8, 19.05)."""
