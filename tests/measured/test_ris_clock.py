@@ -84,6 +84,12 @@ def test_beam_chirps_spread_over_two_frames_by_hand():
     start, mixed = select_chirps(prog, 6.3, 1.25, num_chirps=4, frame_width=0.75, assemble="frame")
     np.testing.assert_array_equal(start, [28, 32, 36])
     np.testing.assert_array_equal(mixed, [True, False, False])
+    # A beam shorter than K chirps (one frame per beam, RIS clock 0.32 % fast): [14.38, 15.3768), K = 64 chirps of
+    # 0.007 frames. Chirps k.. of frame 14 and ..k-1 of frame 15 hold (14.448 - max(14.38, 14 + 0.007 k))
+    # + min(0.007 k, 0.3768) of it: k = 53: 0.4390, k = 54: 0.4448 (99.3 % of 0.448), k = 55: 0.4398.
+    start, mixed = select_chirps(RisProgram(num_beams=1, frames_per_beam=1.0), 14.38, 0.9968, num_chirps=64,
+                                 frame_width=0.448, assemble="span")
+    assert (start[0], mixed[0]) == (14 * 64 + 54, False)
 
 
 # ------------------------------------------------------------------------------------------- schedules

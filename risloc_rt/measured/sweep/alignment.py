@@ -33,7 +33,8 @@ lies within :data:`SPAN_PREFERENCE` of an edge and the K chirps lie that much fu
 ``"frame"`` the frame holding most of the
 beam's chirps (then the beam is *mixed*). :data:`DEFAULT_ASSEMBLE` is the better of the two on emulated
 recordings (``docs/measured-captures.md``, "RIS timing model"). A beam holding fewer than K
-chirps falls back to ``"frame"``.
+chirps (a RIS clock slightly fast with one frame per beam) takes the K consecutive chirps holding
+most of it with ``"span"``, the frame holding most of it with ``"frame"``.
 
 **Confidence.** With Gaussian residuals of the best fit's variance ``σ̂² = RSS_best/(F − J − 2)``
 (J free levels), each refined candidate c gets the posterior weight ``w_c ∝ exp(−(RSS_c −
@@ -255,8 +256,9 @@ def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps
     consecutive chirps (across a frame boundary) with the largest margin when no frame is wholly
     inside, or when the best frame's margin is below ``span_preference`` and theirs exceeds it by
     more than that (the automatic alignment uses :data:`SPAN_PREFERENCE`; 0: never). When
-    neither fits, the frame holding most of the beam's chirp time is used (``"frame"`` always does
-    so) and the beam is *mixed*.
+    neither fits (the beam is shorter than K chirps), ``"span"`` takes the K consecutive chirps
+    holding most of the beam's chirp time, ``"frame"`` the frame holding most of it; the beam is
+    *mixed*.
 
     Parameters
     ----------
@@ -310,6 +312,11 @@ def select_chirps(program: RisProgram, start: float, dwell: float, *, num_chirps
         take = (span_margin >= -1e-9) & (mixed | loose)
         chirp_start = np.where(take, g0[m, i], chirp_start)
         mixed = mixed & ~take
+        # a beam shorter than K chirps: the K consecutive chirps holding most of it (the fewest of another state)
+        share = np.where(np.isfinite(mg), _share(t_first, lo[:, None], hi[:, None], w), -1.0)
+        j = np.argmax(np.round(share, 9), axis=1)
+        chirp_start = np.where(mixed, g0[m, j], chirp_start)
+        mixed = mixed & (share[m, j] < 1 - MIX_TOLERANCE)
     return chirp_start, mixed
 
 
