@@ -162,7 +162,18 @@ class RecordingPlan:
         return self.lead_frames + program.sync_length * (1 + self.clock_drift)
 
     def dwell(self, program: RisProgram) -> float:
-        """Radar frames per beam: ``frames_per_beam·(1 + clock_drift)`` of ``program`` (from :meth:`program`)."""
+        """Radar frames per beam: ``frames_per_beam·(1 + clock_drift)``.
+
+        Parameters
+        ----------
+        program : RisProgram
+            From :meth:`program`.
+
+        Returns
+        -------
+        float
+            [frames].
+        """
         return float(program.frames_per_beam) * (1 + self.clock_drift)
 
 

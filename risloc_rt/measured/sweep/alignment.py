@@ -163,7 +163,13 @@ class SweepAlignment:
         return self.dwell / self.frames_per_beam - 1.0
 
     def beam_segments(self) -> list[list[list[int]]]:
-        """Per beam, the recorded chirps it uses: ``[[frame, first chirp, count], ...]`` (one or two segments)."""
+        """Per beam, the recorded chirps it uses.
+
+        Returns
+        -------
+        list [M] of lists
+            ``[[frame, first chirp, count], ...]``: one segment (a whole frame) or two (a span).
+        """
         return [_segments(int(g0), self.num_chirps) for g0 in self.chirp_start]
 
     def to_dict(self) -> dict[str, Any]:
@@ -232,7 +238,13 @@ class ScheduleCheck:
     mismatch: bool
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON (for the provenance)."""
+        """Plain JSON (for the provenance).
+
+        Returns
+        -------
+        dict
+            The attributes; ``start`` [frames], ``delta_rss`` [σ̂²].
+        """
         return {"given": self.given, "supported": self.supported, "start": float(self.start),
                 "confidence": float(self.confidence), "delta_rss": float(self.delta_rss),
                 "given_probability": float(self.given_probability), "beams_differ": self.beams_differ,
