@@ -13,7 +13,7 @@ The wall_1 echo (folded from 23.1 m to 1.29 m, 19 dB over the floor echo 2.4 cel
 than the 12.3 mm offset. Cause, found by experiment: noise on *both* sides. The simulated side had its own noise
 draw at the measured floor, and without a calibration its gain G came from the total signal power, 4 dB low for
 wall_1 (the model's RIS is 3.5 dB too strong): the measured peak read +6.6 mm from its noise-free position
-(σ 1.85 mm), the simulated one −3.7 mm (σ 2.9 mm), total 10.4 mm = 3.0σ of the difference. The measured minus
+(σ 1.75 mm), the simulated one −3.7 mm (σ 2.8 mm), total 10.4 mm = 3.1σ of the difference. The measured minus
 the noise-free prediction is white at the noise floor (no leakage, no slope or folding error: the slope is the
 truncated one on both sides and the folded peak lands, noise-free, within 0.1 mm of its path's apparent
 range; the floor echo pulls it by +0.26 mm, the same on both sides). The residual now takes the simulated peak
