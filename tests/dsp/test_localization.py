@@ -272,13 +272,14 @@ def _quiet_context():
 
 
 def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
-    from dsp.aod_fit import AodFit
+    from dsp.aod_fit import AodFit, PatternFit
     from dsp.detection import Detection
     from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
     from dsp.qualify import Uncertainty
 
     assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
-                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed", "unobservable"]
+                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed", "unobservable",
+                                      "pattern-mismatch"]
     quiet = _quiet_context()
     assert sweep_flags(quiet) == ()
     one_d = BeamSweep.azimuth_grid(*np.deg2rad([-12.0, 12.0, 3.0]))  # 9 beams at el 0
@@ -299,6 +300,8 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
         # an infinite azimuth σ (the sweep cannot observe it)
         "unobservable": dict(std=Uncertainty(distance=0.01, velocity=0.01, aod=np.array([np.inf, 0.01]),
                                              position=np.array([np.inf, 0.0, 0.06]), peak_snr_db=30.0, kind="crb")),
+        # the beam pattern fits 50× worse than the noise allows (threshold 1.5)
+        "pattern-mismatch": dict(pattern_fit=PatternFit(statistic=50.0, threshold=1.5, dof=59.0, aod=quiet.aod)),
     }
     for code, change in causes.items():
         assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **change))] == [code], code
