@@ -12,10 +12,11 @@ from .crb import SweepBound, position_std, rician_information, sweep_crb, tone_f
 from .detection import Detection, check_beat_cube, detect
 from .flags import FLAG_CODES, INSPECTION_CODES, Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
+from .localization import Alternative
 from .localize import Localization, NoPositionError, localize, self_localize
 from .pattern import BeamPattern
 from .qualify import Uncertainty, elevation_for_height
-from .aod_fit import AodFit, fit_aod
+from .aod_fit import AodFit, PatternFit, fit_aod, pattern_fit
 from .refine import RefinedEstimate, refine_estimate
 from .residual import beam_dtft, residual_test
 from .processing import ProcessingConfig, window_vector
@@ -25,6 +26,7 @@ from .sweep import BeamSweep
 from .threads import limit_threads, thread_count
 
 __all__ = [
+    "Alternative",
     "AodFit",
     "BeamPattern",
     "Detection",
@@ -32,12 +34,14 @@ __all__ = [
     "INSPECTION_CODES",
     "Flag",
     "NoPositionError",
+    "PatternFit",
     "RefinedEstimate",
     "SweepBound",
     "Uncertainty",
     "beam_dtft",
     "check_beat_cube",
     "detect",
+    "pattern_fit",
     "elevation_for_height",
     "fit_aod",
     "position_std",

@@ -45,7 +45,7 @@ def _layout_or_config(args: argparse.Namespace):
         raise CliError(f"--layout {args.layout!r} must be four integers SAMPLES,RX,CHIRPS_PER_LOOP,LOOPS, "
                        "e.g. 256,4,3,64") from None
     return RawLayout(num_samples=n, num_rx=rx, chirps_per_loop=cpl, num_loops=loops, adc_format=args.adc_format,
-                     lanes=args.lanes or 2, iq_swap=args.iq_swap)
+                     lanes=args.lanes or 2, iq_swap=bool(args.iq_swap))
 
 
 def _inspect(args: argparse.Namespace) -> int:
@@ -178,7 +178,8 @@ def add_parser(sub) -> None:
     ins.add_argument("--adc-format", choices=["complex1x", "complex2x", "real"], default="complex1x",
                      help="with --layout: the ADC output format (default: %(default)s)")
     ins.add_argument("--lanes", type=int, choices=[2, 4], help="LVDS lanes: 2 (xWR16/18/68xx, default) or 4 (xWR14xx)")
-    ins.add_argument("--iq-swap", action="store_true", help="the file stores Q before I")
+    ins.add_argument("--iq-swap", action="store_true", default=None,
+                     help="the file stores Q before I (default: a Studio .json's iqSwapSel, else I first)")
     ins.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
                      help="plain samples or packet-recorded UDP payloads (default: detect)")
     ins.add_argument("--max-frames", type=int, help="analyse only the first frames (all are counted)")
@@ -197,7 +198,8 @@ def add_parser(sub) -> None:
     imp.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
     add_force_flag(imp, "an existing -o file")
     imp.add_argument("--lanes", type=int, choices=[2, 4], help="LVDS lanes: 2 (xWR16/18/68xx, default) or 4 (xWR14xx)")
-    imp.add_argument("--iq-swap", action="store_true", help="the file stores Q before I")
+    imp.add_argument("--iq-swap", action="store_true", default=None,
+                     help="the file stores Q before I (default: a Studio .json's iqSwapSel, else I first)")
     imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
                      help="plain samples or packet-recorded UDP payloads (default: detect)")
     imp.add_argument("--first-frame", metavar="N|auto",

@@ -9,6 +9,7 @@ calibration file its σ enters the total, exactly in quadrature.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import math
 import re
 
@@ -126,3 +127,21 @@ def test_tolerance_terms_default_to_not_stated(imported):
 
 def test_sigma_prints_with_significant_digits():
     assert significant(2.03e-5) == "0.00002" and significant(0.00123) == "0.0012" and significant(0.47) == "0.47"
+
+
+def test_schedule_tolerance_table_reaches_the_budget(imported, tmp_path):
+    from risloc_rt.measured import format_sweep_schedule, parse_sweep_schedule
+    from risloc_rt.measured.compare.uncertainty_budget import ris_tolerances
+    from risloc_rt.measured.errors import MeasuredFormatError
+
+    cap = load_capture(imported)
+    text = cap.provenance["schedule"] + "\n[tolerance]\nposition_m = 0.005\nyaw_deg = 0.5\nelement_spacing = 0.01\n"
+    sched = parse_sweep_schedule(text)
+    assert (sched.tolerance_position_m, sched.tolerance_yaw_deg, sched.tolerance_element_spacing) == (0.005, 0.5, 0.01)
+    assert parse_sweep_schedule(format_sweep_schedule(sched)) == sched                      # written back the same
+    tol = ris_tolerances(replace(cap, provenance={**cap.provenance, "schedule": format_sweep_schedule(sched)}))
+    assert (tol.position, tol.element_spacing) == (0.005, 0.01) and tol.yaw == pytest.approx(np.deg2rad(0.5))
+    with pytest.raises(MeasuredFormatError, match=r"tolerance.yaw_deg = -1 must be a finite number >= 0"):
+        parse_sweep_schedule(cap.provenance["schedule"] + "\n[tolerance]\nyaw_deg = -1\n")
+    with pytest.raises(MeasuredFormatError, match="tolerance"):
+        parse_sweep_schedule(cap.provenance["schedule"] + "\n[tolerance]\nyaw = 1\n")

@@ -9,14 +9,17 @@ Room 3 of :mod:`risloc_rt.measured` (imports :mod:`..dca1000`, :mod:`..ti`, :mod
 - :mod:`.importer`: raw recording + configuration + schedule → ``model.Capture``.
 """
 
-from .alignment import RisPowerSeries, SweepAlignment, fit_alignment, manual_alignment, ris_power_series
+from .alignment import (ASSEMBLE_MODES, DEFAULT_ASSEMBLE, SPAN_PREFERENCE, RisPowerSeries, ScheduleCheck, SweepAlignment,
+                        check_first_frame, fit_alignment, manual_alignment, ris_power_series, select_chirps)
 from .importer import DEFAULT_LEAKAGE, default_processing, import_capture
 from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
-from .ris_timing import OFF, SYNC, RisProgram, chirp_fractions, chirp_states
+from .ris_timing import MAX_SYNC_CHIPS, OFF, SYNC, RisProgram, chirp_fractions, chirp_states
 from .schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
                        write_sweep_schedule)
 
 __all__ = [
+    "ASSEMBLE_MODES", "DEFAULT_ASSEMBLE", "MAX_SYNC_CHIPS", "SPAN_PREFERENCE", "ScheduleCheck", "check_first_frame",
+    "select_chirps",
     "DEFAULT_GATE_RANGE", "DEFAULT_LEAKAGE", "LEAKAGE_METHODS", "OFF", "RisPowerSeries", "RisProgram", "SYNC",
     "SweepAlignment", "SweepSchedule", "apply_range_gate", "chirp_fractions", "chirp_states", "default_processing",
     "fit_alignment", "format_sweep_schedule", "import_capture", "manual_alignment", "parse_sweep_schedule",

@@ -37,6 +37,7 @@ from ...model.capture import Capture, provenance
 from ...model.ris import RisConfig
 from ...model.scenario import Truth
 from ..dca1000.channels import combine_channels, mrc_weights
+from ..dca1000.inspection import file_iq_swap
 from ..dca1000.raw_layout import RawLayout
 from ..dca1000.reader import CaptureInfo, iter_frames, open_raw
 from ..errors import MeasuredFormatError
@@ -281,7 +282,7 @@ def _combined_cube(beams: _BeamFrames, radar: RadarConfig, leakage: str, gate_ra
 
 
 def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
-                   schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool = False,
+                   schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool | None = None,
                    form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
                    leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
                    channels: Sequence[int] | None = None, min_confidence: float = 0.5,
@@ -298,8 +299,10 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         The sweep schedule (TOML, ``docs/formats.md``).
     lanes : {2, 4}, optional
         LVDS lanes (default: the Studio JSON's, else 2).
-    iq_swap : bool
-        The file stores Q before I.
+    iq_swap : bool, optional
+        The file stores Q before I; default the configuration's LVDS order
+        (:func:`~risloc_rt.measured.dca1000.inspection.file_iq_swap`: a Studio ``.json``'s
+        ``iqSwapSel``, else I first — an SDK ``.cfg``'s SampleSwap orders the on-chip buffer, not the file).
     form : {"auto", "raw", "packets"}
         Plain samples or packet-recorded (``"auto"`` detects it).
     frames_per_block : int
@@ -349,6 +352,7 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     chans = _channels(channels, sched, cfg)
     first_frame = _first_frame(first_frame, sched)
     lanes = lanes or cfg_lanes or 2
+    iq_swap = file_iq_swap(config_path if config_path is not None else cfg, iq_swap=iq_swap)
     layout = RawLayout.from_config(cfg, lanes=lanes, iq_swap=iq_swap)
     info = open_raw(raw, layout, form=form, expected_frames=cfg.num_frames or None)
     radar = cfg.to_radar_config()

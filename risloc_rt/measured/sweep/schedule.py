@@ -48,7 +48,8 @@ __all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "form
            "write_sweep_schedule"]
 
 _TOP = ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth",
-        "sync")
+        "sync", "tolerance")
+_TOLERANCE = ("position_m", "yaw_deg", "element_spacing")
 _SYNC = ("on_frames", "off_frames", "cycles", "gap_frames", "pattern", "chip_ms", "gap_ms", "repeat_after")
 _ON_OFF = ("on_frames", "off_frames", "cycles")
 _SWEEP = ("start_deg", "stop_deg", "step_deg", "elevation_deg", "angles_deg")
@@ -106,6 +107,9 @@ class SweepSchedule:
         RIS off between the code and the sweep [ms] (instead of ``sync_gap_frames``).
     sync_repeat_after : bool
         The sync code is sent again after the sweep (after the same gap).
+    tolerance_position_m, tolerance_yaw_deg, tolerance_element_spacing : float or None
+        ``[tolerance]``: 1σ of each RIS coordinate [m], of its yaw [deg] and, relative, of its element
+        pitch [-]; None when not stated (the uncertainty budget then lists them as unknown).
     """
 
     angles_deg: tuple[tuple[float, float], ...]
@@ -133,6 +137,9 @@ class SweepSchedule:
     sync_chip_ms: float | None = None
     sync_gap_ms: float | None = None
     sync_repeat_after: bool = False
+    tolerance_position_m: float | None = None
+    tolerance_yaw_deg: float | None = None
+    tolerance_element_spacing: float | None = None
 
     def __post_init__(self) -> None:
         if (self.frames_per_beam is None) == (self.beam_dwell_ms is None):
@@ -444,6 +451,19 @@ def _sync_code(sync: dict[str, Any], source: str) -> dict[str, Any]:
     return out
 
 
+def _tolerance_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
+    """The ``[tolerance]`` table: 1σ of the RIS position [m], yaw [deg], element pitch [relative]."""
+    table = _table(doc, "tolerance", source, required=False)
+    if table is None:
+        return {}
+    _check_keys(table, _TOLERANCE, source, "tolerance.")
+    fixes = {"position_m": "give the 1σ of each RIS coordinate in metres, e.g. 0.005",
+             "yaw_deg": "give the 1σ of the panel's yaw in degrees, e.g. 0.5",
+             "element_spacing": "give the relative 1σ of the element pitch, e.g. 0.01 for 1 %"}
+    return {f"tolerance_{k}": _float(table[k], source, f"tolerance.{k}", minimum=0.0, fix=fixes[k])
+            for k in _TOLERANCE if k in table}
+
+
 def _truth_position(doc: dict[str, Any], source: str) -> tuple[float, ...] | None:
     """The ``[truth]`` table's ``ue_position`` [m], or None without the table."""
     truth = _table(doc, "truth", source, required=False)
@@ -520,7 +540,7 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
     _check_ris_memory(len(angles), ris["ris_rows"], ris["ris_columns"], source)
     sync = _sync_fields(doc, source)
     return SweepSchedule(angles_deg=angles, grid=grid, truth_ue_position=_truth_position(doc, source), **frames,
-                         **ris, **sync)
+                         **ris, **sync, **_tolerance_fields(doc, source))
 
 
 def read_sweep_schedule(path: str | Path) -> SweepSchedule:
@@ -579,6 +599,9 @@ def _as_document(s: SweepSchedule) -> dict[str, Any]:
         doc["sync"] = sync
     if s.truth_ue_position is not None:
         doc["truth"] = {"ue_position": list(s.truth_ue_position)}
+    tol = {k: getattr(s, f"tolerance_{k}") for k in _TOLERANCE if getattr(s, f"tolerance_{k}") is not None}
+    if tol:
+        doc["tolerance"] = tol
     return doc
 
 
@@ -614,7 +637,7 @@ def format_sweep_schedule(schedule: SweepSchedule, *, comment: str | None = None
     for key in ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift"):
         if key in doc:
             lines.append(f"{key} = {_toml_value(doc[key])}")
-    for table in ("sweep", "ris", "sync", "truth"):
+    for table in ("sweep", "ris", "sync", "truth", "tolerance"):
         if table in doc:
             lines.append("")
             lines.append(f"[{table}]")
