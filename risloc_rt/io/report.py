@@ -236,7 +236,7 @@ def _estimate_dict(loc: Localization, budget: list[dict[str, Any]] | None = None
         "reference_time": loc.reference_time,
         "std": None if loc.std is None else loc.std.to_dict(),
         "uncertainty_budget": budget,
-        "alternatives": [a.to_dict() for a in getattr(loc, "alternatives", None) or ()],
+        "alternatives": [a.to_dict() for a in loc.alternatives],
     }
 
 

@@ -39,3 +39,19 @@ def test_no_import_flags_on_a_clean_capture(capture):
     loc, _ = process_capture(capture)
     assert capture_flags(capture, loc) == ()
     assert not {"damaged-beams", "schedule-mismatch", "uncalibrated"} & set(loc.flag_codes)
+
+
+def test_alternatives_reach_result_json(tmp_path):
+    """Issue 20 item 7: a reflective RIS's grating twin beyond the sweep is listed in result.json, not chosen."""
+    import json
+
+    from risloc_rt.cli import main
+
+    cap = tmp_path / "twin.npz"
+    assert main(["simulate", "--distance", "13.38", "--aod", "15.2,0", "--mode", "reflective", "--tx-power-dbm", "10",
+                 "--seed", "3", "-o", str(cap)]) == 0
+    assert main(["locate", str(cap), "--out", str(tmp_path / "out")]) == 0
+    est = json.loads((tmp_path / "out" / "result.json").read_text())["cases"][0]["estimate"]
+    assert abs(np.rad2deg(est["aod"][0]) - 15.2) < 1.0                      # the in-sweep candidate
+    twins = [a for a in est["alternatives"] if a["kind"] == "grating-twin"]
+    assert twins and abs(twins[0]["aod_deg"][0] - (-47.5)) < 1.5
