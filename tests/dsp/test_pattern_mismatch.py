@@ -110,9 +110,11 @@ def test_right_model_is_not_flagged_on_a_few_captures():
 
 @pytest.mark.slow
 def test_right_model_false_alarm_rate_below_one_percent_at_0_to_25_dbm():
-    # 120 Table I captures (relay RIS, relay model; broadside and 21° off; 0, 5, ..., 25 dBm; the
-    # fast noise stream): the flag fires on fewer than 1 % (docs/flags.md: 0 of 360 measured on other seeds).
-    seeds = np.random.SeedSequence(2020).spawn(120)
+    # 60 Table I captures (relay RIS, relay model; broadside and 21° off; 0, 5, ..., 25 dBm; the
+    # fast noise stream): the flag fires on none (0 of 60 bounds the rate below 4.9 % at 95 %;
+    # docs/flags.md: 0 of 360 measured on other seeds, below 0.83 %). 60 rather than 120 keeps the
+    # suite's time (75 s for 120 on the 2-core CI machine).
+    seeds = np.random.SeedSequence(2020).spawn(60)
     fired = []
     for i, ss in enumerate(seeds):
         power = [0.0, 5.0, 10.0, 15.0, 20.0, 25.0][i % 6]
@@ -122,7 +124,7 @@ def test_right_model_false_alarm_rate_below_one_percent_at_0_to_25_dbm():
         loc = locate(cap, dsp.BeamPattern.relay(), scan=False)
         if "pattern-mismatch" in loc.flag_codes:
             fired.append((case, power))
-    assert len(fired) / 120 < 0.01, fired
+    assert fired == [], fired
 
 
 def test_a_radar_walking_across_the_beam_is_not_a_wrong_pattern():
