@@ -43,7 +43,7 @@ sys.path.insert(0, str(REPO))
 from dsp import ProcessingConfig, RadarConfig  # noqa: E402
 from risloc_rt.io.report import process_capture  # noqa: E402
 from risloc_rt.measured import (dca1000_radar, device_steps, emulate_capture, import_capture,  # noqa: E402
-                                slope_step, start_frequency_step)
+                                slope_step)
 from risloc_rt.measured import MeasuredFormatError  # noqa: E402
 from risloc_rt.measured.compare.uncertainty_budget import apply_budget  # noqa: E402
 from risloc_rt.measured.emulate.recording import RecordingPlan, emulate_recording  # noqa: E402

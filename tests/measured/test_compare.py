@@ -33,7 +33,7 @@ import pytest
 from dsp import ProcessingConfig, RadarConfig, delay_doppler_map
 from risloc_rt.cli import main
 from risloc_rt.hall.path_table import apparent_distance
-from risloc_rt.measured.compare.calibration_file import read_calibration, write_calibration
+from risloc_rt.measured.compare.calibration_file import write_calibration
 from risloc_rt.measured.compare.calibration_fit import calibrate_capture
 from risloc_rt.measured.compare.comparison import _recalibrated_ris_paths, delay_sigma
 from risloc_rt.measured.compare.traced_hall import hall_model
