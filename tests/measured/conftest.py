@@ -1,8 +1,16 @@
-"""Factories for the measured-capture tests: a small TDM-MIMO TI configuration and tone cubes."""
+"""Factories for the measured-capture tests: a small TDM-MIMO TI configuration and tone cubes.
+
+It also registers the test-side TI reference decoder, ``ti_reference.py`` next to this file, as the
+module ``ti_reference`` (the tests run with ``--import-mode=importlib``: this folder is not on
+``sys.path``), so that the reader tests ``import ti_reference as ref``.
+"""
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -10,6 +18,10 @@ import pytest
 
 from risloc_rt.measured import TiChirp, TiChirpConfig
 
+if "ti_reference" not in sys.modules:
+    _spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
+    sys.modules["ti_reference"] = _module = importlib.util.module_from_spec(_spec)
+    _spec.loader.exec_module(_module)
 
 
 IWR6843_3TX = """\

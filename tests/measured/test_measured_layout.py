@@ -3,26 +3,11 @@ directions judged by the test-side reference decoder ``ti_reference`` (never by 
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from risloc_rt.measured import MeasuredFormatError, RawLayout, decode_frames, encode_frames
-
-
-def _load_reference():
-    """``ti_reference`` next to this file (--import-mode=importlib: the test folder is not on sys.path)."""
-    if "ti_reference" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
-        sys.modules["ti_reference"] = module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    return sys.modules["ti_reference"]
-
-
-ref = _load_reference()
+import ti_reference as ref  # registered by tests/measured/conftest.py (this folder is not on sys.path)
 
 
 def _layout(**kw):

@@ -6,8 +6,6 @@ documents) reading the same files, never from the emulator's codes.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,19 +13,7 @@ import pytest
 
 from risloc_rt.measured import (MeasuredFormatError, RawLayout, Recording, capture_files, inspect_capture, iter_frames,
                                 open_raw, read_raw, write_raw_capture)
-
-
-
-def _load_reference():
-    """``ti_reference`` next to this file (--import-mode=importlib: the test folder is not on sys.path)."""
-    if "ti_reference" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
-        sys.modules["ti_reference"] = module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    return sys.modules["ti_reference"]
-
-
-ref = _load_reference()
+import ti_reference as ref  # registered by tests/measured/conftest.py (this folder is not on sys.path)
 SHAPE = ref.Shape(N=32, R=4, C=2, K=8)          # make_config(): 32 complex samples, 4 rx, 2 chirps, 8 loops
 
 #: The shared folder lives next to the repository: <repo>/../shared.

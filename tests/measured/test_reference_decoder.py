@@ -9,8 +9,6 @@ imports nothing from the project.
 from __future__ import annotations
 
 import ast
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,20 +16,7 @@ import pytest
 
 from risloc_rt.measured import (AdcImpairments, RawLayout, Recording, inspect_capture, iter_frames, open_raw, read_raw,
                                 read_sdk_cfg, write_raw_capture)
-
-
-
-def _load_reference():
-    """``ti_reference`` next to this file (the tests run with --import-mode=importlib: no package, no sys.path)."""
-    if "ti_reference" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("ti_reference", Path(__file__).with_name("ti_reference.py"))
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["ti_reference"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["ti_reference"]
-
-
-ref = _load_reference()
+import ti_reference as ref  # registered by tests/measured/conftest.py (this folder is not on sys.path)
 CORNER = Path(__file__).resolve().parents[2].parent / "shared" / "captures" / "iwr6843_corner_reflector" / \
     "adc_data_Raw_0.bin"
 needs_corner = pytest.mark.skipif(not CORNER.is_file(), reason=f"shared capture {CORNER} is absent")
