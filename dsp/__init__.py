@@ -1,4 +1,4 @@
-"""Shared DSP and localization stack of risloc-rt: pure numpy/scipy.
+"""Shared DSP and localization stack of risloc-rt: numpy/scipy (its whole-cube steps also on CuPy, ``dsp.xp``).
 
 It runs the same on simulated and measured beat cubes and never imports ``risloc_rt``.
 
@@ -9,7 +9,7 @@ delay-Doppler map is ``[K_DFT, N_DFT]``. SI units and radians throughout
 
 from .beamscan import BeamScan, scan_beams
 from .crb import SweepBound, position_std, rician_information, sweep_crb, tone_frequency_crb
-from .detection import Detection, check_beat_cube, detect
+from .detection import Detection, check_beat_cube, detect, detect_batch
 from .flags import FLAG_CODES, INSPECTION_CODES, Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .localization import Alternative
@@ -24,8 +24,17 @@ from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map
 from .sweep import BeamSweep
 from .threads import limit_threads, thread_count
+from .xp import DEVICE_ENV, ArrayBackend, DeviceError, backend_for, cuda_available, numpy_backend, strict_backend
 
 __all__ = [
+    "ArrayBackend",
+    "DEVICE_ENV",
+    "DeviceError",
+    "backend_for",
+    "cuda_available",
+    "detect_batch",
+    "numpy_backend",
+    "strict_backend",
     "Alternative",
     "AodFit",
     "BeamPattern",

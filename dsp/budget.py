@@ -16,7 +16,8 @@ import os
 import re
 from typing import Any
 
-__all__ = ["BudgetError", "MEMORY_LIMIT_ENV", "check_memory", "dsp_memory", "format_bytes", "memory_limit",
+__all__ = ["BudgetError", "MEMORY_LIMIT_ENV", "check_memory", "detect_batch_size", "detect_memory", "dsp_memory",
+           "format_bytes", "memory_limit",
            "parse_bytes"]
 
 #: Environment variable that overrides the memory limit (bytes, or ``8G``, ``512M``, ``2.5GiB``).
@@ -134,3 +135,63 @@ def dsp_memory(shape: Any, *, n_dft: int, k_dft: int, itemsize: int = 16) -> int
     fast = m * k * int(n_dft) * 16
     beam = int(k_dft) * int(n_dft) * (16 + 8)
     return int(cube + 2 * (fast + beam))
+
+
+#: Realizations per detector call on the host: measured on a 2-core x86 host, Table I, one thread,
+#: 0.122 s per cube at B = 1 and 0.113 s at B = 4 (cell blocks shrinking with B); more buys nothing.
+HOST_BATCH = 4
+#: Largest batch on a GPU (beyond it a kernel call is long enough that launch costs are nothing).
+DEVICE_BATCH = 64
+
+
+def detect_memory(shape: Any, *, whole_cells: bool) -> int:
+    """Peak bytes of one realization in :func:`dsp.detect_batch` (half-bin, windowed) with its noise.
+
+    Parameters
+    ----------
+    shape : (M, K, N)
+        Beams, chirps, samples.
+    whole_cells : bool
+        The window statistics over all cells at once (a GPU: M + 1 float64 running sums of every
+        cell) rather than in cache-sized blocks (the host).
+
+    Notes
+    -----
+    The noisy cube (complex128, 16 B) and its complex64 copy (8 B) per sample; the slow-time
+    transform (2K × N) and the half-bin transform (2K × 2N) in complex64; the statistics (D, the
+    window maximum, the statistic and its masks: 6 float64 arrays of 4KN cells), and with
+    ``whole_cells`` the M + 1 running sums (8 B × 4KN each). A 1.5× margin covers FFT work buffers.
+    """
+    m, k, n = (int(v) for v in shape)
+    cells = 4 * k * n
+    total = m * k * n * (16 + 8) + m * (2 * k * n + cells) * 8 + 6 * cells * 8
+    if whole_cells:
+        total += (m + 1) * cells * 8 + m * cells * 8  # running sums and the deviations' energies
+    return int(1.5 * total)
+
+
+def detect_batch_size(shape: Any, *, free_bytes: int | None = None, runs: int | None = None) -> int:
+    """Realizations per :func:`dsp.detect_batch` call: as many as the memory allows, within the caps.
+
+    Parameters
+    ----------
+    shape : (M, K, N)
+    free_bytes : int, optional
+        Free memory of a GPU [bytes] (``ArrayBackend.free_memory()``); None on the host, where the
+        memory limit (:func:`memory_limit`) bounds it and :data:`HOST_BATCH` caps it.
+    runs : int, optional
+        Runs to do (no batch larger than that).
+
+    Returns
+    -------
+    int
+        B >= 1.
+    """
+    if free_bytes is None:
+        limit, _ = memory_limit()
+        b = min(HOST_BATCH, limit // max(1, detect_memory(shape, whole_cells=False)))
+    else:
+        b = min(DEVICE_BATCH, int(0.8 * free_bytes) // max(1, detect_memory(shape, whole_cells=True)))
+    if runs is not None:
+        b = min(b, int(runs))
+    return max(1, int(b))

@@ -18,7 +18,7 @@ import numpy as np
 
 from .validation import finite, non_negative, positive
 from .beamscan import scan_beams
-from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_validated
+from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_batch, detect_validated
 from .drift import delay_drift, motion_rate
 from .estimators import ESTIMATORS, SweepEstimate, SweepInputs
 from .flags import GRATING_LOBE_DB, FlagContext, sweep_flags
@@ -31,6 +31,7 @@ from .qualify import EstimatorBounds, Uncertainty, elevation_for_height, solve_e
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .residual import beam_values, residual_test
 from .sweep import BeamSweep
+from .xp import ArrayBackend
 
 __all__ = ["Localization", "NoPositionError", "localize", "self_localize"]
 
@@ -58,6 +59,8 @@ def self_localize(
     height_range: float = 1.0,
     reference_time: float | None = None,
     scan: bool = True,
+    backend: ArrayBackend | None = None,
+    detection: Detection | None = None,
 ) -> Localization:
     """Detect the RIS return in a beat cube ``[M, K, N]`` and localize the UE, with uncertainty and flags.
 
@@ -93,6 +96,14 @@ def self_localize(
         refined estimator — every number of the result is the same, ``scan`` is None; a Monte
         Carlo study saves the search's cost (0.1-2 s per Table I cube, most at low SNR, where
         no beam's grid maximum can be screened). The paper's estimator always runs it.
+    backend : dsp.xp.ArrayBackend, optional
+        Where the detector's whole-cube work runs (:func:`dsp.detect_batch`; ``dsp.backend_for("cuda")``
+        for a GPU): the cube is copied there once. Default NumPy on the host. The estimator's steps
+        after the detection run on the host cube.
+    detection : Detection, optional
+        This cube's detection, already made by :func:`dsp.detect_batch` with the same ``pfa``,
+        ``processing.min_range``, ``pattern``, ``sweep`` and ``oversample=2`` (a study's batch); it is
+        then not computed again.
 
     Returns
     -------
@@ -105,8 +116,17 @@ def self_localize(
     steps = ESTIMATORS[estimator]
     # Pattern-matched windows on a half-bin grid (dsp.detect): 2 dB less SNR needed than the
     # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
-    det = detect_validated(inp.cube, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5,
-                           pattern=inp.pattern, sweep=sweep, oversample=2)
+    if detection is not None:
+        if not isinstance(detection, Detection):
+            raise TypeError(f"detection must be a dsp.Detection (from dsp.detect_batch), got {type(detection).__name__}")
+        det = detection
+    elif backend is None or backend.is_numpy:
+        det = detect_validated(inp.cube, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5,
+                               pattern=inp.pattern, sweep=sweep, oversample=2)
+    else:  # one explicit host -> device copy of the cube; a few numbers per candidate come back
+        det = detect_batch(backend.asarray(inp.cube[None]), radar, backend=backend, pfa=pfa,
+                           min_range=processing.min_range, max_candidates=5, pattern=inp.pattern, sweep=sweep,
+                           oversample=2)[0]
     grid = scan_beams(inp.cube, sweep, radar, processing) if scan or steps.needs_scan else None
     if not det.detected:
         return no_position(grid, det)

@@ -59,6 +59,8 @@ FLOORS = {
     "risloc_rt.__main__": 7,
 }
 HEAVY = {"sionna", "mitsuba", "drjit"}
+#: Array libraries of the device seam: imported by dsp/xp.py alone (docs/architecture.md, "Host and device").
+DEVICE_LIBS = {"cupy", "cupyx", "array_api_strict"}
 
 
 def _package_of(module: str) -> str | None:
@@ -118,6 +120,9 @@ def layering_violations() -> list[str]:
             continue
         for line, target in _imports(path):
             top = target.split(".")[0]
+            if top in DEVICE_LIBS and _module_name(path) != "dsp.xp":
+                bad.append(f"{path.relative_to(REPO)}:{line} imports {target}: only dsp.xp (the array seam) may import {top}")
+                continue
             if here == "dsp" and top in {"risloc_rt", "matplotlib", "trimesh", *HEAVY}:
                 bad.append(f"{path.relative_to(REPO)}:{line} imports {target}: dsp imports numpy/scipy only")
                 continue

@@ -3,19 +3,20 @@
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable, Literal
+from typing import Any, Callable, Literal
 
 import numpy as np
 
 from dsp import RadarConfig
 from dsp.sweep import BeamSweep
 from dsp.threads import thread_count
+from dsp.xp import ArrayBackend, numpy_backend
 
 from .paths import PathFrames, PathSet
 from .phase import exact_fractional_cycles, wrapped_tone
 from .ris import RisConfig, ris_response
 
-__all__ = ["beat_cube", "add_noise", "NoiseStream"]
+__all__ = ["beat_cube", "add_noise", "add_noise_batch", "NoiseStream"]
 
 NoiseStream = Literal["standard", "fast"]
 
@@ -281,3 +282,47 @@ def add_noise(cube: np.ndarray, noise_power: float, rng: np.random.Generator, *,
         return cube + w
     np.add(cube, w, out=out)
     return out
+
+
+def add_noise_batch(cube: np.ndarray, noise_power: float, rngs: list[np.random.Generator], *,
+                    backend: ArrayBackend | None = None, out: np.ndarray | None = None,
+                    device_cube: Any = None) -> Any:
+    """B noisy copies of one noiseless cube, copy b with the noise of ``rngs[b]``, on an array backend.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        The noiseless cube, on the host [√W].
+    noise_power : float
+        σ² [W].
+    rngs : list of numpy.random.Generator
+        One stream per realization (a study's ``SeedSequence(seed, spawn_key=(point, run))``).
+    backend : dsp.xp.ArrayBackend, optional
+        Where the result lives (default NumPy).
+    out : complex128 array [B', M, K, N], B' >= B, optional
+        Host scratch space (NumPy and array_api_strict backends): the first B entries are written.
+    device_cube : array of ``backend``, optional
+        ``cube`` already on the device (CuPy): reused, not copied again.
+
+    Returns
+    -------
+    complex array [B, M, K, N] of ``backend``
+
+    Notes
+    -----
+    On the host (NumPy, array_api_strict) copy b is :func:`add_noise` with ``stream="fast"`` on
+    ``rngs[b]``: bit for bit the noise of a single run with that stream, whatever B (array_api_strict
+    then receives the batch by one explicit copy). On a GPU (CuPy) the normals are drawn there
+    (``ArrayBackend.device_normals``, float32, seeded from each ``rngs[b]``): other numbers, the same law.
+    """
+    backend = numpy_backend() if backend is None else backend
+    b = len(rngs)
+    if backend.name == "cupy":
+        xp = backend.xp
+        clean = backend.asarray(cube) if device_cube is None else device_cube
+        scale = float(np.sqrt(noise_power / 2.0))
+        return xp.stack([clean + scale * backend.device_normals(rng, tuple(cube.shape)) for rng in rngs])
+    host = np.empty((b,) + tuple(cube.shape), dtype=np.complex128) if out is None else out[:b]
+    for i, rng in enumerate(rngs):
+        add_noise(cube, noise_power, rng, out=host[i], stream="fast")
+    return host if backend.is_numpy else backend.asarray(host)

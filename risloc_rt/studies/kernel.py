@@ -23,10 +23,9 @@ import dsp
 from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig
 
 from ..model import analytic_scenario, simulate
-from ..model.beat import add_noise
 from .params import ris_size
 
-__all__ = ["PreparedPoint", "prepare_point", "point_scenario", "run_once", "run_rng", "point_bound", "ROW_FLOATS"]
+__all__ = ["PreparedPoint", "prepare_point", "point_scenario", "run_once", "run_runs", "run_rng", "point_bound", "ROW_FLOATS"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -211,8 +210,10 @@ def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
 
 
 def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
-             buffer: np.ndarray | None = None) -> dict[str, Any]:
+             buffer: np.ndarray | None = None, backend: dsp.ArrayBackend | None = None) -> dict[str, Any]:
     """One Monte Carlo run: the seeded noise (the "fast" stream) on the point's cube, then ``dsp.self_localize``.
+
+    :func:`run_runs` with one run: the same row as that run has in any batch.
 
     Parameters
     ----------
@@ -221,7 +222,9 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
     study_seed, point, run : int
         Select the noise stream (:func:`run_rng`).
     buffer : complex ndarray, optional
-        Scratch space shaped like ``prep.cube``, reused between runs (the noisy cube is written there).
+        Host scratch space shaped like ``prep.cube`` or ``[B, *prep.cube.shape]``, reused between runs.
+    backend : dsp.ArrayBackend, optional
+        Where the noise and the detector run (default NumPy).
 
     Returns
     -------
@@ -232,20 +235,93 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
         [m]), signed errors [m, rad, m/s], ``angle_error`` [rad], ``position_error`` [m] and the
         stated 1σ (``std_distance`` [m], ``std_aod_az`` [rad], ``peb`` [m]); NaN without a detection.
     """
-    start = time.perf_counter()
-    rng = run_rng(study_seed, point, run)
+    if buffer is not None and buffer.ndim == 3:
+        buffer = buffer[None]
+    return run_runs(prep, study_seed=study_seed, point=point, runs=[run], buffer=buffer, backend=backend)[0]
+
+
+def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buffer: np.ndarray | None = None,
+             backend: dsp.ArrayBackend | None = None, batch: int | None = None) -> list[dict[str, Any]]:
+    """Monte Carlo runs of one point, B realizations per call of the whole-cube steps.
+
+    For each group of B runs: their receiver noise (:func:`risloc_rt.model.beat.add_noise_batch`,
+    run r's from :func:`run_rng`) and the detector (:func:`dsp.detect_batch`) run on ``backend`` for
+    the whole group; then each realization's cube (one explicit device → host copy per group off the
+    host) goes through ``dsp.self_localize`` with its detection, on the host. A run's row depends on
+    the study seed, the point and its run index only: not on B, the order or the worker.
+
+    Parameters
+    ----------
+    prep : PreparedPoint
+    study_seed, point : int
+    runs : sequence of int
+        The run indices.
+    buffer : complex128 ndarray [B', M, K, N], optional
+        Host scratch space for the noisy cubes (B' >= B), reused between calls.
+    backend : dsp.ArrayBackend, optional
+        Default NumPy.
+    batch : int, optional
+        B; default from the memory estimate (:func:`dsp.budget.detect_batch_size`: the memory limit
+        on the host, the GPU's free memory on a GPU).
+
+    Returns
+    -------
+    list of dict
+        The rows (:func:`run_once`), in the order of ``runs``.
+    """
+    from dsp.budget import detect_batch_size
+
+    from ..model.beat import add_noise_batch
+
+    backend = dsp.numpy_backend() if backend is None else backend
+    runs = [int(r) for r in runs]
     p = prep.params
-    truth = prep.truth
-    clean = prep.cube
-    if p.get("aod_spread_deg", 0.0) > 0:  # this run's UE azimuth: its own cube (no sharing)
-        az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
-        cap = simulate(point_scenario({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
-        clean, truth = cap.cube, cap.truth
-    cube = add_noise(clean, prep.radar.noise_power, rng, out=buffer, stream="fast")
-    loc = dsp.self_localize(cube, sweep=prep.sweep, radar=prep.radar, processing=prep.processing, pose=prep.pose,
-                            loopback_delay=prep.loopback_delay, estimator=p["estimator"], pattern=prep.pattern,
-                            pfa=p["pfa"], scan=False)  # the refined estimator's numbers do not use the grid
-    seconds = time.perf_counter() - start
+    if batch is None:
+        batch = detect_batch_size(prep.cube.shape, free_bytes=backend.free_memory(), runs=len(runs))
+    if buffer is not None and buffer.shape[0] < min(batch, len(runs)):
+        buffer = None
+    device_cube = backend.asarray(prep.cube) if backend.name == "cupy" else None
+    rows: list[dict[str, Any]] = []
+    for g in range(0, len(runs), batch):
+        group = runs[g:g + batch]
+        start = time.perf_counter()
+        rngs = [run_rng(study_seed, point, r) for r in group]
+        truths = [prep.truth] * len(group)
+        if p.get("aod_spread_deg", 0.0) > 0:  # each run's UE azimuth: its own cube (no sharing), one at a time
+            shared = None
+            cleans = []
+            for i, rng in enumerate(rngs):
+                az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
+                cap = simulate(point_scenario({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
+                cleans.append(cap.cube)
+                truths[i] = cap.truth
+        else:
+            shared = prep.cube
+        if shared is not None:
+            cubes = add_noise_batch(shared, prep.radar.noise_power, rngs, backend=backend, out=buffer,
+                                    device_cube=device_cube)
+        else:
+            cubes = backend.xp.concat([add_noise_batch(c, prep.radar.noise_power, [rng], backend=backend)
+                                       for c, rng in zip(cleans, rngs)], axis=0)
+        dets = dsp.detect_batch(cubes, prep.radar, backend=backend, pfa=p["pfa"],
+                                min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
+                                sweep=prep.sweep, oversample=2)
+        host = backend.to_host(cubes)  # one explicit copy per group (none on NumPy)
+        shared_seconds = (time.perf_counter() - start) / len(group)
+        for i, r in enumerate(group):
+            t = time.perf_counter()
+            loc = dsp.self_localize(host[i], sweep=prep.sweep, radar=prep.radar, processing=prep.processing,
+                                    pose=prep.pose, loopback_delay=prep.loopback_delay, estimator=p["estimator"],
+                                    pattern=prep.pattern, pfa=p["pfa"], detection=dets[i],
+                                    scan=False)  # the refined estimator's numbers do not use the grid
+            rows.append(_row(prep, truths[i], loc, point=point, run=r,
+                             seconds=shared_seconds + time.perf_counter() - t))
+    return rows
+
+
+def _row(prep: PreparedPoint, truth: Any, loc: dsp.Localization, *, point: int, run: int,
+         seconds: float) -> dict[str, Any]:
+    """The run table's row of one localization (:func:`run_once`)."""
     detected = bool(loc.detected)
     nan = float("nan")
     row: dict[str, Any] = {"point": point, "run": run, "detected": detected, "true_aod_az": float(truth.aod[0]),
