@@ -1,7 +1,7 @@
 """The array seam: the DSP's whole-cube steps written once, run on NumPy, CuPy or any array-API namespace.
 
 The heavy, whole-cube steps of a run — the receiver noise of a batch of realizations
-(:func:`dsp.batch.noisy_cubes`), the detector's half-bin transform, window statistics and
+(:func:`risloc_rt.model.beat.add_noise_batch`), the detector's half-bin transform, window statistics and
 threshold (:func:`dsp.detection.detect_batch`) — are written against the Python array API
 standard (``array_api_compat``), so the same lines run on:
 
