@@ -24,7 +24,7 @@ from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
 from .spectrum import DelayDopplerMap, delay_doppler_map
 from .sweep import BeamSweep
 from .threads import limit_threads, thread_count
-from .xp import DEVICE_ENV, ArrayBackend, DeviceError, backend_for, cuda_available, numpy_backend, strict_backend
+from .xp import DEVICE_ENV, ArrayBackend, DeviceError, backend_for, cuda_available, device_choice, numpy_backend, strict_backend
 
 __all__ = [
     "ArrayBackend",
@@ -32,6 +32,7 @@ __all__ = [
     "DeviceError",
     "backend_for",
     "cuda_available",
+    "device_choice",
     "detect_batch",
     "numpy_backend",
     "strict_backend",

@@ -32,11 +32,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ArrayBackend", "DeviceError", "DEVICE_ENV", "DEVICES", "backend_for", "numpy_backend", "strict_backend",
+__all__ = ["ArrayBackend", "DeviceError", "DEVICE_ENV", "DEVICES", "GPU_ENV", "backend_for", "device_choice",
+           "numpy_backend", "strict_backend",
            "cuda_available"]
 
 #: Environment variable with the default device of every command (``cpu``, ``cuda`` or ``auto``).
 DEVICE_ENV = "RISLOC_DEVICE"
+#: Environment variable naming the GPU (an index) of a process that should not use the current one, e.g.
+#: one Dask worker per GPU; ``$CUDA_VISIBLE_DEVICES`` (one GPU per worker, as dask-cuda sets it) does the same.
+GPU_ENV = "RISLOC_GPU"
 #: The device choices a user can name.
 DEVICES = ("cpu", "cuda", "auto")
 
@@ -228,27 +232,45 @@ def cuda_available() -> tuple[bool, str]:
     return True, f"{count} CUDA device(s)"
 
 
+def device_choice(device: str | None = None) -> str:
+    """The device a user chose, checked but not resolved: ``cpu``, ``cuda`` or ``auto``.
+
+    Parameters
+    ----------
+    device : str, optional
+        ``--device``'s value; None: ``$RISLOC_DEVICE``, else ``cpu``.
+
+    Returns
+    -------
+    str
+        The name in lower case (a study passes it to its workers, which resolve it on their machine).
+    """
+    source = "--device"
+    if device is None:
+        device = os.environ.get(DEVICE_ENV, "").strip() or "cpu"
+        source = f"${DEVICE_ENV}"
+    if not isinstance(device, str) or device.strip().lower() not in DEVICES:
+        raise DeviceError(f"{source}={device!r} is not a device; use cpu, cuda or auto")
+    return device.strip().lower()
+
+
 def backend_for(device: str | None = None) -> ArrayBackend:
     """The backend of a device choice.
 
     Parameters
     ----------
     device : {"cpu", "cuda", "auto"}, optional
-        ``cpu``: NumPy. ``cuda``: CuPy on the current GPU (one-line :class:`DeviceError` when CuPy or
-        a GPU is missing). ``auto``: CuPy when it finds a GPU, else NumPy. Default: ``$RISLOC_DEVICE``,
+        ``cpu``: NumPy. ``cuda``: CuPy on the current GPU — the one ``$RISLOC_GPU`` names when set
+        (it is then made current for the process) — with a one-line :class:`DeviceError` when CuPy or
+        a GPU is missing. ``auto``: CuPy when it finds a GPU, else NumPy. Default: ``$RISLOC_DEVICE``,
         else ``cpu``.
 
     Returns
     -------
     ArrayBackend
     """
-    source = "device"
-    if device is None:
-        device = os.environ.get(DEVICE_ENV, "").strip() or "cpu"
-        source = f"${DEVICE_ENV}"
-    if not isinstance(device, str) or device.lower() not in DEVICES:
-        raise DeviceError(f"{source}={device!r} is not a device; use cpu, cuda or auto")
-    device = device.lower()
+    source = "device" if device is not None else f"${DEVICE_ENV}"
+    device = device_choice(device)
     if device == "cpu":
         return numpy_backend()
     ok, why = cuda_available()
@@ -257,5 +279,12 @@ def backend_for(device: str | None = None) -> ArrayBackend:
             return numpy_backend()
         raise DeviceError(f"{source}=cuda but {why}; use --device cpu (or auto) on this machine")
     import array_api_compat.cupy as xp
+    import cupy
 
-    return ArrayBackend("cupy", xp, None)
+    gpu = os.environ.get(GPU_ENV, "").strip()
+    if gpu:
+        count = cupy.cuda.runtime.getDeviceCount()
+        if not gpu.isdigit() or int(gpu) >= count:
+            raise DeviceError(f"${GPU_ENV}={gpu!r} is not a GPU of this machine (it has {count}: 0 to {count - 1})")
+        cupy.cuda.Device(int(gpu)).use()  # this process's (this Dask worker's) GPU from now on
+    return ArrayBackend("cupy", xp, cupy.cuda.Device())

@@ -30,11 +30,11 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
 
 from .._workers import init_worker
-from .kernel import PreparedPoint, run_once
+from .kernel import PreparedPoint, run_once, run_runs
 from .store import RunLog
 
 __all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing", "check_preparer",
-           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask"]
+           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask", "run_environment"]
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
@@ -52,6 +52,8 @@ ROW_BYTES = 4 << 10
 LONG_SECONDS = 24 * 3600.0
 #: Fewer missing runs than this cannot make a long study: no calibration run, no time estimate.
 CALIBRATE_ABOVE = 50
+#: The largest batch of runs for a GPU worker (its detector takes up to dsp.budget.DEVICE_BATCH realizations per call).
+DEVICE_BATCH_RUNS = 256
 #: Batches in flight on a Dask cluster at once (the plan is lazy: the rest are submitted as these finish).
 DASK_WINDOW = 1000
 
@@ -127,7 +129,7 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -> Iterator[Batch]:
+def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int, max_size: int = 25) -> Iterator[Batch]:
     """The missing runs of every point, cut into batches (point-major, so a worker reuses its cube), lazily.
 
     The batches are generated as they are taken, from the gaps between the finished runs of each
@@ -141,8 +143,11 @@ def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -
     done : set of (int, int)
         The (point, run) pairs already in the log.
     workers : int
-        Worker count: batches hold at most ``runs / (2 workers)`` runs (and at most 25), so every
-        worker gets work.
+        Worker count: batches hold at most ``runs / (2 workers)`` runs (and at most ``max_size``), so
+        every worker gets work.
+    max_size : int
+        The largest batch: 25 on the host, :data:`DEVICE_BATCH_RUNS` on a GPU (whose realizations are
+        evaluated many at a time).
 
     Yields
     ------
@@ -150,7 +155,7 @@ def plan_batches(spec: StudyPlan, done: set[tuple[int, int]], *, workers: int) -
         Runs of consecutive indices, point by point.
     """
     runs = int(spec.runs)
-    size = max(1, min(25, math.ceil(runs / max(1, 2 * workers))))
+    size = max(1, min(int(max_size), math.ceil(runs / max(1, 2 * workers))))
     finished: dict[int, list[int]] = {}
     for p, r in done:
         if 0 <= r < runs:
@@ -408,7 +413,7 @@ def _one_thread() -> Iterator[None]:
 
 
 def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int, stop: int,
-              study_seed: int) -> dict[str, Any]:
+              study_seed: int, device: str = "cpu") -> dict[str, Any]:
     """Run one batch (in a worker): the point prepared by ``prepare``, then runs ``start`` … ``stop - 1``.
 
     Always on one thread — the DSP's (``dsp.limit_threads``) and BLAS's (threadpoolctl) — in a
@@ -426,31 +431,82 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         Point index and the runs' half-open index range.
     study_seed : int
         The study seed.
+    device : {"cpu", "cuda", "auto"}
+        Where the noise and the detector of the runs go (:func:`dsp.backend_for`, resolved in the
+        worker: a Dask worker uses its own GPU, the one ``$CUDA_VISIBLE_DEVICES`` or ``$RISLOC_GPU``
+        gives it). The rows' realizations are evaluated B at a time
+        (:func:`risloc_rt.studies.kernel.run_runs`; B from the memory estimate).
 
     Returns
     -------
     dict
         Plain, picklable data: ``rows`` (one dict per run, :func:`risloc_rt.studies.kernel.run_once`),
-        ``crb`` (the point's bounds [m, rad, m/s] and ``peak_snr_db`` [dB]), ``prepare_seconds`` [s]
-        and ``warnings`` (the preparer's, e.g. range aliasing).
+        ``crb`` (the point's bounds [m, rad, m/s] and ``peak_snr_db`` [dB]), ``prepare_seconds`` [s],
+        ``warnings`` (the preparer's, e.g. range aliasing) and ``device`` (what ran the DSP and the
+        trace: :func:`run_environment`).
     """
-    import numpy as np
-
     marker = os.environ.get(DIE_ONCE)
     if marker and point == 0 and start == 0 and not os.path.exists(marker):  # the retry test's dying worker
         Path(marker).touch()
         os._exit(9)
 
+    from dsp import backend_for
+
+    backend = _BACKENDS.get(device)
+    if backend is None:
+        backend = _BACKENDS.setdefault(device, backend_for(device))
     with _one_thread():
         prep = _prepared(prepare, params)
-        buffer = np.empty_like(prep.cube)
-        rows = [run_once(prep, study_seed=study_seed, point=point, run=r, buffer=buffer) for r in range(start, stop)]
+        buffer = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else None
+        rows = run_runs(prep, study_seed=study_seed, point=point, runs=range(start, stop), backend=backend,
+                        buffer=buffer)
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
-            "warnings": list(prep.params.get("warnings", ()))}
+            "warnings": list(prep.params.get("warnings", ())), "device": run_environment(backend)}
+
+
+_BACKENDS: dict[str, Any] = {}
+_BUFFER = threading.local()  # per thread: the threads of one Dask worker run batches at once
+
+
+def _host_buffer(shape: tuple[int, ...]) -> Any:
+    """This thread's host scratch space for a batch of noisy cubes ``[B, *shape]`` (kept between batches)."""
+    import numpy as np
+
+    from dsp.budget import detect_batch_size
+
+    b = detect_batch_size(shape)
+    buf = getattr(_BUFFER, "cubes", None)
+    if buf is None or buf.shape != (b,) + tuple(shape):
+        _BUFFER.cubes = None
+        buf = _BUFFER.cubes = np.empty((b,) + tuple(shape), dtype=np.complex128)
+    return buf
+
+
+def run_environment(backend: Any) -> dict[str, Any]:
+    """What runs a study's numbers in this process: the DSP's device and library, and the ray tracer's.
+
+    Parameters
+    ----------
+    backend : dsp.ArrayBackend
+        The DSP's backend.
+
+    Returns
+    -------
+    dict
+        ``dsp``: :meth:`dsp.ArrayBackend.describe` (``device``, ``library``, ``hardware``, ``detail``);
+        ``trace``: the Mitsuba variant sionna-rt runs on in this process (``llvm_ad_mono_polarized``:
+        the CPU, ``cuda_ad_mono_polarized``: the GPU), or None when this process traced nothing.
+    """
+    trace = None
+    if "risloc_rt.hall.raytrace.backend" in sys.modules:  # only a process that traced has chosen a variant
+        from ..hall.raytrace.backend import ensure_backend
+
+        trace = ensure_backend()
+    return {"dsp": backend.describe(), "trace": trace}
 
 
 def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, dask: Any = None, quiet: bool = False,
-            notice: Callable[[str], None] | None = None, long_ok: bool = False) -> dict[str, Any]:
+            notice: Callable[[str], None] | None = None, long_ok: bool = False, device: str = "cpu") -> dict[str, Any]:
     """Run every missing run of ``spec`` and append it to ``log``.
 
     Parameters
@@ -471,12 +527,17 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         Receives the retry messages when ``quiet`` (default: print to stderr).
     long_ok : bool
         Run a study whose expected time exceeds :data:`LONG_SECONDS` (:func:`check_budget`).
+    device : {"cpu", "cuda", "auto"}
+        Where each batch's noise and detector run (:func:`run_batch`); checked here first, so a
+        missing GPU is a one-line :class:`dsp.DeviceError` before any work (on a Dask cluster the
+        workers resolve it on their own machines).
 
     Returns
     -------
     dict
         ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "warnings": {point: [...]},
-        "retried": [messages], "wall_seconds": s, "new_runs": n}`` (bounds in m, rad, m/s; times in s).
+        "retried": [messages], "wall_seconds": s, "new_runs": n, "devices": [...]}`` (bounds in m,
+        rad, m/s; times in s; ``devices``: the distinct :func:`run_environment` of the batches run).
 
     Raises
     ------
@@ -491,6 +552,10 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     from tqdm import tqdm
 
     check_preparer(prepare)
+    from dsp import backend_for
+
+    if dask is None:
+        backend_for(device)  # a missing GPU or CuPy: one line now, not a failure in every worker
     notice = notice or (lambda msg: print(msg, file=sys.stderr))
     if dask is None:
         check_budget(spec, log.done(), prepare=prepare, workers=workers, long_ok=long_ok,
@@ -498,10 +563,11 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     else:
         check_budget(spec, log.done(), prepare=prepare, workers=_dask_threads(dask), long_ok=long_ok,
                      say=None if quiet else (lambda msg: print(msg, file=sys.stderr)))
-    batches = plan_batches(spec, log.done(), workers=workers)
+    batches = plan_batches(spec, log.done(), workers=workers, max_size=DEVICE_BATCH_RUNS if device != "cpu" else 25)
     total = spec.runs * len(spec.points())
     done_before = sum(1 for (p, r) in log.done() if r < spec.runs)
-    info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "warnings": {}, "retried": [], "new_runs": 0}
+    info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "warnings": {}, "retried": [], "new_runs": 0,
+                            "devices": []}
     start = time.perf_counter()
     bar = tqdm(total=total, initial=done_before, unit="run", desc=spec.name, disable=quiet, smoothing=0.05,
                dynamic_ncols=True, file=sys.stderr)
@@ -512,6 +578,8 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         info["prepare_seconds"][batch.point] = result["prepare_seconds"]
         info["warnings"][batch.point] = result.get("warnings", [])
         info["new_runs"] += len(result["rows"])
+        if result.get("device") is not None and result["device"] not in info["devices"]:
+            info["devices"].append(result["device"])
         bar.update(len(result["rows"]))
 
     def say(msg: str) -> None:
@@ -523,12 +591,12 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
 
     try:
         if dask is not None:
-            _run_dask(spec, prepare, batches, dask, take, say)
+            _run_dask(spec, prepare, batches, dask, take, say, device)
         elif workers == 1:
             for b in batches:
-                take(run_batch(prepare, b.params, b.point, b.start, b.stop, spec.seed), b)
+                take(run_batch(prepare, b.params, b.point, b.start, b.stop, spec.seed, device), b)
         else:
-            _run_pool(spec, prepare, batches, workers, take, say)
+            _run_pool(spec, prepare, batches, workers, take, say, device)
         # bounds of points whose runs were all done before this start (needed by the summary)
         for p, params in enumerate(spec.points()):
             if p not in info["crb"]:
@@ -543,7 +611,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
 
 
 def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], workers: int, take: Callable,
-              say: Callable) -> None:
+              say: Callable, device: str = "cpu") -> None:
     import multiprocessing
 
     attempts: dict[Batch, int] = {}
@@ -568,7 +636,7 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
                     try:
                         while b is not None and len(running) < workers:  # one batch per worker: a death names its batch
                             running[pool.submit(run_batch, prepare, b.params, b.point, b.start, b.stop,
-                                                spec.seed)] = b
+                                                spec.seed, device)] = b
                             b = next_batch()
                     except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
                         broken += list(running.values())
@@ -655,7 +723,7 @@ def _dask_threads(address: Any) -> int:
 
 
 def _run_dask(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], address: Any, take: Callable,
-              say: Callable) -> None:
+              say: Callable, device: str = "cpu") -> None:
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
@@ -663,7 +731,7 @@ def _run_dask(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], addr
     plan = iter(batches)
 
     def submit(b: Batch) -> Any:
-        fut = client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed,
+        fut = client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed, device,
                             key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
                             retries=MAX_ATTEMPTS - 1)
         futures[fut] = b

@@ -29,6 +29,8 @@ import numpy as np
 
 from dsp.validation import integer, non_negative, one_of, positive
 
+from dsp.xp import device_choice
+
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
@@ -328,7 +330,7 @@ class MapResult:
 
 def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = None, dask: Any = None,
             quiet: bool = False, force: bool = False, force_long: bool = False,
-            force_workers: bool = False) -> MapResult:
+            force_workers: bool = False, device: str | None = None) -> MapResult:
     """Run (or continue) a floor map in folder ``out``.
 
     The cells are the points of a study (:mod:`risloc_rt.studies.engine`, point preparer
@@ -353,6 +355,11 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         than a day (``--force-long``).
     force_workers : bool
         Keep ``workers`` above the core count (``--force-workers``).
+    device : {"cpu", "cuda", "auto"}, optional
+        Where the runs' noise and detector go (``--device``; default ``$RISLOC_DEVICE``, else ``cpu``):
+        :func:`risloc_rt.studies.engine.run_batch`. On a given device the rows do not depend on it
+        otherwise (batch size, workers, Dask); on another device the noise is another stream with
+        the same law (``docs/studies.md``).
 
     Returns
     -------
@@ -395,7 +402,8 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
     try:
-        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long)
+        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
+                       device=device_choice(device))
         out_cells = []
         for c, ue in enumerate(cells):
             rows = [log.rows[(c, r)] for r in range(settings.runs)]
@@ -423,7 +431,8 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     pq.write_table(pa.table(cols), buf_pq)
     # moved in together (risloc_rt._outputs); the folder is the map's (its manifest was checked)
     with output_folder(folder, force=True, flag="--out") as stage:
-        atomic_write_bytes(stage / "map.json", json.dumps({"settings": asdict(settings), "cells": out_cells},
+        atomic_write_bytes(stage / "map.json", json.dumps({"settings": asdict(settings), "devices": info["devices"],
+                                                           "cells": out_cells},
                                                           indent=1).encode() + b"\n")
         atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())
         plot_map(spec, out_cells, settings, stage / "map.png")

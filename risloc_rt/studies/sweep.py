@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dsp.xp import device_choice
+
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
@@ -51,7 +53,7 @@ class StudyResult:
 
 def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, dask: Any = None,
               quiet: bool = False, force: bool = False, figures: bool = True, force_long: bool = False,
-              force_workers: bool = False) -> StudyResult:
+              force_workers: bool = False, device: str | None = None) -> StudyResult:
     """Run (or continue) ``spec`` in folder ``out``; see ``docs/studies.md``.
 
     Parameters
@@ -77,6 +79,11 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
         :func:`risloc_rt.studies.engine.check_budget`).
     force_workers : bool
         Keep ``workers`` above the core count (``--force-workers``).
+    device : {"cpu", "cuda", "auto"}, optional
+        Where the runs' noise and detector go (``--device``; default ``$RISLOC_DEVICE``, else ``cpu``):
+        :func:`risloc_rt.studies.engine.run_batch`. On a given device the rows do not depend on it
+        otherwise (batch size, workers, Dask); on another device the noise is another stream with
+        the same law (``docs/studies.md``).
 
     Returns
     -------
@@ -101,13 +108,15 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     folder = Path(out)
     log = open_study_folder(folder, spec, force=force)
     try:
-        info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet, long_ok=force_long)
+        info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
+                       device=device_choice(device))
         rows = list(log.rows.values())
     finally:
         log.close()
     summary = summarize(spec, rows, info)
     summary["wall_seconds"] = info["wall_seconds"]
     summary["workers"] = "dask" if dask is not None else workers
+    summary["devices"] = info["devices"]  # what ran this sitting's batches: DSP device and library, trace variant
     from ..io.report import json_safe
 
     # the derived files are moved in together (risloc_rt._outputs): an interrupt leaves the old set or
