@@ -34,7 +34,7 @@ from .pattern import BeamPattern
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
 from .sweep_window import SweepWindows, sweep_windows
-from .xp import ArrayBackend, numpy_backend
+from .xp import ArrayBackend, backend_of, is_host_array, numpy_backend
 
 __all__ = ["Detection", "detect", "detect_batch", "detect_validated", "sweep_statistics", "check_beat_cube", "sweep_cfar_threshold"]
 
@@ -46,8 +46,11 @@ def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.
     """Validate a beat cube for detection/localization; return it as complex128 [M, K, N].
 
     Raises a one-line :class:`ValueError` for an empty, non-finite or all-zero cube, one with
-    fewer than ``min_beams`` beams, or sizes that disagree with ``radar``.
+    fewer than ``min_beams`` beams, or sizes that disagree with ``radar``. A device array (CuPy,
+    array_api_strict: :mod:`dsp.xp`) is checked where it lives and returned there, as complex128.
     """
+    if not is_host_array(cube):
+        return _check_device_cube(cube, radar, min_beams)
     require_complex_samples(cube, "cube")
     try:
         arr = np.asarray(cube, dtype=complex)
@@ -69,6 +72,35 @@ def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.
             f"cube has {m} beam(s); the AoD needs a sweep of at least {min_beams} beams (one frame per RIS beam)"
         )
     if not np.any(arr):
+        raise ValueError("cube is all zeros: nothing was recorded; check the capture (ADC, file) before localizing")
+    return arr
+
+
+def _check_device_cube(cube: Any, radar: RadarConfig, min_beams: int) -> Any:
+    """:func:`check_beat_cube` for an array on a device: the same rules and messages, evaluated there."""
+    xp = backend_of(cube).xp
+    if not xp.isdtype(cube.dtype, "complex floating"):
+        raise TypeError(f"cube must hold complex beat samples [M, K, N], got dtype {cube.dtype}; "
+                        "convert real ADC data with scipy.signal.hilbert")
+    shape = tuple(int(v) for v in cube.shape)
+    if len(shape) != 3:
+        raise ValueError(f"cube has shape {list(shape)}; it must be [M, K, N] = (beams, chirps, samples)")
+    if 0 in shape:
+        raise ValueError(f"cube is empty (shape {list(shape)}); record at least 2 beams of K chirps × N samples")
+    m, k, n = shape
+    if (k, n) != (radar.num_chirps, radar.num_samples):
+        raise ValueError(
+            f"cube has shape [M, K, N] = {list(shape)} but the radar has K={radar.num_chirps} chirps and "
+            f"N={radar.num_samples} samples; pass the RadarConfig the cube was recorded with (axis order beams, chirps, samples)"
+        )
+    if m < min_beams:
+        raise ValueError(
+            f"cube has {m} beam(s); the AoD needs a sweep of at least {min_beams} beams (one frame per RIS beam)"
+        )
+    arr = xp.astype(cube, xp.complex128, copy=False)
+    if not bool(xp.all(xp.isfinite(arr))):
+        raise ValueError("cube holds non-finite values (NaN or inf); check the capture before localizing")
+    if not bool(xp.any(arr != 0)):
         raise ValueError("cube is all zeros: nothing was recorded; check the capture (ADC, file) before localizing")
     return arr
 
@@ -217,7 +249,7 @@ def sweep_statistics(x: Any, windows: SweepWindows | None, backend: ArrayBackend
                                          for rl, rh in zip(*_window_runs(windows))]
     d_parts, w_parts = [], []
     for c0 in range(0, c, cell_block):
-        xb = x[:, :, c0:c0 + cell_block]
+        xb = x[:, :, c0:min(c0 + cell_block, c)]
         dev = xb - xp.mean(xb, axis=1, keepdims=True)
         energy = xp.real(dev) ** 2 + xp.imag(dev) ** 2
         # the running sums over the beams in float64, beam by beam (a cumulative sum along a middle axis is

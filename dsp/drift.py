@@ -19,7 +19,7 @@ import numpy as np
 import scipy.stats
 
 from .radar import RadarConfig
-from .dtft_subspace import dtft_phasors
+from .dtft_subspace import as_cube, contract_chirps, dtft_phasors
 
 __all__ = ["DelayDrift", "delay_drift", "motion_rate"]
 
@@ -69,7 +69,7 @@ def delay_drift(cube: np.ndarray, radar: RadarConfig, *, delay: float, delay_rat
     DelayDrift or None
         None when fewer than three beams carry the return.
     """
-    arr = np.asarray(cube)
+    arr = as_cube(cube)
     m, k, n = arr.shape
     beams = np.flatnonzero(np.asarray(weights) >= min_weight)
     if beams.size < 3:
@@ -78,7 +78,7 @@ def delay_drift(cube: np.ndarray, radar: RadarConfig, *, delay: float, delay_rat
     f1 = (delay * radar.slope + radar.carrier_frequency * delay_rate) * radar.sample_period
     f2 = delay_rate * radar.carrier_frequency * radar.chirp_interval
     ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]           # [K]
-    z = np.einsum("bkn,k->bn", arr[beams], ek)                              # [B, N]
+    z = contract_chirps(arr, ek, beams)                                     # [B, N], on the cube's backend
     step = span_cells * radar.delay_resolution * radar.slope * radar.sample_period
     offsets = np.linspace(-step, step, points)                              # [J] cycles/sample
     basis = dtft_phasors(f1, np.arange(n) - (n - 1) / 2.0, offsets)               # [J, N]

@@ -23,7 +23,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SubspaceDtft", "band_basis", "dtft_phasors", "contract_samples", "DEFAULT_TOLERANCE"]
+from .xp import backend_of, is_host_array
+
+__all__ = ["SubspaceDtft", "as_cube", "band_basis", "dtft_phasors", "contract_samples", "contract_beams", "contract_chirps",
+           "mean_of_beams", "DEFAULT_TOLERANCE"]
 
 #: Relative error of e_δ's projection on the basis (singular-value cut-off).
 DEFAULT_TOLERANCE = 1e-10
@@ -51,35 +54,107 @@ def dtft_phasors(f: float, idx: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     return np.exp(2j * np.pi * (ph - np.round(ph)))
 
 
-def contract_samples(cube: np.ndarray, basis: np.ndarray, beams: np.ndarray | None = None) -> np.ndarray:
+def as_cube(cube: Any) -> Any:
+    """A beat cube for the contractions below: host data as complex128 NumPy, a device array as it is."""
+    return np.asarray(cube, dtype=complex) if is_host_array(cube) else cube
+
+
+def _runs(beams: np.ndarray) -> list[tuple[int, int, int]]:
+    """Runs of consecutive beam indices: (position in ``beams``, first beam, one past the last)."""
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(beams) != 1) + 1])
+    stops = np.concatenate([starts[1:], [beams.size]])
+    return [(int(a), int(beams[a]), int(beams[b - 1]) + 1) for a, b in zip(starts, stops)]
+
+
+def contract_samples(cube: Any, basis: np.ndarray, beams: np.ndarray | None = None) -> np.ndarray:
     """``cube[beams] @ basis``: the fast-time samples of the selected beams against P vectors.
+
+    The pass over the cube runs where the cube lives (:mod:`dsp.xp`: NumPy, or a device array's own
+    library); the result is small and comes back to the host.
 
     Parameters
     ----------
     cube : complex array [M, K, N]
-        Beat samples [√W].
-    basis : complex array [N, P]
+        Beat samples [√W], a NumPy array or a device array (CuPy, array_api_strict).
+    basis : complex array [N, P] or [N]
+        The vectors (host data; copied to the cube's device explicitly).
     beams : int array [M'], optional
         Increasing beam indices (default all).
 
     Returns
     -------
-    complex array [M', K, P]
+    complex ndarray [M', K, P] (or [M', K] for a single vector), on the host
 
     One 2-D product per contiguous run of beams (a view of the cube, no copy): a single BLAS
     call is far faster than numpy's stacked matmul when other processes share the cores.
     """
+    backend = backend_of(cube)
+    xp = backend.xp
     m, k, n = cube.shape
-    p = basis.shape[1]
-    basis = np.ascontiguousarray(basis)
-    if beams is None:
-        return (cube.reshape(m * k, n) @ basis).reshape(m, k, p)
-    out = np.empty((beams.size, k, p), dtype=complex)
-    runs = np.split(np.arange(beams.size), np.flatnonzero(np.diff(beams) != 1) + 1)
-    for run in runs:
-        lo, hi = beams[run[0]], beams[run[-1]] + 1
-        out[run[0]:run[-1] + 1] = (cube[lo:hi].reshape((hi - lo) * k, n) @ basis).reshape(hi - lo, k, p)
-    return out
+    vec = backend.asarray(np.ascontiguousarray(basis))
+    beams = np.arange(m) if beams is None else np.asarray(beams)
+    parts = []
+    for _, lo, hi in _runs(beams):
+        flat = xp.reshape(cube[lo:hi, ...], ((hi - lo) * k, n)) @ vec
+        parts.append(xp.reshape(flat, (hi - lo, k) + tuple(vec.shape[1:])))
+    return backend.to_host(parts[0] if len(parts) == 1 else xp.concat(parts, axis=0))
+
+
+def contract_beams(cube: Any, bases: np.ndarray, beams: np.ndarray) -> np.ndarray:
+    """``cube[beams[i]] @ bases[i]`` for each selected beam: every beam against its own vectors.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        Beat samples [√W], on the host or a device.
+    bases : complex array [M', N, P] or [M', N]
+        Beam i's vectors (host data).
+    beams : int array [M']
+        The beams.
+
+    Returns
+    -------
+    complex ndarray [M', K, P] (or [M', K]), on the host
+    """
+    backend = backend_of(cube)
+    xp = backend.xp
+    vecs = backend.asarray(np.asarray(bases))
+    rows = [cube[int(beam), ...] @ vecs[i, ...] for i, beam in enumerate(np.asarray(beams))]  # one product per beam
+    return backend.to_host(xp.stack(rows, axis=0))
+
+
+def mean_of_beams(cube: Any, beams: np.ndarray) -> np.ndarray:
+    """The mean of the selected beams' samples [K, N] (a static-return template), on the host.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        On the host or a device [√W].
+    beams : int array
+        The beams averaged (in increasing order).
+    """
+    backend = backend_of(cube)
+    total = None
+    for beam in np.asarray(beams):  # beam by beam, in order: the sum is the same on every backend
+        total = cube[int(beam), ...] if total is None else total + cube[int(beam), ...]
+    return backend.to_host(total / len(beams))
+
+
+def contract_chirps(cube: Any, vector: np.ndarray, beams: np.ndarray) -> np.ndarray:
+    """``Σ_k vector[k] cube[b, k, :]`` for the selected beams [M', N] (a slow-time DTFT), on the host.
+
+    Parameters
+    ----------
+    cube : complex array [M, K, N]
+        On the host or a device [√W].
+    vector : complex array [K]
+    beams : int array [M']
+    """
+    backend = backend_of(cube)
+    xp = backend.xp
+    vec = backend.asarray(np.asarray(vector))
+    rows = [vec @ cube[int(beam), ...] for beam in np.asarray(beams)]  # [N] each
+    return backend.to_host(xp.stack(rows, axis=0))
 
 
 @functools.lru_cache(maxsize=16)
@@ -147,7 +222,7 @@ class SubspaceDtft:
         self._u2 = band_basis(k, tolerance)
         b1 = dtft_phasors(f1, self._n_idx, _ZERO)[0][:, None] * self._u1  # [N, r₁]
         b2 = dtft_phasors(f2, self._k_idx, _ZERO)[0][:, None] * self._u2  # [K, r₂]
-        g = (cube.reshape(m * k, n) @ b1).reshape(m, k, b1.shape[1])  # the one pass over the cube
+        g = contract_samples(cube, b1)  # the one pass over the cube (on its backend) [M, K, r₁]
         self.moments = np.einsum("mki,kl->mil", g, b2)
 
     def covers(self, f1: float, f2: float) -> bool:

@@ -31,7 +31,7 @@ from .qualify import EstimatorBounds, Uncertainty, elevation_for_height, solve_e
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .residual import beam_values, residual_test
 from .sweep import BeamSweep
-from .xp import ArrayBackend
+from .xp import ArrayBackend, backend_of, is_host_array
 
 __all__ = ["Localization", "NoPositionError", "localize", "self_localize"]
 
@@ -97,9 +97,12 @@ def self_localize(
         Carlo study saves the search's cost (0.1-2 s per Table I cube, most at low SNR, where
         no beam's grid maximum can be screened). The paper's estimator always runs it.
     backend : dsp.xp.ArrayBackend, optional
-        Where the detector's whole-cube work runs (:func:`dsp.detect_batch`; ``dsp.backend_for("cuda")``
-        for a GPU): the cube is copied there once. Default NumPy on the host. The estimator's steps
-        after the detection run on the host cube.
+        Where the whole-cube work runs (``dsp.backend_for("cuda")`` for a GPU): the detector
+        (:func:`dsp.detect_batch`) and every read of the cube by the estimators and the flags
+        (:func:`dsp.dtft_subspace.contract_samples` and its siblings: small results come back).
+        A host cube is copied there once. Default: where ``cube`` lives (NumPy for host data; a
+        CuPy or array_api_strict cube stays on its device). The paper's grid search
+        (:func:`dsp.scan_beams`) runs on the host: it gets one explicit copy of the cube.
     detection : Detection, optional
         This cube's detection, already made by :func:`dsp.detect_batch` with the same ``pfa``,
         ``processing.min_range``, ``pattern``, ``sweep`` and ``oversample=2`` (a study's batch); it is
@@ -116,18 +119,24 @@ def self_localize(
     steps = ESTIMATORS[estimator]
     # Pattern-matched windows on a half-bin grid (dsp.detect): 2 dB less SNR needed than the
     # whole-sweep test, and an off-grid return loses < 0.9 dB per axis instead of up to 3.9 dB.
+    if backend is not None and not backend.is_numpy and is_host_array(inp.cube):
+        # one explicit host -> device copy: the detector and the estimator's whole-cube reads run there
+        inp = dataclasses.replace(inp, cube=backend.asarray(inp.cube))
     if detection is not None:
         if not isinstance(detection, Detection):
             raise TypeError(f"detection must be a dsp.Detection (from dsp.detect_batch), got {type(detection).__name__}")
         det = detection
-    elif backend is None or backend.is_numpy:
+    elif is_host_array(inp.cube):
         det = detect_validated(inp.cube, radar, pfa=pfa, min_range=processing.min_range, max_candidates=5,
                                pattern=inp.pattern, sweep=sweep, oversample=2)
-    else:  # one explicit host -> device copy of the cube; a few numbers per candidate come back
-        det = detect_batch(backend.asarray(inp.cube[None]), radar, backend=backend, pfa=pfa,
+    else:  # a few numbers per candidate come back from the device
+        on = backend_of(inp.cube)
+        det = detect_batch(on.xp.expand_dims(inp.cube, axis=0), radar, backend=on, pfa=pfa,
                            min_range=processing.min_range, max_candidates=5, pattern=inp.pattern, sweep=sweep,
                            oversample=2)[0]
-    grid = scan_beams(inp.cube, sweep, radar, processing) if scan or steps.needs_scan else None
+    # the paper's grid search runs on the host (dsp.gridscreen): one explicit device -> host copy when it runs
+    grid = scan_beams(backend_of(inp.cube).to_host(inp.cube), sweep, radar, processing) \
+        if scan or steps.needs_scan else None
     if not det.detected:
         return no_position(grid, det)
     est = steps.estimate(inp, det, grid)

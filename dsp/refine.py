@@ -42,7 +42,7 @@ import scipy.special
 
 from .validation import fields_equal, finite
 from .aod_fit import AodFit, bessel_ratio, bessel_ratio_slope, fit_aod, log_i0
-from .dtft_subspace import SubspaceDtft
+from .dtft_subspace import SubspaceDtft, as_cube
 from .pattern import BeamPattern
 from .radar import RadarConfig
 from .sweep import BeamSweep
@@ -356,7 +356,7 @@ def refine_estimate(
     start, again only if the estimate leaves that ±½-bin region); every evaluation after that
     costs O(M r²) with r = 10, not O(M K N).
     """
-    arr = np.asarray(cube, dtype=complex)
+    arr = as_cube(cube)
     m, k, n = arr.shape
     pat = pattern.for_wavelength(radar.wavelength)
     tau0 = finite(initial_delay, "initial_delay", "s")

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .radar import RadarConfig
-from .dtft_subspace import contract_samples, dtft_phasors
+from .dtft_subspace import as_cube, contract_beams, contract_samples, dtft_phasors, mean_of_beams
 
 __all__ = ["beam_dtft", "beam_values", "drift_shifts", "residual_test"]
 
@@ -23,13 +23,13 @@ def beam_dtft(cube: Any, radar: RadarConfig, delay: float, delay_rate: float) ->
 
     Returns the magnitudes and the frequencies (f₁, f₂) [cycles/sample] they were taken at.
     """
-    arr = np.asarray(cube, dtype=complex)
+    arr = as_cube(cube)
     m, k, n = arr.shape
     f1 = (delay * radar.slope + radar.carrier_frequency * delay_rate) * radar.sample_period
     f2 = delay_rate * radar.carrier_frequency * radar.chirp_interval
     en = dtft_phasors(f1, np.arange(n) - (n - 1) / 2.0, np.zeros(1))[0]
     ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]
-    return np.abs((arr.reshape(m * k, n) @ en).reshape(m, k) @ ek), float(f1), float(f2)
+    return np.abs(contract_samples(arr, en) @ ek), float(f1), float(f2)
 
 
 def residual_test(
@@ -91,7 +91,7 @@ def residual_test(
     import scipy.signal
     import scipy.special
 
-    arr = np.asarray(cube, dtype=complex)
+    arr = as_cube(cube)
     m, k, n = arr.shape
     w = np.asarray(weights, dtype=float)
     sel = np.flatnonzero(w >= min_weight * w.max())
@@ -108,18 +108,16 @@ def residual_test(
     if rate == 0.0:
         g = contract_samples(arr, bn, sel)  # [M', K, 3]
         if far.sum() >= 4:
-            g = g - (arr.mean(axis=0, where=far[:, None, None]) @ bn)[None]
+            g = g - (mean_of_beams(arr, np.flatnonzero(far)) @ bn)[None]
     else:
         t = _checked_times(beam_times, m)
         shift = drift_shifts(radar, rate, t, w)[sel]  # [M'] cycles/sample
-        template = arr.mean(axis=0, where=far[:, None, None]) if far.sum() >= 4 else None  # [K, N]
+        template = mean_of_beams(arr, np.flatnonzero(far)) if far.sum() >= 4 else None  # [K, N]
 
         def drifted(f: float, offsets: np.ndarray) -> np.ndarray:
             """Beam m's samples against its own drifted tone f + shift_m + offsets, [M', K, J]."""
             basis = np.stack([dtft_phasors(f + d, n_idx, offsets).T for d in shift]) * wn[None, :, None]
-            out = np.empty((sel.size, k, offsets.size), dtype=complex)  # one BLAS product per beam, no copy
-            for i, beam in enumerate(sel):
-                out[i] = arr[beam] @ basis[i]
+            out = contract_beams(arr, basis, sel)  # one product per beam, no copy
             return out if template is None else out - np.matmul(template[None], basis)
 
         # The fitted f₁ is the compromise of a model without motion; re-centre it on the moved
@@ -198,7 +196,7 @@ def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: An
     """
     import scipy.signal
 
-    arr = np.asarray(cube, dtype=complex)
+    arr = as_cube(cube)
     m, k, n = arr.shape
     wn = scipy.signal.get_window("hann", n, fftbins=False)
     wk = scipy.signal.get_window("hann", k, fftbins=False)
@@ -206,8 +204,7 @@ def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: An
     ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0] * wk  # [K]
     rate = float(drift_rate)
     shift = np.zeros(m) if rate == 0.0 else drift_shifts(radar, rate, _checked_times(beam_times, m), weights)
-    values = np.empty(m, dtype=complex)
-    for beam in range(m):
-        en = dtft_phasors(f1 + float(shift[beam]), n_idx, np.zeros(1))[0] * wn  # [N]
-        values[beam] = ek @ (arr[beam] @ en)
+    en = np.stack([dtft_phasors(f1 + float(shift[beam]), n_idx, np.zeros(1))[0] * wn for beam in range(m)])  # [M, N]
+    rows = contract_beams(arr, en, np.arange(m))  # [M, K]: each beam against its own tone, on the cube's backend
+    values = np.array([ek @ rows[beam] for beam in range(m)], dtype=complex)
     return values, float(np.sum(wn**2) * np.sum(wk**2))

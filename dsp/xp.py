@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ArrayBackend", "DeviceError", "DEVICE_ENV", "DEVICES", "GPU_ENV", "backend_for", "device_choice",
-           "numpy_backend", "strict_backend",
+__all__ = ["ArrayBackend", "DeviceError", "DEVICE_ENV", "DEVICES", "GPU_ENV", "backend_for", "backend_of",
+           "device_choice", "is_host_array", "numpy_backend", "strict_backend",
            "cuda_available"]
 
 #: Environment variable with the default device of every command (``cpu``, ``cuda`` or ``auto``).
@@ -192,6 +192,35 @@ def _blas() -> str:
         return "BLAS unknown"
 
 
+def is_host_array(x: Any) -> bool:
+    """Whether ``x`` is host data (a NumPy array, a scalar, a sequence), not an array of a device library."""
+    return isinstance(x, (np.ndarray, np.generic, list, tuple, int, float, complex)) or not hasattr(x, "__array_namespace__")
+
+
+def backend_of(x: Any) -> ArrayBackend:
+    """The backend an array lives on: NumPy for host data, else its library's namespace and device.
+
+    Parameters
+    ----------
+    x : array
+        A NumPy, CuPy or array_api_strict array (or host data).
+
+    Returns
+    -------
+    ArrayBackend
+    """
+    if is_host_array(x):
+        return numpy_backend()
+    import array_api_compat
+
+    xp = array_api_compat.array_namespace(x)
+    if array_api_compat.is_cupy_namespace(xp):
+        return ArrayBackend("cupy", xp, x.device)
+    if array_api_compat.is_array_api_strict_namespace(xp):
+        return ArrayBackend("array_api_strict", xp, x.device)
+    raise DeviceError(f"arrays of {xp.__name__} are not supported; pass a NumPy or CuPy array")
+
+
 def numpy_backend() -> ArrayBackend:
     """NumPy on the host (the default)."""
     import array_api_compat.numpy as xp
@@ -269,7 +298,7 @@ def backend_for(device: str | None = None) -> ArrayBackend:
     -------
     ArrayBackend
     """
-    source = "device" if device is not None else f"${DEVICE_ENV}"
+    source = "--device" if device is not None else f"${DEVICE_ENV}"
     device = device_choice(device)
     if device == "cpu":
         return numpy_backend()

@@ -29,14 +29,14 @@ import numpy as np
 
 from dsp.validation import integer, non_negative, one_of, positive
 
-from dsp.xp import device_choice
+from dsp.xp import backend_for, device_choice
 
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
-from .store import RunLog, StudyFolderError, keep_log
+from .store import RunLog, StudyFolderError, check_stream, keep_log, noise_stream
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "grid_budget", "prepare_cell", "MAX_GRID_POINTS"]
 
@@ -382,9 +382,17 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
     grid_budget(settings, long_ok=force_long)
     folder = Path(out)
+    device = device_choice(device)
+    if dask is None:
+        backend_for(device)  # no CuPy or no GPU for --device cuda: one line before any folder is made
+    stream = noise_stream(device)
     manifest = folder / "map-study.json"
     if manifest.exists():
-        old = json.loads(manifest.read_text()).get("key")
+        old_manifest = json.loads(manifest.read_text())
+        old = old_manifest.get("key")
+        if old == settings.key:
+            log_file = folder / "runs.jsonl"
+            check_stream(folder, old_manifest, stream, log_file.exists() and log_file.stat().st_size > 0)
         if old != settings.key:
             if not force:
                 raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
@@ -398,12 +406,13 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     spec, cells, _ = grid_cells(settings, long_ok=force_long)
     plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells))
     folder.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings)}).encode(), sync=True)
+    atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
+                                             "noise_stream": stream}).encode(), sync=True)
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
     try:
         info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
-                       device=device_choice(device))
+                       device=device)
         out_cells = []
         for c, ue in enumerate(cells):
             rows = [log.rows[(c, r)] for r in range(settings.runs)]

@@ -246,8 +246,10 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
 
     For each group of B runs: their receiver noise (:func:`risloc_rt.model.beat.add_noise_batch`,
     run r's from :func:`run_rng`) and the detector (:func:`dsp.detect_batch`) run on ``backend`` for
-    the whole group; then each realization's cube (one explicit device → host copy per group off the
-    host) goes through ``dsp.self_localize`` with its detection, on the host. A run's row depends on
+    the whole group; then each realization's cube goes through ``dsp.self_localize`` with its
+    detection, where it lives: its whole-cube reads (the refined estimator's projections, the flags'
+    DTFTs) run on the backend and only small results come to the host (the paper's grid search takes
+    one explicit host copy). A run's row depends on
     the study seed, the point and its run index only: not on B, the order or the worker.
 
     Parameters
@@ -306,11 +308,11 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
         dets = dsp.detect_batch(cubes, prep.radar, backend=backend, pfa=p["pfa"],
                                 min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
                                 sweep=prep.sweep, oversample=2)
-        host = backend.to_host(cubes)  # one explicit copy per group (none on NumPy)
         shared_seconds = (time.perf_counter() - start) / len(group)
         for i, r in enumerate(group):
             t = time.perf_counter()
-            loc = dsp.self_localize(host[i], sweep=prep.sweep, radar=prep.radar, processing=prep.processing,
+            # the realization stays where it is: the estimator's whole-cube reads run there too (dsp.xp)
+            loc = dsp.self_localize(cubes[i, ...], sweep=prep.sweep, radar=prep.radar, processing=prep.processing,
                                     pose=prep.pose, loopback_delay=prep.loopback_delay, estimator=p["estimator"],
                                     pattern=prep.pattern, pfa=p["pfa"], detection=dets[i],
                                     scan=False)  # the refined estimator's numbers do not use the grid

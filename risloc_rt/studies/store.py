@@ -25,7 +25,8 @@ from typing import Any, Callable, Iterable
 from .._files import atomic_write_bytes
 from .spec import StudySpec
 
-__all__ = ["RunLog", "RunLogError", "StudyFolderError", "keep_log", "open_study_folder", "write_parquet", "read_runs_table"]
+__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "noise_stream", "open_study_folder",
+           "write_parquet", "read_runs_table"]
 
 MANIFEST = "study.json"
 LOG = "runs.jsonl"
@@ -184,8 +185,53 @@ def _stderr(message: str) -> None:
     print(message, file=sys.stderr)
 
 
+def noise_stream(device: str) -> str:
+    """The noise stream a study's runs draw on ``device``: ``"host"`` (NumPy's "fast" stream, the CPU and
+    array_api_strict) or ``"cuda"`` (cuRAND on a GPU). ``auto`` is resolved on this machine.
+
+    Parameters
+    ----------
+    device : {"cpu", "cuda", "auto"}
+
+    Returns
+    -------
+    str
+    """
+    if device == "auto":
+        from dsp import cuda_available
+
+        device = "cuda" if cuda_available()[0] else "cpu"
+    return "cuda" if device == "cuda" else "host"
+
+
+def check_stream(out: Path, manifest: dict[str, Any], stream: str, has_rows: bool) -> None:
+    """Refuse to continue a study folder whose rows were drawn on another noise stream (:func:`noise_stream`).
+
+    Parameters
+    ----------
+    out : Path
+        The folder (for the message).
+    manifest : dict
+        Its manifest as read (``noise_stream`` absent: written before devices existed, the host's).
+    stream : str
+        This sitting's stream.
+    has_rows : bool
+        The folder's log holds runs.
+
+    Raises
+    ------
+    StudyFolderError
+        The streams differ and the log holds runs.
+    """
+    old = str(manifest.get("noise_stream", "host"))
+    if has_rows and old != stream:
+        was = "a GPU (--device cuda)" if old == "cuda" else "the CPU (--device cpu)"
+        raise StudyFolderError(f"{str(out)!r} holds runs whose noise was drawn on {was}; continue it with that "
+                               "device, or use a new --out (a table of both streams would mix two random streams)")
+
+
 def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
-                      notice: Callable[[str], None] | None = None) -> RunLog:
+                      notice: Callable[[str], None] | None = None, stream: str = "host") -> RunLog:
     """Create or reopen ``out`` for ``spec``; refuse a folder of another study (or not a study) without ``force``.
 
     With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl`` (``-2``, ``-3``, ...
@@ -201,6 +247,9 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
         Use a folder that holds another study, or other files.
     notice : callable, optional
         Receives the one-line note naming where a previous study's log was kept (default: stderr).
+    stream : {"host", "cuda"}
+        The noise stream of this sitting's runs (:func:`noise_stream`); a folder whose runs were
+        drawn on the other one is refused (:func:`check_stream`).
 
     Returns
     -------
@@ -222,6 +271,8 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
             old_key = str(old["key"])
         except (ValueError, KeyError, TypeError):
             old_key = "unreadable"
+        if old_key == spec.key:
+            check_stream(out, old, stream, (out / LOG).exists() and (out / LOG).stat().st_size > 0)
         if old_key != spec.key:
             if not force:
                 raise StudyFolderError(
@@ -238,7 +289,8 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     out.mkdir(parents=True, exist_ok=True)
     from .. import __version__
 
-    atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__},
+    atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__,
+                                             "noise_stream": stream},
                                             indent=1, sort_keys=True).encode() + b"\n", sync=True)
     return RunLog(out / LOG).open()
 

@@ -1,0 +1,59 @@
+"""A study folder keeps one noise stream: the device is recorded, a sitting on another is refused, the devices are named."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import dsp
+from risloc_rt.studies import run_study
+from risloc_rt.studies.store import StudyFolderError, noise_stream
+
+
+def test_the_stream_of_each_device():
+    assert noise_stream("cpu") == "host"
+    assert noise_stream("cuda") == "cuda"
+    assert noise_stream("auto") == ("cuda" if dsp.cuda_available()[0] else "host")
+
+
+def test_a_study_records_its_stream_and_its_devices(small_spec, tmp_path):
+    res = run_study(small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),)), tmp_path / "s", workers=1, quiet=True,
+                    figures=False, device="cpu")
+    manifest = json.loads((tmp_path / "s" / "study.json").read_text())
+    assert manifest["noise_stream"] == "host"
+    (dev,) = res.summary["devices"]
+    assert dev["dsp"]["device"] == "cpu" and dev["dsp"]["library"].startswith("numpy ")
+    assert dev["trace"] is None or dev["trace"].endswith("_ad_mono_polarized")  # an analytic study traced nothing
+    on_disk = json.loads((tmp_path / "s" / "summary.json").read_text())
+    assert on_disk["devices"] == res.summary["devices"]
+
+
+def test_continuing_a_folder_whose_runs_came_from_another_stream_is_refused(small_spec, tmp_path):
+    spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
+    run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    manifest = tmp_path / "s" / "study.json"
+    data = json.loads(manifest.read_text())
+    data["noise_stream"] = "cuda"  # as a GPU sitting would have left it
+    manifest.write_text(json.dumps(data))
+    log = (tmp_path / "s" / "runs.jsonl").read_bytes()
+    with pytest.raises(StudyFolderError, match=r"noise was drawn on a GPU \(--device cuda\); continue it with that device"):
+        run_study(spec.__class__(**{**spec.__dict__, "runs": 3}), tmp_path / "s", workers=1, quiet=True,
+                  figures=False, device="cpu")
+    assert (tmp_path / "s" / "runs.jsonl").read_bytes() == log  # nothing appended
+
+
+def test_a_bad_device_name_is_one_line_before_any_work(small_spec, tmp_path, monkeypatch):
+    with pytest.raises(dsp.DeviceError, match=r"--device='gpu' is not a device; use cpu, cuda or auto"):
+        run_study(small_spec(runs=1), tmp_path / "s", workers=1, quiet=True, figures=False, device="gpu")
+    assert not (tmp_path / "s").exists()
+    monkeypatch.setenv("RISLOC_DEVICE", "tpu")
+    with pytest.raises(dsp.DeviceError, match=r"\$RISLOC_DEVICE='tpu' is not a device"):
+        run_study(small_spec(runs=1), tmp_path / "s", workers=1, quiet=True, figures=False)
+
+
+@pytest.mark.skipif(dsp.cuda_available()[0], reason="this machine has a GPU: --device cuda works here")
+def test_device_cuda_without_a_gpu_is_one_line_and_makes_no_folder(small_spec, tmp_path):
+    with pytest.raises(dsp.DeviceError, match=r"--device=cuda but .*; use --device cpu \(or auto\) on this machine"):
+        run_study(small_spec(runs=1), tmp_path / "s", workers=1, quiet=True, figures=False, device="cuda")
+    assert not (tmp_path / "s").exists()
