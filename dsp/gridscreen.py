@@ -23,22 +23,66 @@ needs, while transforming only a few delay columns at full resolution:
    K_DFT-grid DFT in a strip around the coarse bins within ``zoom_margin_db`` of the maximum).
    The cell order is the full search's (q major, p minor, ascending), so a tie goes the same way.
 
-**Precision.** Only the screen is complex64; it decides which columns are evaluated, never a
-value. Its error is bounded by the FFT's backward error, ``|ΔR_k(i)| ≤ c·u·log₂N·√N·‖x_k‖₂``
-(u = 2⁻²⁴): an absolute slack of ``1e-5·√N·Σ_k ‖x_k‖₂`` per beam, 50× that bound for c = 1, is
-added to U. Every value that reaches the result is float64 and agrees with the full transform's
-to ~1e-13 relative (different summation order), so the same cell wins unless two cells are within
-that of each other (a true tie, e.g. two identical returns; either cell is then the grid maximum).
+**Precision (screen).** Only the screen is complex64; it decides which columns are evaluated,
+never a value. Its error is bounded by the FFT's backward error,
+``|ΔR_k(i)| ≤ c·u·log₂N·√N·‖x_k‖₂`` (u = 2⁻²⁴): an absolute slack of ``1e-5·√N·Σ_k ‖x_k‖₂``
+per beam, 50× that bound for c = 1, is added to U. Every value that reaches the result is float64
+and agrees with the full transform's to ~1e-13 relative (different summation order), so the same
+cell wins unless two cells are within that of each other (a true tie, e.g. two identical
+returns; either cell is then the grid maximum). The fine-column allowance of step 1 (scalloping
+loss plus ``SCREEN_HEADROOM_DB``) is sized for sums of returns, not proven for every signal; the
+dense search below uses no such allowance.
 
-**Fallback.** A beam with more than a quarter of its columns above the bound (noise only, no
-return above the per-chirp noise) is searched densely, as before: the 1199-point transform of the
-whole beam and the zoom.
+**Routing.** A beam with no return above the per-chirp noise (noise only) cannot be screened:
+more than a quarter of its columns stay above the bound. Such a beam is recognised early, from
+the bound of 32 of its samples refined against the largest refined native value, and sent to the
+dense search without the screen's exact steps; a beam that reaches step 3 with more than a
+quarter of its columns above T₁ goes there too. Routing decides only the work, never the cell.
+
+**Dense search** (:func:`_dense_beam`), for those beams, with every step proven:
+
+a. *Fine range transform (complex64).* ``a_k(p) = Σ_n x[k, n] e^{+j2π p n / N_DFT}``, x the
+   windowed beam, on the whole N_DFT grid by two matrix products (N_DFT = P₁·P₂, 11·109 for
+   1199; the index split of Cooley–Tukey with the DFTs as products, p = P₂·a + b):
+   ``v[b, k, d] = Σ_c e^{j2π b c / P₂} x[k, P₁c + d]`` and
+   ``a[b, k, a] = Σ_d e^{j2π b d / N_DFT} e^{j2π d a / P₁} v[b, k, d]`` (P₁ + ⌈N/P₁⌉ products
+   per output instead of N; as fast as the FFT at this length, with an elementwise error bound).
+b. *Doppler plane (complex64).* ``c(r, p) = Σ_k a_k(p) e^{j2π r k / L}`` at L = 2^⌈log₂ 2K⌉
+   points (256) by a power-of-two FFT (radix-4/2 Cooley–Tukey), and |c|.
+c. *Szegő's bound.* In column p, ``g(ν) = Σ_k a_k(p) e^{j2π ν k}`` (ν in cycles per chirp) times
+   ``e^{-jπ(K-1)ν}`` is a trigonometric sum of exponential type σ = π(K-1). For any phase φ,
+   ``f = Re(e^{-jφ} e^{-jπ(K-1)ν} g)`` obeys ``f'² + σ²f² ≤ σ²M²``, M = max_ν |g| (Szegő's
+   inequality; Boas, *Entire Functions*, 11.4), so ``θ = arccos(f/M)`` moves by at most σ|Δν|.
+   Take q* the column's largest grid value m = |g(q*)| and φ its phase: θ(q*) = α with
+   ``cos α = m/M ≥ cos α₀``, α₀ = σ/(2 K_DFT) (the maximum of |g| is within half a grid bin of a
+   grid bin). Hence ``|g(ν)| ≥ M cos(α + σ|ν - q*|)`` for all ν, and a value r at ν puts q*
+   outside ``|ν - q*| < (arccos(r/T) - α₀)/σ`` for any T ≤ m (arccos(r/M) ≥ arccos(r/T)).
+d. *Search.* T is a lower bound of the grid maximum: the largest complex64 grid value next to
+   the plane's maximum, minus its error bound. The grid maximum lies in the plane interval
+   [r/L, (r+1)/L] of its column only if ``arccos(r_l/T) + arccos(r_r/T) ≤ σ/L + 2α₀`` (r_l, r_r
+   upper bounds of the interval's end values), so only cells ≥ T·cos((σ/L + 2α₀)/2) (0.68·T for
+   Table I) can border one. A surviving interval is split at its midpoint (one more complex64
+   value, the same test at half the length); the grid bins left in the allowed sub-intervals,
+   widened by one bin, are evaluated in complex64 (float64 sums of the complex64 a), and only
+   those within the error bounds of the largest are evaluated in float64 (as in step 3). No
+   margin in dB and no ``zoom_margin_db``: the bins that can hold the maximum are all kept.
+e. *Precision.* Elementwise, with u = 2⁻²⁴ and ‖x‖₁ = Σ|x| over the beam (summed in float64): casting
+   and windowing in float32 moves x by ≤ 3u|x|; a product of unit-modulus (rounded) coefficients
+   with n inputs errs by ≤ √2(γ_{n+2} + u)·Σ|inputs| (γ_n = nu/(1-nu)), and every intermediate
+   of step a is bounded by the ℓ1 norm of its inputs, so
+   ``|Δa_k(p)| ≤ e_a·‖x_k‖₁``, ``e_a = √2(γ_{⌈N/P₁⌉+2} + γ_{P₁+2} + 2u) + 3u``; a Cooley–Tukey pass
+   of radix ρ adds ≤ 2(ρ+2)u·Σ_k|a_k(p)| (its outputs are unit-weighted sums of ρ values, each
+   bounded by the ℓ1 norm of the values it sums). So a plane value errs by ≤ (e_a + e_L + 2u)·‖x‖₁
+   (e_L the sum over the passes; +2u for |·| in float32) and a complex64 grid value by
+   ≤ e_a·‖x‖₁ + 1e-13·‖x‖₁; twice these are the slacks (≈1e-5·‖x‖₁, 0.1 % of a noise-only
+   maximum at Table I). Every value that reaches the result is float64, as above.
 """
 
 from __future__ import annotations
 
 import functools
 from concurrent.futures import ThreadPoolExecutor
+from queue import Empty, SimpleQueue
 from typing import Callable
 
 import numpy as np
@@ -58,6 +102,12 @@ _F32_SLACK = 1e-5
 
 #: Bytes of complex64 screen work per chunk of beams (cache-sized).
 _SCREEN_CHUNK = 4 * 2**20
+
+#: Unit roundoff of float32.
+_U32 = 2.0**-24
+
+#: Native samples whose bound is refined to predict a noise-only beam (routing only).
+_ROUTE_SAMPLES = 32
 
 
 def scalloping_loss_db(window: str, length: int, offset: float) -> float:
@@ -184,11 +234,14 @@ def screened_scan(
     w_k, w_n = window_kn
     w32 = np.outer(w_k, w_n).astype(np.float32)
     reach = int(np.ceil(n_dft / n_c))  # fine columns per native sample
+    first_native = int(np.floor(first * n_c / n_dft))
     q_best = np.empty(m, dtype=np.int64)
     p_best = np.empty(m, dtype=np.int64)
     power = np.empty(m)
     average = np.empty(m)
     step = max(1, _SCREEN_CHUNK // (8 * k * n_c))
+    plan = _DensePlan.get(k, n, n_dft, processing.k_dft)
+    spare: SimpleQueue[_DenseWork] = SimpleQueue()  # one dense workspace per thread, made on demand
 
     def chunk(i: int) -> None:
         block = cube[i:i + step].astype(np.complex64)
@@ -197,23 +250,34 @@ def screened_scan(
         spec = scipy.fft.ifft(block, n=n_c, axis=-1, norm="forward", overwrite_x=True)  # [c, K, n_c]
         # Σ_k |R_k(i)| bounds |z| at every Doppler; the slack covers float32 (module notes).
         u = np.abs(spec).sum(axis=1, dtype=np.float64) + (_F32_SLACK * np.sqrt(k * n) * norms)[:, None]  # [c, n_c]
+        work = None
         for c in range(u.shape[0]):
             j = i + c
-            bounds = _ColumnBounds(spec[c], u[c] ** 2, doppler_margin, _F32_SLACK * np.sqrt(k * n) * norms[c])
-            first_native = int(np.floor(first * n_c / n_dft))
-            bounds.refine(first_native + np.argsort(u[c, first_native:])[-8:])
-            fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin  # [N_DFT]
-            fine[:first] = -np.inf
-            p0 = int(fine.argmax())
-            cols = np.arange(max(first, p0 - reach), min(n_dft, p0 + reach + 1))
             y = cube[j]
-            q, pi, value, krow = zoom_block(_range_columns(y, cols, n_dft, w_k, w_n), processing)
-            bounds.refine(np.flatnonzero(bounds.value * delay_margin >= value))
-            fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin
-            fine[:first] = -np.inf
-            above = np.flatnonzero(fine >= value)
-            if above.size > n_dft // 4:
-                q, p, value, krow = _dense_beam(y, processing, first, w_k, w_n)
+            bounds = _ColumnBounds(spec[c], u[c] ** 2, doppler_margin, _F32_SLACK * np.sqrt(k * n) * norms[c])
+            bounds.refine(first_native + np.argsort(u[c, first_native:])[-8:])
+            lower = -np.inf
+            if _noise_only(bounds, first_native, delay_margin, n_c):
+                dense = True
+            else:
+                fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin  # [N_DFT]
+                fine[:first] = -np.inf
+                p0 = int(fine.argmax())
+                cols = np.arange(max(first, p0 - reach), min(n_dft, p0 + reach + 1))
+                q, pi, value, krow = zoom_block(_range_columns(y, cols, n_dft, w_k, w_n), processing)
+                bounds.refine(np.flatnonzero(bounds.value * delay_margin >= value))
+                fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin
+                fine[:first] = -np.inf
+                above = np.flatnonzero(fine >= value)
+                dense = above.size > n_dft // 4
+                lower = np.sqrt(value)
+            if dense:
+                if work is None:
+                    try:
+                        work = spare.get_nowait()
+                    except Empty:
+                        work = _DenseWork(plan)
+                q, p, value, krow = _dense_beam(y, plan, work, first, w_k, w_n, w32, lower)
             else:
                 p = int(cols[pi])
                 extra = np.setdiff1d(above, cols, assume_unique=True)
@@ -224,6 +288,8 @@ def screened_scan(
                         q, p, value, krow = q2, p2, value2, krow2
             q_best[j], p_best[j], power[j] = q, p, value
             average[j] = _row_values(y, krow, average_columns(p), n_dft, w_k, w_n).mean()
+        if work is not None:
+            spare.put(work)
 
     starts = range(0, m, step)
     if workers <= 1 or len(starts) < 2:
@@ -234,6 +300,22 @@ def screened_scan(
             for _ in pool.map(chunk, starts):
                 pass
     return q_best, p_best, power, average
+
+
+def _noise_only(bounds: _ColumnBounds, first_native: int, delay_margin: float, n_c: int) -> bool:
+    """Whether the screen would leave more than a quarter of the beam's samples above its bound.
+
+    A prediction (it only routes the beam): the largest refined native value stands in for the
+    grid maximum, and the bound of ``_ROUTE_SAMPLES`` of the samples above it is refined.
+    """
+    top = np.flatnonzero(bounds.done)
+    level = float(bounds.value[top].max()) / bounds.margin  # ≈ the native grid's largest |z|²
+    above = first_native + np.flatnonzero(bounds.value[first_native:] * delay_margin >= level)
+    if above.size <= n_c // 4:
+        return False
+    sample = above[np.linspace(0, above.size - 1, min(_ROUTE_SAMPLES, above.size)).astype(np.int64)]
+    bounds.refine(sample)
+    return above.size * np.mean(bounds.value[sample] * delay_margin >= level) > n_c // 4
 
 
 class _ColumnBounds:
@@ -257,30 +339,199 @@ class _ColumnBounds:
         self.done[todo] = True
 
 
-def _dense_beam(y: np.ndarray, processing: ProcessingConfig, first: int, w_k: np.ndarray,
-                w_n: np.ndarray) -> tuple[int, int, float, np.ndarray]:
+def _prime_factors(n: int) -> list[int]:
+    """The prime factors of ``n`` with multiplicity, ascending."""
+    out, p = [], 2
+    while p * p <= n:
+        while n % p == 0:
+            out.append(p)
+            n //= p
+        p += 1
+    return out + ([n] if n > 1 else [])
+
+
+def _gamma(n: int) -> float:
+    """γ_n = n·u/(1 - n·u) for float32: the relative error bound of an n-term sum."""
+    return n * _U32 / (1.0 - n * _U32)
+
+
+class _DensePlan:
+    """The dense search's constants for one (K, N, N_DFT, K_DFT): tables and error bounds.
+
+    Attributes
+    ----------
+    p1, p2, blocks : int
+        N_DFT = P₁·P₂ and ⌈N/P₁⌉: the range transform's split (module notes, step a).
+    stage1 : complex64 array [P₂, ⌈N/P₁⌉]
+        ``e^{j2π b c / P₂}``.
+    stage2 : complex64 array [P₂, P₁, P₁]
+        ``e^{j2π b d / N_DFT} e^{j2π d a / P₁}`` [b, d, a].
+    length : int
+        L, the Doppler plane's length (power of two >= 2K).
+    sigma, alpha0 : float
+        σ = π(K-1) [rad per cycle] and α₀ = σ/(2 K_DFT) [rad] (step c).
+    err_plane, err_grid, err_mid : float
+        Slack of a plane value, a grid value and a midpoint value per unit ‖x‖₁ (step e, doubled).
+    midpoints : complex64 array [2L, K]
+        ``e^{j2π m k / 2L}``: the kernel rows of the plane's midpoints (odd m).
+    column : int array [P₂, P₁]
+        The delay bin p = P₂·a + b of the plane's column [b, :, a].
+    """
+
+    _cache: dict[tuple[int, int, int, int], _DensePlan] = {}
+
+    def __init__(self, k: int, n: int, n_dft: int, k_dft: int) -> None:
+        # P₁: the divisor of N_DFT with the fewest products per output, P₁ + ⌈N/P₁⌉.
+        divisors = [d for d in range(2, n_dft + 1) if n_dft % d == 0]
+        p1 = min(divisors, key=lambda d: d + -(-n // d))
+        p2, blocks = n_dft // p1, -(-n // p1)
+        self.k, self.n, self.n_dft, self.k_dft = k, n, n_dft, k_dft
+        self.p1, self.p2, self.blocks = p1, p2, blocks
+        b, c, d = np.arange(p2), np.arange(blocks), np.arange(p1)
+        self.stage1 = np.exp(2j * np.pi * (np.outer(b, c) % p2) / p2).astype(np.complex64)
+        twiddle = np.exp(2j * np.pi * (np.outer(b, d) % n_dft) / n_dft)  # [b, d]
+        small = np.exp(2j * np.pi * (np.outer(d, d) % p1) / p1)  # [d, a]
+        self.stage2 = (twiddle[:, :, None] * small[None, :, :]).astype(np.complex64)
+        self.length = 1 << int(np.ceil(np.log2(2 * k)))
+        self.sigma = np.pi * (k - 1)
+        self.alpha0 = self.sigma / (2.0 * k_dft)
+        err_a = np.sqrt(2.0) * (_gamma(blocks + 2) + _gamma(p1 + 2) + 2 * _U32) + 3 * _U32
+        err_l = sum(2.0 * (f + 2) for f in _prime_factors(self.length)) * _U32
+        self.err_plane = 2.0 * (err_a + err_l + 2 * _U32)
+        self.err_grid = 2.0 * (err_a + 1e-13)
+        self.err_mid = 2.0 * (err_a + np.sqrt(2.0) * (_gamma(k + 2) + _U32))  # complex64 products
+        self.midpoints = _dft_table(2 * self.length, k, 2 * self.length).astype(np.complex64)  # [2L, K]
+        # Fine column p of the plane layout [b, r, a]: p = P₂·a + b.
+        self.column = np.arange(p1)[None, :] * p2 + np.arange(p2)[:, None]  # [P₂, P₁]
+
+    @classmethod
+    def get(cls, k: int, n: int, n_dft: int, k_dft: int) -> _DensePlan:
+        """The plan for these sizes (kept for the last few)."""
+        key = (k, n, n_dft, k_dft)
+        if key not in cls._cache:
+            if len(cls._cache) >= 4:
+                cls._cache.pop(next(iter(cls._cache)))
+            cls._cache[key] = cls(*key)
+        return cls._cache[key]
+
+
+class _DenseWork:
+    """Buffers of one thread's dense search (reused beam after beam: no page faults)."""
+
+    def __init__(self, plan: _DensePlan) -> None:
+        k, p1, p2 = plan.k, plan.p1, plan.p2
+        self.xs = np.zeros((plan.blocks, k, p1), np.complex64)  # x[k, P₁c + d] at [c, k, d]
+        self.v = np.empty((p2, k * p1), np.complex64)
+        self.a = np.empty((p2, k, p1), np.complex64)  # a_k(P₂·a + b) at [b, k, a]
+        self.plane = np.zeros((p2, plan.length, p1), np.complex64)
+        self.amp = np.empty((p2, plan.length, p1), np.float32)
+        self.mask = np.empty((p2, plan.length, p1), bool)
+        self.ends = np.empty((p2, plan.length, p1), bool)
+
+
+def _dense_beam(y: np.ndarray, plan: _DensePlan, work: _DenseWork, first: int, w_k: np.ndarray,
+                w_n: np.ndarray, w32: np.ndarray, lower: float) -> tuple[int, int, float, np.ndarray]:
     """The grid maximum of one beam ``y [K, N]`` (not windowed) whose columns could not be screened.
 
-    The whole N_DFT × (oversampling·K) coarse plane in complex64 (the screen: it only picks
-    cells), its cells within ``zoom_margin_db`` of the maximum — widened by a float32 slack of
-    1e-5·√(K_c·N_DFT)·‖x‖, about 9× the transform's error bound — and the exact float64 K_DFT-grid
-    values near them (:func:`_fine_maximum` on :func:`_range_columns`), as :func:`zoom_block` but
-    without a float64 transform of the whole beam.
+    The module notes' dense search: the fine range transform and an L-point Doppler plane in
+    complex64, Szegő's bound to keep only the grid bins that can hold the maximum, complex64
+    values there and float64 values for the few within the error bounds of the largest.
+    ``w32`` is the float32 window w_K·w_N [K, N]; ``lower`` is a grid amplitude |z| known not to
+    exceed the maximum (or -inf). Returns (q, p, unnormalised |z|², kernel row of q [K]).
     """
     k, n = y.shape
-    frame = (y * np.outer(w_k, w_n)).astype(np.complex64)
-    k_coarse = scipy.fft.next_fast_len(processing.zoom_oversampling * k)
-    spec = scipy.fft.ifft(frame, n=processing.n_dft, axis=-1, norm="forward")[:, first:]  # [K, P] complex64
-    coarse = scipy.fft.ifft(spec, n=k_coarse, axis=0, norm="forward", overwrite_x=True)  # [K_c, P]
-    amp = np.abs(coarse)
-    slack = _F32_SLACK * np.sqrt(k_coarse * processing.n_dft) * float(np.linalg.norm(frame.astype(np.complex128)))
-    floor = (float(amp.max()) - slack) * 10.0 ** (-processing.zoom_margin_db / 20.0) - slack
-    picked = np.flatnonzero(amp.max(axis=0) >= floor)  # the candidate columns, ascending
-    rows, sub = np.nonzero(amp[:, picked] >= floor)
-    cols = picked[sub]
-    exact = _range_columns(y, first + picked, processing.n_dft, w_k, w_n)  # [K, C] float64
-    q, ci, value, krow = _fine_maximum(exact, rows, np.searchsorted(picked, cols), k_coarse, processing)
-    return q, first + int(picked[ci]), value, krow
+    n_dft, k_dft, p1, p2, length = plan.n_dft, plan.k_dft, plan.p1, plan.p2, plan.length
+    table = _dft_table(k_dft, k, k_dft)
+    # a. The fine range transform, a_k(P₂·a + b) at [b, k, a].
+    whole = n // p1
+    np.multiply(y[:, :whole * p1].reshape(k, whole, p1), w32[:, :whole * p1].reshape(k, whole, p1),
+                out=work.xs[:whole].transpose(1, 0, 2), casting="same_kind")
+    if whole < plan.blocks:
+        np.multiply(y[:, whole * p1:], w32[:, whole * p1:], out=work.xs[whole, :, :n - whole * p1],
+                    casting="same_kind")
+    l1 = float(np.abs(work.xs).sum(dtype=np.float64)) * (1.0 + 1e-6)  # >= ‖x‖₁ (x within 3u of xs)
+    if l1 < 1e-30:  # zero, or so small that float32 loses it: the float64 grid decides
+        if not np.any(y):  # every cell ties at 0 and the first searchable one wins
+            return 0, first, 0.0, table[0]
+        return _full_beam(y, plan, first, w_k, w_n)
+    eps_plane, eps_grid = plan.err_plane * l1, plan.err_grid * l1
+    np.matmul(plan.stage1, work.xs.reshape(plan.blocks, k * p1), out=work.v)
+    a = np.matmul(work.v.reshape(p2, k, p1), plan.stage2, out=work.a)
+    # b. The Doppler plane at L points and its magnitude.
+    plane = work.plane
+    plane[:, :k] = a
+    plane[:, k:] = 0.0
+    plane = scipy.fft.ifft(plane, axis=1, norm="forward", overwrite_x=True)  # in place
+    amp = np.abs(plane, out=work.amp)
+    if first:
+        b_out, a_out = np.nonzero(plan.column < first)
+        amp[b_out, :, a_out] = -1.0
+    # d. T: the largest grid value next to the plane's maximum, less its error bound.
+    b0, r0, a0 = np.unravel_index(int(amp.argmax()), amp.shape)
+    q0 = np.arange((r0 - 1) * k_dft // length, -(-(r0 + 1) * k_dft // length) + 1) % k_dft
+    t = max(lower * (1.0 - 1e-9), float(np.abs(table[q0] @ a[b0, :, a0]).max()) - eps_grid)
+    if not t > 0.0:  # cannot happen for a beam that is not zero (module notes); the full grid then
+        return _full_beam(y, plan, first, w_k, w_n)
+    reach = plan.sigma / length + 2.0 * plan.alpha0  # σ·h + 2α₀, h = 1/L
+    np.greater_equal(amp, t * np.cos(min(0.5 * reach, 0.5 * np.pi)) - eps_plane, out=work.mask)
+    # The intervals [r, r+1] (flat index of r) with a candidate at either end.
+    mask, ends = work.mask, work.ends
+    np.logical_or(mask[:, :-1], mask[:, 1:], out=ends[:, :-1])
+    np.logical_or(mask[:, -1], mask[:, 0], out=ends[:, -1])
+    left = np.flatnonzero(ends)
+    b, rem = np.divmod(left, length * p1)
+    r, a_idx = np.divmod(rem, p1)
+    right = (b * length + (r + 1) % length) * p1 + a_idx
+    flat = amp.reshape(-1)
+    gap_l = _exclusion(flat[left], t, eps_plane, plan)  # cycles around each end free of the maximum
+    gap_r = _exclusion(flat[right], t, eps_plane, plan)
+    keep = gap_l + gap_r <= (1.0 + 1e-9) / length  # float64 rounding of the test itself
+    b, r, a_idx, gap_l, gap_r = b[keep], r[keep], a_idx[keep], gap_l[keep], gap_r[keep]
+    # Split each interval at its midpoint (2L grid): one more value, the same test on the halves.
+    cols = a[b, :, a_idx]  # [I, K] complex64
+    mid = np.abs(np.einsum("ik,ik->i", plan.midpoints[2 * r + 1], cols))
+    gap_m = _exclusion(mid, t, plan.err_mid * l1, plan)
+    start = np.concatenate([r / length + gap_l, (r + 0.5) / length + gap_m])
+    stop = np.concatenate([(r + 0.5) / length - gap_m, (r + 1) / length - gap_r])
+    b, a_idx = np.concatenate([b, b]), np.concatenate([a_idx, a_idx])
+    ok = start <= stop + 1e-9 / length
+    start, stop, b, a_idx = start[ok], stop[ok], b[ok], a_idx[ok]
+    # The grid bins in the allowed sub-intervals, widened by one bin, in complex64.
+    q_lo = np.ceil(start * k_dft).astype(np.int64) - 1
+    count = np.floor(stop * k_dft).astype(np.int64) + 2 - q_lo
+    total = int(count.sum())
+    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+    q = (np.repeat(q_lo, count) + offset) % k_dft
+    b, a_idx = np.repeat(b, count), np.repeat(a_idx, count)
+    value = np.abs(np.einsum("ik,ik->i", table[q], a[b, :, a_idx]))
+    t = max(t, float(value.max()) - eps_grid)
+    near = value + eps_grid >= t
+    # float64 for those that can be the maximum; the full search's order on ties (q, then p).
+    cells = np.unique(q[near] * n_dft + plan.column[b[near], a_idx[near]])
+    q, p = np.divmod(cells, n_dft)
+    columns, which = np.unique(p, return_inverse=True)
+    exact = _range_columns(y, columns, n_dft, w_k, w_n)  # [K, C] float64
+    z = np.einsum("ik,ki->i", table[q], exact[:, which])
+    power = z.real**2 + z.imag**2
+    best = int(np.lexsort((p, q, -power))[0])
+    return int(q[best]), int(p[best]), float(power[best]), table[int(q[best])]
+
+
+def _exclusion(value: np.ndarray, t: float, slack: float, plan: _DensePlan) -> np.ndarray:
+    """(arccos(min(1, (value + slack)/t)) - α₀)/σ, >= 0: the reach [cycles] of a sample's exclusion."""
+    ratio = np.minimum(1.0, (value.astype(np.float64) + slack) / t)
+    return np.maximum(0.0, np.arccos(ratio) - plan.alpha0) / plan.sigma
+
+
+def _full_beam(y: np.ndarray, plan: _DensePlan, first: int, w_k: np.ndarray,
+               w_n: np.ndarray) -> tuple[int, int, float, np.ndarray]:
+    """The grid maximum of ``y [K, N]`` by the whole float64 N_DFT × K_DFT transform (fallback)."""
+    spectrum = scipy.fft.ifft(y * np.outer(w_k, w_n), n=plan.n_dft, axis=1, norm="forward")
+    grid = scipy.fft.ifft(spectrum, n=plan.k_dft, axis=0, norm="forward")  # [K_DFT, N_DFT]
+    power = grid.real**2 + grid.imag**2
+    power[:, :first] = -1.0
+    q, p = np.unravel_index(int(power.argmax()), power.shape)
+    return int(q), int(p), float(power[q, p]), _dft_table(plan.k_dft, y.shape[0], plan.k_dft)[int(q)]
 
 
 def _row_values(y: np.ndarray, krow: np.ndarray, columns: np.ndarray, n_dft: int, w_k: np.ndarray,
