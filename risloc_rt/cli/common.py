@@ -17,7 +17,8 @@ from dsp import ProcessingConfig
 
 __all__ = ["CliError", "vector", "angle_pair", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
            "plot_traced_profile", "add_trace_flags", "add_processing_flags", "add_estimator_flags",
-           "estimator_options", "add_force_flag", "npz_target", "EXIT_NO_DETECTION"]
+           "estimator_options", "add_force_flag", "npz_target", "EXIT_NO_DETECTION", "add_device_flag",
+           "device_backend", "device_name"]
 
 
 class CliError(Exception):
@@ -300,3 +301,81 @@ def add_processing_flags(p: argparse.ArgumentParser) -> None:
                    help="peak search over Doppler: 'zoom' (default, exact on the grid, fast) or 'full' (the paper's full 2-D DFT)")
     p.add_argument("--min-range", type=float, metavar="M",
                    help="ignore peaks closer than M metres (e.g. Tx-Rx leakage in measured data)")
+
+
+def add_device_flag(p: argparse.ArgumentParser) -> None:
+    """Add ``--device {cpu,cuda,auto}``: where the DSP's whole-cube work runs (``dsp.xp``).
+
+    No ``choices``: the value is checked by :func:`dsp.xp.device_choice` (as ``$RISLOC_DEVICE`` is), so
+    a wrong name from the flag or the environment gets the same one-line error.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A verb's parser.
+    """
+    p.add_argument("--device", metavar="{cpu,cuda,auto}",
+                   help="where the DSP's whole-cube work (receiver noise, detector) runs: cpu (NumPy), cuda (CuPy on "
+                        "an NVIDIA GPU; pip install '.[gpu]') or auto (the GPU when CuPy finds one, else cpu); "
+                        "default $RISLOC_DEVICE, else cpu")
+
+
+def _device_error(exc: Exception) -> CliError:
+    """A :class:`dsp.DeviceError` as a one-line CLI error naming the flag (``--device=...``) the user gave."""
+    message = str(exc)
+    if message.startswith("device="):  # dsp.backend_for names a given choice 'device'; here it is the flag
+        message = "--" + message
+    return CliError(message)
+
+
+def device_backend(args: argparse.Namespace) -> Any:
+    """The array backend of ``--device`` (else ``$RISLOC_DEVICE``, else ``cpu``): :func:`dsp.backend_for`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_device_flag`).
+
+    Returns
+    -------
+    dsp.ArrayBackend
+
+    Raises
+    ------
+    CliError
+        An unknown device name (flag or ``$RISLOC_DEVICE``), or ``cuda`` without CuPy or a GPU: one line
+        naming the problem and the fix (exit status 2).
+    """
+    from dsp import DeviceError, backend_for
+
+    try:
+        return backend_for(getattr(args, "device", None))
+    except DeviceError as exc:
+        raise _device_error(exc) from None
+
+
+def device_name(args: argparse.Namespace) -> str:
+    """``--device`` (else ``$RISLOC_DEVICE``, else ``cpu``) checked but not resolved: ``cpu``, ``cuda`` or ``auto``.
+
+    For work resolved elsewhere (a study's workers, on their own machines: :func:`dsp.xp.device_choice`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed flags (:func:`add_device_flag`).
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    CliError
+        An unknown device name (exit status 2).
+    """
+    from dsp import DeviceError, device_choice
+
+    try:
+        return device_choice(getattr(args, "device", None))
+    except DeviceError as exc:
+        raise _device_error(exc) from None

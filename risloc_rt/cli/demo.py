@@ -10,25 +10,26 @@ from pathlib import Path
 import numpy as np
 
 from .._outputs import output_folder, safe_name
-from ..io.report import format_case, report_capture, write_result
+from ..io.report import format_case, format_environment, report_capture, run_environment, write_result
 from ..model.scenario import PAPER_CASES, paper_scenario
 from ..model.simulate import simulate
-from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_force_flag, add_processing_flags, add_trace_flags,
-                     estimator_options, plot_traced_profile, processing_overrides, quiet_hall_paths, trace_cache,
-                     trace_settings)
+from .common import (EXIT_NO_DETECTION, add_device_flag, add_estimator_flags, add_force_flag, add_processing_flags,
+                     add_trace_flags, device_backend, estimator_options, plot_traced_profile, processing_overrides,
+                     quiet_hall_paths, trace_cache, trace_settings)
 
 __all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is written
     with output_folder(out, force=args.force, flag="--out", expect=("result.json",)) as stage:
-        status = _demo_analytic(args, stage) if args.analytic else _demo_hall(args, stage)
+        status = (_demo_analytic if args.analytic else _demo_hall)(args, stage, backend)
     print(f"wrote {out / 'result.json'} and plots under {out}/")
     return status
 
 
-def _demo_hall(args: argparse.Namespace, out: Path) -> int:
+def _demo_hall(args: argparse.Namespace, out: Path, backend) -> int:
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
     from ..hall.scenario import hall_scenario
@@ -49,7 +50,7 @@ def _demo_hall(args: argparse.Namespace, out: Path) -> int:
         timing = {"trace" + (" (cached)" if traced.trace.cache_hit else ""): traced.timing["trace"],
                   "paths": traced.timing["paths"], "synthesis": time.perf_counter() - start}
         result = report_capture(safe_name(hs.name.replace("#", "-")), capture, out_dir=out, processing=processing, timing=timing,
-                                **estimator_options(args))
+                                backend=backend, **estimator_options(args))
         plot_traced_profile(hs, traced, out / result.name / "traced_profile.png")
         result = replace(result, plots={**result.plots, "traced_profile": f"{result.name}/traced_profile.png"})
         print(format_case(result))
@@ -58,11 +59,18 @@ def _demo_hall(args: argparse.Namespace, out: Path) -> int:
         for w in traced.report.warnings:
             print(f"  warning: {w}")
         cases.append(result)
-    write_result(out, cases)
+    _finish(out, cases, backend)
     return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
-def _demo_analytic(args: argparse.Namespace, out: Path) -> int:
+def _finish(out: Path, cases: list, backend) -> None:
+    """Say what ran where (one line) and write ``result.json`` with it (its ``"device"`` object)."""
+    env = run_environment(backend)
+    print(format_environment(env))
+    write_result(out, cases, device=env)
+
+
+def _demo_analytic(args: argparse.Namespace, out: Path, backend) -> int:
     cases = []
     print(f"risloc demo: the paper scenario (Table I), UE-RIS 13.38 m, RIS mode {args.mode}, seed {args.seed}")
     seeds = np.random.SeedSequence(args.seed).spawn(len(PAPER_CASES))
@@ -72,10 +80,11 @@ def _demo_analytic(args: argparse.Namespace, out: Path) -> int:
         start = time.perf_counter()
         capture = simulate(scenario, rng=np.random.default_rng(ss), seed=args.seed)
         result = report_capture(safe_name(scenario.name), capture, out_dir=out, processing=processing,
-                                timing={"synthesis": time.perf_counter() - start}, **estimator_options(args))
+                                timing={"synthesis": time.perf_counter() - start}, backend=backend,
+                                **estimator_options(args))
         print(format_case(result))
         cases.append(result)
-    write_result(out, cases)
+    _finish(out, cases, backend)
     return 0 if all(c.localization.detected for c in cases) else EXIT_NO_DETECTION
 
 
@@ -98,4 +107,5 @@ def add_parser(sub) -> None:
     add_trace_flags(demo)
     add_processing_flags(demo)
     add_estimator_flags(demo)
+    add_device_flag(demo)
     demo.set_defaults(func=_run)

@@ -7,14 +7,15 @@ from pathlib import Path
 
 from .._outputs import output_folder, safe_name
 from ..io.capture_file import load_capture
-from ..io.report import format_case, report_capture, write_result
-from .common import (EXIT_NO_DETECTION, add_estimator_flags, add_force_flag, add_processing_flags, estimator_options,
-                     processing_overrides)
+from ..io.report import format_case, format_environment, report_capture, run_environment, write_result
+from .common import (EXIT_NO_DETECTION, add_device_flag, add_estimator_flags, add_force_flag, add_processing_flags,
+                     device_backend, estimator_options, processing_overrides)
 
 __all__ = ["add_parser"]
 
 
 def _run(args: argparse.Namespace) -> int:
+    backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
     capture = load_capture(args.capture)
     if args.calibration is not None:
         from ..measured.compare.calibration_file import apply_to_capture, read_calibration
@@ -27,15 +28,18 @@ def _run(args: argparse.Namespace) -> int:
         from ..measured.compare.uncertainty_budget import apply_budget as budget
     if not args.out:
         result = report_capture(name, capture, out_dir=None, processing=processing, timing={}, budget=budget,
-                                **estimator_options(args))
+                                backend=backend, **estimator_options(args))
         print(format_case(result))
+        print(format_environment(run_environment(backend)))
         return 0 if result.localization.detected else EXIT_NO_DETECTION
     out = Path(args.out)
     with output_folder(out, force=args.force, flag="--out", expect=("result.json",)) as stage:
         result = report_capture(name, capture, out_dir=stage, processing=processing, timing={}, budget=budget,
-                                **estimator_options(args))
-        write_result(stage, [result])
+                                backend=backend, **estimator_options(args))
+        env = run_environment(backend)
+        write_result(stage, [result], device=env)
     print(format_case(result))
+    print(format_environment(env))
     print(f"wrote {out / 'result.json'} and plots under {out / name}/")
     return 0 if result.localization.detected else EXIT_NO_DETECTION
 
@@ -60,4 +64,5 @@ def add_parser(sub) -> None:
                      help="a calibration file from 'risloc calibrate': its tau_RB and range offset set the distance")
     add_processing_flags(loc)
     add_estimator_flags(loc)
+    add_device_flag(loc)
     loc.set_defaults(func=_run)

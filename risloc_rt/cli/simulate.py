@@ -13,8 +13,9 @@ from ..io.capture_file import save_capture
 from ..model.builder import analytic_scenario
 from ..model.scenario import PAPER_CASES, Scenario, paper_scenario
 from ..model.simulate import simulate
-from .common import (CliError, add_force_flag, add_processing_flags, add_trace_flags, angle_pair, npz_target,
-                     processing_overrides, quiet_hall_paths, trace_cache, trace_settings, vector)
+from .common import (CliError, add_device_flag, add_force_flag, add_processing_flags, add_trace_flags, angle_pair,
+                     device_backend, npz_target, processing_overrides, quiet_hall_paths, trace_cache, trace_settings,
+                     vector)
 
 __all__ = ["add_parser"]
 
@@ -81,22 +82,23 @@ def _run(args: argparse.Namespace) -> int:
     int
         The exit status of :func:`_simulate`.
     """
+    backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is written
     if args.format == "dca1000":
         from ..measured.emulate.experiment import check_folder
 
         folder = check_folder(args.output)
         with output_folder(folder, force=args.force, flag="-o") as stage:
-            summary = _simulate(args, stage)
+            summary = _simulate(args, stage, backend)
         print(f"wrote {folder}: {summary}")
         return 0
     path = npz_target(args.output)
     with output_file(path, force=args.force, flag="-o") as target:
-        summary = _simulate(args, target)
+        summary = _simulate(args, target, backend)
     print(f"wrote {path}: {summary}")
     return 0
 
 
-def _simulate(args: argparse.Namespace, target: Path) -> str:
+def _simulate(args: argparse.Namespace, target: Path, backend=None) -> str:
     """``risloc simulate``: a capture file of the analytic scenario or a traced hall (``--format dca1000``: a folder).
 
     Parameters
@@ -105,6 +107,8 @@ def _simulate(args: argparse.Namespace, target: Path) -> str:
         The parsed command line (--scene, --case, --ue [m], --calibration, --format, ...).
     target : Path
         The capture file to write, or with ``--format dca1000`` the (staging) folder.
+    backend : dsp.ArrayBackend, optional
+        Where the receiver noise is drawn (``--device``; :func:`risloc_rt.model.simulate.simulate`).
 
     Returns
     -------
@@ -152,7 +156,8 @@ def _simulate(args: argparse.Namespace, target: Path) -> str:
         paths = calibrated_paths(scenario, paths, cal)
         extra = {**(extra or {}), "calibration": str(args.calibration)}
     capture = simulate(scenario, rng=np.random.default_rng(args.seed), noise=not args.no_noise, seed=args.seed,
-                       paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep")
+                       paths=paths, provenance_extra=extra, motion="frozen" if args.frozen_geometry else "sweep",
+                       backend=backend)
     t = capture.truth
     if args.format == "dca1000":
         return _write_dca1000(args, capture, target)
@@ -253,4 +258,5 @@ def add_parser(sub) -> None:
                           "with --format dca1000, the ADC counts per watt)")
     add_trace_flags(sim)
     add_processing_flags(sim)
+    add_device_flag(sim)
     sim.set_defaults(func=_run)

@@ -3,7 +3,8 @@
 A thin verb over :mod:`risloc_rt.studies.speed`: it prints the study's table (times beside the
 model error and the position RMSE against the Cramér–Rao bound, ratios against the paper's
 full-grid method) and the mechanism verdicts, and writes the rows as JSON (``--json``) and the
-trade-off figure (``--plot``).
+trade-off figure (``--plot``). ``--device`` chooses where the refined estimator's detector runs; the
+line ``device: ...`` and the JSON's ``"device"`` object say what ran the DSP and the ray tracer.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from .common import add_force_flag
+from .common import add_device_flag, add_force_flag, device_backend
 
 __all__ = ["add_parser"]
 
@@ -22,12 +23,14 @@ def _run(args: argparse.Namespace) -> int:
     from .._files import atomic_write_bytes
     from .._outputs import check_output_file, output_file
     from ..authoring.scene_folder import SCENES_DIR
+    from ..io.report import format_environment, run_environment
     from ..studies.speed import format_table, mechanism_verdicts, plot_tradeoff, run_speed_study
     from .common import CliError
 
     scenes = args.scene or sorted(p.parent.name for p in SCENES_DIR.glob("*/spec.toml"))
     if args.realizations < 1 or args.positions < 1 or args.full < 0:
         raise CliError("--realizations and --positions must be >= 1 and --full >= 0")
+    backend = device_backend(args)  # a missing GPU or a bad --device: one line before the study
     for flag, given in (("--json", args.json), ("--plot", args.plot)):
         if given:  # refused before the study, not after it
             check_output_file(given, force=args.force, flag=flag)
@@ -35,13 +38,15 @@ def _run(args: argparse.Namespace) -> int:
           f"position (fast noise stream), the paper's full 2-D DFT on {min(args.full, args.realizations)} of them "
           f"at the default trace setting; reference model: depth 4, 10⁶ rays")
     summaries = run_speed_study(scenes, realizations=args.realizations, full=args.full, seed=args.seed,
-                                positions=args.positions)
+                                positions=args.positions, backend=backend)
+    env = run_environment(backend)
     print(format_table(summaries))
     for line in mechanism_verdicts(summaries):
         print(line)
+    print(format_environment(env))
     if args.json:
         with output_file(args.json, force=args.force, flag="--json") as target:
-            atomic_write_bytes(target, json.dumps(summaries, indent=1).encode())
+            atomic_write_bytes(target, json.dumps({"device": env, "rows": summaries}, indent=1).encode())
         print(f"wrote {args.json}")
     if args.plot:
         with output_file(args.plot, force=args.force, flag="--plot") as target:
@@ -67,7 +72,9 @@ def add_parser(sub: Any) -> None:
                    help="realizations also processed with the paper's full 2-D DFT, default setting only (1)")
     p.add_argument("--positions", type=int, default=2, help="radar positions per scene (first N of its spec; 2)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", metavar="FILE", help="write the summaries as JSON")
+    p.add_argument("--json", metavar="FILE",
+                   help='write {"device": what ran the DSP and the trace, "rows": the summaries} as JSON')
     p.add_argument("--plot", metavar="PNG", help="draw the trade-off curves")
     add_force_flag(p, "an existing --json or --plot file")
+    add_device_flag(p)
     p.set_defaults(func=_run)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -20,7 +21,8 @@ from ..model.power_check import range_alias_flag
 from ..model.scenario import Truth
 
 __all__ = ["CaseResult", "process_capture", "report_capture", "estimation_errors", "write_result", "format_case",
-           "RESULT_FORMAT", "json_safe", "facing_away_flag", "capture_flags", "significant"]
+           "RESULT_FORMAT", "json_safe", "facing_away_flag", "capture_flags", "significant", "run_environment",
+           "format_environment"]
 
 RESULT_FORMAT = "risloc-result"
 RESULT_VERSION = 1
@@ -68,7 +70,7 @@ DEFAULT_ESTIMATOR = "refined"
 
 def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None,
                     estimator: str = DEFAULT_ESTIMATOR, ue_height: float | None = None,
-                    pfa: float | None = None) -> tuple[Localization, float]:
+                    pfa: float | None = None, backend: Any = None) -> tuple[Localization, float]:
     """Run the shared DSP on a capture; returns the localization and the DSP time [s].
 
     Parameters
@@ -83,6 +85,8 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
         Known world z of the radar [m]; resolves the elevation a 1-D sweep cannot see.
     pfa : float, optional
         Detector false-alarm probability per capture (default ``dsp``'s, 1e-3).
+    backend : dsp.ArrayBackend, optional
+        Where the detector's whole-cube work runs (``--device``; :func:`dsp.self_localize`); default NumPy.
 
     Returns
     -------
@@ -96,7 +100,7 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     loc = self_localize(capture.cube, sweep=capture.sweep, radar=capture.radar,
                         processing=processing or capture.processing, pose=capture.ris.pose,
                         loopback_delay=capture.ris.loopback_delay, estimator=estimator,
-                        pattern=capture.ris.beam_pattern(), ue_height=ue_height, **extra)
+                        pattern=capture.ris.beam_pattern(), ue_height=ue_height, backend=backend, **extra)
     alias = range_alias_flag(loc, capture)
     if alias is not None and "aliased" not in loc.flag_codes:
         loc = replace(loc, flags=(*loc.flags, alias))
@@ -174,7 +178,7 @@ def report_capture(name: str, capture: Capture, *, out_dir: Path | None, process
     The figures are the delay-Doppler map of the chosen beam with its three largest peaks, P_ave
     over the sweep, and the range profile at the estimated Doppler. ``timing`` (seconds per
     stage) gains ``"dsp"`` and, with figures, ``"plots"``. ``options`` go to :func:`process_capture`
-    (``estimator``, ``ue_height``, ``pfa``). ``budget(capture, loc) -> (loc, budget or None)``
+    (``estimator``, ``ue_height``, ``pfa``, ``backend``). ``budget(capture, loc) -> (loc, budget or None)``
     (``risloc_rt.measured.compare.apply_budget`` for measured captures) replaces the σ by the
     uncertainty budget's total; its ``to_list()`` goes to :attr:`CaseResult.uncertainty_budget`.
     """
@@ -291,13 +295,15 @@ def json_safe(value: Any, *, where: str = "$", nonfinite: list[str] | None = Non
     return value
 
 
-def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Path:
+def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult],
+                 device: dict[str, Any] | None = None) -> Path:
     """Write ``out_dir/result.json`` for ``cases``; returns its path.
 
-    The file is strict JSON: a value that is not finite (an estimate of a capture where nothing
-    was detected, say) is written as ``null`` and its path listed under ``"nonfinite"``. It is
-    written to a unique temporary file in ``out_dir`` and renamed, so concurrent writers leave one
-    complete file and an interrupted write leaves none.
+    ``device`` (:func:`run_environment`: what ran the DSP and the ray tracer) becomes the document's
+    ``"device"`` object; without it the key is left out. The file is strict JSON: a value that is not
+    finite (an estimate of a capture where nothing was detected, say) is written as ``null`` and its
+    path listed under ``"nonfinite"``. It is written to a unique temporary file in ``out_dir`` and
+    renamed, so concurrent writers leave one complete file and an interrupted write leaves none.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -306,10 +312,62 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult]) -> Pa
         "format": RESULT_FORMAT,
         "version": RESULT_VERSION,
         "units": "SI: m, s, m/s, rad; delay_rate s/s; average_power W",
+        **({} if device is None else {"device": device}),
         "cases": [case_dict(c) for c in cases],
     }, nonfinite=nonfinite)
     doc["nonfinite"] = nonfinite
     return atomic_write_bytes(out / "result.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode())
+
+
+def run_environment(backend: Any = None) -> dict[str, Any]:
+    """What ran this process's numbers: the DSP's device and library, and the ray tracer's Mitsuba variant.
+
+    Parameters
+    ----------
+    backend : dsp.ArrayBackend, optional
+        The DSP's backend (default NumPy).
+
+    Returns
+    -------
+    dict
+        ``dsp``: :meth:`dsp.ArrayBackend.describe` (``device``, ``library``, ``hardware``, ``detail``);
+        ``trace``: the Mitsuba variant sionna-rt ran on in this process (``llvm_ad_mono_polarized``: the
+        CPU, ``cuda_ad_mono_polarized``: the GPU), or None when this process traced nothing (a capture
+        file, the analytic scenario, or only cached traces). Nothing is initialised to find out: the
+        variant is read only where :func:`risloc_rt.hall.raytrace.ensure_backend` has already set it
+        (Mitsuba is imported by nothing else).
+    """
+    if backend is None:
+        from dsp import numpy_backend
+
+        backend = numpy_backend()
+    trace = None
+    if "mitsuba" in sys.modules:
+        from ..hall.raytrace.backend import BackendError, ensure_backend
+
+        try:
+            trace = ensure_backend()  # the variant already chosen: returned, nothing initialised
+        except BackendError:  # mitsuba imported but no variant usable: nothing was traced
+            trace = None
+    return {"dsp": backend.describe(), "trace": trace}
+
+
+def format_environment(env: dict[str, Any]) -> str:
+    """One console line for :func:`run_environment`'s dict: ``device: dsp cpu (numpy 2.4.6, CPU, BLAS ...); trace ...``.
+
+    Parameters
+    ----------
+    env : dict
+        ``{"dsp": ArrayBackend.describe(), "trace": variant or None}``.
+
+    Returns
+    -------
+    str
+        The DSP part as :meth:`dsp.ArrayBackend.summary`; ``; trace VARIANT`` only where a hall was traced.
+    """
+    d = env["dsp"]
+    line = f"device: dsp {d['device']} ({d['library']}, {d['hardware']}, {d['detail']})"
+    return line + (f"; trace {env['trace']}" if env.get("trace") else "")
 
 
 def significant(value: float, digits: int = 2) -> str:

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from .beat import NoiseStream, add_noise, beat_cube
+from .beat import NoiseStream, add_noise, add_noise_batch, beat_cube
 from .capture import Capture, provenance
 from .motion import advance_paths, analytic_frame_paths, sweep_reference_time
 from .paths import PathFrames, PathSet
 from .scenario import Scenario, analytic_paths
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dsp.xp import ArrayBackend
 
 __all__ = ["simulate"]
 
@@ -27,6 +30,7 @@ def simulate(
     provenance_extra: dict | None = None,
     motion: Motion = "sweep",
     noise_stream: NoiseStream = "standard",
+    backend: ArrayBackend | None = None,
 ) -> Capture:
     """One realization of the beat cube for ``scenario``.
 
@@ -56,6 +60,12 @@ def simulate(
         The receiver noise's stream (:func:`risloc_rt.model.beat.add_noise`): ``"fast"`` draws
         float32 normals per beam, concurrently with the synthesis of each beam (a Table I
         capture in about half the time); the same distribution, other numbers than ``"standard"``.
+    backend : dsp.ArrayBackend, optional
+        Where the receiver noise is drawn (``--device``). None or NumPy: :func:`risloc_rt.model.beat.add_noise`
+        with ``noise_stream``, as without a backend (the same numbers). Another backend:
+        :func:`risloc_rt.model.beat.add_noise_batch` on it (a GPU draws float32 normals with cuRAND seeded
+        from ``rng``: the same law, other numbers; ``noise_stream`` then does not apply), the cube copied
+        back to the host and the backend's name recorded in the provenance (``noise_backend``).
 
     Returns
     -------
@@ -74,12 +84,16 @@ def simulate(
         paths = advance_paths(paths, radar=scenario.radar, num_beams=m)
     elif isinstance(paths, PathFrames) and motion == "frozen":
         raise ValueError("motion='frozen' needs a PathSet (one geometry for the whole sweep), got a PathFrames")
-    if noise and noise_stream == "fast":
+    on_device = noise and backend is not None and not backend.is_numpy
+    if noise and noise_stream == "fast" and not on_device:
         cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris,
                          noise=(scenario.radar.noise_power, rng))
     else:
         cube = beat_cube(paths, radar=scenario.radar, sweep=scenario.sweep, ris=scenario.ris)
-        if noise:
+        if on_device:  # drawn where the backend's arrays live, copied back explicitly
+            noisy = add_noise_batch(cube, scenario.radar.noise_power, [rng], backend=backend)
+            cube = np.ascontiguousarray(backend.to_host(noisy)[0], dtype=np.complex128)
+        elif noise:
             cube = add_noise(cube, scenario.radar.noise_power, rng, out=cube, stream=noise_stream)
     # The provenance lists the paths of the middle frame (the reference time) for a moving radar.
     listed = paths
@@ -95,6 +109,7 @@ def simulate(
         frame_index=np.arange(m),
         provenance=provenance("simulation", scenario=scenario.name, seed=seed, noise=noise,
                               motion=motion, **({"noise_stream": noise_stream} if noise_stream != "standard" else {}),
+                              **({"noise_backend": backend.name} if on_device else {}),
                               paths=[{"label": lab, "delay": float(t), "power_dbm": float(10 * np.log10(max(pw, 1e-300)) + 30)}
                                      for lab, t, pw in zip(listed.labels, listed.delay, listed.power)],
                               **(provenance_extra or {})),

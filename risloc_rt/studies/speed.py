@@ -113,7 +113,7 @@ def _trace(scene: str, position: int, overrides: dict[str, Any]) -> tuple[Any, A
 def run_speed_study(scenes: list[str], *, realizations: int, full: int, seed: int, positions: int,
                     grid: tuple[tuple[str, dict[str, Any]], ...] = TRACE_GRID,
                     reference: dict[str, Any] = REFERENCE,
-                    log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+                    log: Callable[[str], None] = print, backend: Any = None) -> list[dict[str, Any]]:
     """Speed against error of every estimator and trace setting (module docstring).
 
     Parameters
@@ -136,6 +136,10 @@ def run_speed_study(scenes: list[str], *, realizations: int, full: int, seed: in
         ``TraceSettings`` overrides of the model reference (default :data:`REFERENCE`).
     log : callable
         Receives one progress line per scene, position and setting.
+    backend : dsp.ArrayBackend, optional
+        Where the refined estimator's detector runs its whole-cube work (``--device``;
+        :func:`risloc_rt.io.report.process_capture`); default NumPy. The synthesis and the paper's two grid
+        methods run on the host.
 
     Returns
     -------
@@ -173,7 +177,7 @@ def run_speed_study(scenes: list[str], *, realizations: int, full: int, seed: in
                     t0 = time.perf_counter()
                     cap = simulate(sc, rng=np.random.default_rng(ss), paths=hp.paths, noise_stream="fast")
                     t_synth = time.perf_counter() - t0
-                    refined, t_ref = process_capture(cap, estimator="refined")
+                    refined, t_ref = process_capture(cap, estimator="refined", backend=backend)
                     peb = float(refined.std.peb) if refined.std is not None else float("nan")
                     for est, search, _ in ESTIMATORS:
                         if est == "full" and (label != grid[0][0] or r >= full):

@@ -130,8 +130,8 @@ def test_interrupted_locate_leaves_the_previous_folder(capture, tmp_path, capsys
     before = _tree(out)
     real = locate.write_result
 
-    def write_then_interrupt(folder, cases):
-        real(folder, cases)                  # result.json and the plots are written (into the stage) ...
+    def write_then_interrupt(folder, cases, **kw):
+        real(folder, cases, **kw)            # result.json and the plots are written (into the stage) ...
         raise KeyboardInterrupt              # ... then Ctrl-C, before the swap
 
     monkeypatch.setattr(locate, "write_result", write_then_interrupt)
