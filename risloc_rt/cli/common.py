@@ -321,11 +321,8 @@ def add_device_flag(p: argparse.ArgumentParser) -> None:
 
 
 def _device_error(exc: Exception) -> CliError:
-    """A :class:`dsp.DeviceError` as a one-line CLI error naming the flag (``--device=...``) the user gave."""
-    message = str(exc)
-    if message.startswith("device="):  # dsp.backend_for names a given choice 'device'; here it is the flag
-        message = "--" + message
-    return CliError(message)
+    """A :class:`dsp.DeviceError` (it names ``--device=...`` or ``$RISLOC_DEVICE``) as a one-line CLI error."""
+    return CliError(str(exc))
 
 
 def device_backend(args: argparse.Namespace) -> Any:

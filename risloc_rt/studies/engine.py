@@ -34,7 +34,7 @@ from .kernel import PreparedPoint, run_once, run_runs
 from .store import RunLog
 
 __all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing", "check_preparer",
-           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask", "run_environment"]
+           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask"]
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
@@ -443,7 +443,7 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         Plain, picklable data: ``rows`` (one dict per run, :func:`risloc_rt.studies.kernel.run_once`),
         ``crb`` (the point's bounds [m, rad, m/s] and ``peak_snr_db`` [dB]), ``prepare_seconds`` [s],
         ``warnings`` (the preparer's, e.g. range aliasing) and ``device`` (what ran the DSP and the
-        trace: :func:`run_environment`).
+        trace: :func:`risloc_rt.io.report.run_environment`).
     """
     marker = os.environ.get(DIE_ONCE)
     if marker and point == 0 and start == 0 and not os.path.exists(marker):  # the retry test's dying worker
@@ -451,6 +451,8 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         os._exit(9)
 
     from dsp import backend_for
+
+    from ..io.report import run_environment
 
     backend = _BACKENDS.get(device)
     if backend is None:
@@ -480,29 +482,6 @@ def _host_buffer(shape: tuple[int, ...]) -> Any:
         _BUFFER.cubes = None
         buf = _BUFFER.cubes = np.empty((b,) + tuple(shape), dtype=np.complex128)
     return buf
-
-
-def run_environment(backend: Any) -> dict[str, Any]:
-    """What runs a study's numbers in this process: the DSP's device and library, and the ray tracer's.
-
-    Parameters
-    ----------
-    backend : dsp.ArrayBackend
-        The DSP's backend.
-
-    Returns
-    -------
-    dict
-        ``dsp``: :meth:`dsp.ArrayBackend.describe` (``device``, ``library``, ``hardware``, ``detail``);
-        ``trace``: the Mitsuba variant sionna-rt runs on in this process (``llvm_ad_mono_polarized``:
-        the CPU, ``cuda_ad_mono_polarized``: the GPU), or None when this process traced nothing.
-    """
-    trace = None
-    if "risloc_rt.hall.raytrace.backend" in sys.modules:  # only a process that traced has chosen a variant
-        from ..hall.raytrace.backend import ensure_backend
-
-        trace = ensure_backend()
-    return {"dsp": backend.describe(), "trace": trace}
 
 
 def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, dask: Any = None, quiet: bool = False,
@@ -537,7 +516,8 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     dict
         ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "warnings": {point: [...]},
         "retried": [messages], "wall_seconds": s, "new_runs": n, "devices": [...]}`` (bounds in m,
-        rad, m/s; times in s; ``devices``: the distinct :func:`run_environment` of the batches run).
+        rad, m/s; times in s; ``devices``: the distinct :func:`risloc_rt.io.report.run_environment` of
+        the batches run).
 
     Raises
     ------
