@@ -109,6 +109,10 @@ _U32 = 2.0**-24
 #: Native samples whose bound is refined to predict a noise-only beam (routing only).
 _ROUTE_SAMPLES = 32
 
+#: A beam goes to the dense search when more than this fraction of its columns stays above the
+#: screen's bound (evaluating them one by one would cost more than the dense search).
+_DENSE_FRACTION = 1 / 8
+
 
 def scalloping_loss_db(window: str, length: int, offset: float) -> float:
     """Power loss (dB, >= 0) of a tone ``offset`` bins off a DFT bin of a ``length``-sample window.
@@ -241,23 +245,27 @@ def screened_scan(
     average = np.empty(m)
     step = max(1, _SCREEN_CHUNK // (8 * k * n_c))
     plan = _DensePlan.get(k, n, n_dft, processing.k_dft)
-    spare: SimpleQueue[_DenseWork] = SimpleQueue()  # one dense workspace per thread, made on demand
 
     def chunk(i: int) -> None:
         block = cube[i:i + step].astype(np.complex64)
         block *= w32
         norms = np.array([np.sqrt(np.vdot(b, b).real) for b in block], dtype=np.float64)  # ‖x‖_F [c]
-        spec = scipy.fft.ifft(block, n=n_c, axis=-1, norm="forward", overwrite_x=True)  # [c, K, n_c]
+        spec = scipy.fft.ifft(block, n=n_c, axis=-1, norm="forward")  # [c, K, n_c]; block kept for the dense search
         # Σ_k |R_k(i)| bounds |z| at every Doppler; the slack covers float32 (module notes).
-        u = np.abs(spec).sum(axis=1, dtype=np.float64) + (_F32_SLACK * np.sqrt(k * n) * norms)[:, None]  # [c, n_c]
+        slack = _F32_SLACK * np.sqrt(k * n) * norms  # [c]
+        u = np.abs(spec).sum(axis=1, dtype=np.float64) + slack[:, None]  # [c, n_c]
+        # The bounds of every beam of the chunk at once: the 8 largest refined, then the routing.
+        bound, refined = u**2, np.zeros(u.shape, dtype=bool)
+        top = first_native + np.argsort(u[:, first_native:], axis=1)[:, -8:]  # [c, 8]
+        _refine_many(spec, bound, refined, np.arange(u.shape[0]), top, slack, doppler_margin)
+        noise_only = _noise_only(spec, bound, refined, top, slack, doppler_margin, delay_margin, first_native)
         work = None
         for c in range(u.shape[0]):
             j = i + c
             y = cube[j]
-            bounds = _ColumnBounds(spec[c], u[c] ** 2, doppler_margin, _F32_SLACK * np.sqrt(k * n) * norms[c])
-            bounds.refine(first_native + np.argsort(u[c, first_native:])[-8:])
+            bounds = _ColumnBounds(spec[c], bound[c], doppler_margin, slack[c], refined[c])
             lower = -np.inf
-            if _noise_only(bounds, first_native, delay_margin, n_c):
+            if noise_only[c]:
                 dense = True
             else:
                 fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin  # [N_DFT]
@@ -269,15 +277,15 @@ def screened_scan(
                 fine = np.maximum(bounds.value[lo], bounds.value[hi]) * delay_margin
                 fine[:first] = -np.inf
                 above = np.flatnonzero(fine >= value)
-                dense = above.size > n_dft // 4
+                dense = above.size > n_dft * _DENSE_FRACTION
                 lower = np.sqrt(value)
             if dense:
                 if work is None:
                     try:
-                        work = spare.get_nowait()
+                        work = plan.spare.get_nowait()
                     except Empty:
                         work = _DenseWork(plan)
-                q, p, value, krow = _dense_beam(y, plan, work, first, w_k, w_n, w32, lower)
+                q, p, value, krow = _dense_beam(y, block[c], plan, work, first, w_k, w_n, lower)
             else:
                 p = int(cols[pi])
                 extra = np.setdiff1d(above, cols, assume_unique=True)
@@ -289,7 +297,7 @@ def screened_scan(
             q_best[j], p_best[j], power[j] = q, p, value
             average[j] = _row_values(y, krow, average_columns(p), n_dft, w_k, w_n).mean()
         if work is not None:
-            spare.put(work)
+            plan.spare.put(work)
 
     starts = range(0, m, step)
     if workers <= 1 or len(starts) < 2:
@@ -302,32 +310,58 @@ def screened_scan(
     return q_best, p_best, power, average
 
 
-def _noise_only(bounds: _ColumnBounds, first_native: int, delay_margin: float, n_c: int) -> bool:
-    """Whether the screen would leave more than a quarter of the beam's samples above its bound.
+def _refine_many(spec: np.ndarray, value: np.ndarray, done: np.ndarray, beams: np.ndarray, samples: np.ndarray,
+                 slack: np.ndarray, doppler_margin: float) -> None:
+    """:meth:`_ColumnBounds.refine` for several beams at once: ``samples [B, S]`` of ``beams [B]``.
 
-    A prediction (it only routes the beam): the largest refined native value stands in for the
-    grid maximum, and the bound of ``_ROUTE_SAMPLES`` of the samples above it is refined.
+    ``spec [c, K, n_c]``, ``value``/``done [c, n_c]`` (updated in place), ``slack [c]``.
     """
-    top = np.flatnonzero(bounds.done)
-    level = float(bounds.value[top].max()) / bounds.margin  # ≈ the native grid's largest |z|²
-    above = first_native + np.flatnonzero(bounds.value[first_native:] * delay_margin >= level)
-    if above.size <= n_c // 4:
-        return False
-    sample = above[np.linspace(0, above.size - 1, min(_ROUTE_SAMPLES, above.size)).astype(np.int64)]
-    bounds.refine(sample)
-    return above.size * np.mean(bounds.value[sample] * delay_margin >= level) > n_c // 4
+    z = scipy.fft.ifft(spec[beams[:, None], :, samples], axis=-1, norm="forward")  # [B, S, K] native Doppler grid
+    peak = np.sqrt((z.real**2 + z.imag**2).max(axis=-1).astype(np.float64)) + slack[beams, None]
+    rows = beams[:, None]
+    value[rows, samples] = np.minimum(value[rows, samples], peak**2 * doppler_margin)
+    done[rows, samples] = True
+
+
+def _noise_only(spec: np.ndarray, value: np.ndarray, done: np.ndarray, top: np.ndarray, slack: np.ndarray,
+                doppler_margin: float, delay_margin: float, first_native: int) -> np.ndarray:
+    """Per beam of a chunk [c]: whether the screen would leave too many samples above its bound.
+
+    A prediction (it only routes the beam): the largest refined native value (of the samples
+    ``top [c, 8]``) stands in for the grid maximum, and the bound of ``_ROUTE_SAMPLES`` of the
+    samples above it is refined; more than ``_DENSE_FRACTION`` of the samples predicted above
+    sends the beam to the dense search.
+    """
+    n_c = value.shape[1]
+    beams = np.arange(value.shape[0])
+    level = value[beams[:, None], top].max(axis=1) / doppler_margin  # ≈ the native grid's largest |z|² [c]
+    above = value[:, first_native:] * delay_margin >= level[:, None]
+    count = above.sum(axis=1)
+    result = np.zeros(value.shape[0], dtype=bool)
+    check = np.flatnonzero(count > n_c * _DENSE_FRACTION)
+    if check.size:
+        spread = (np.arange(_ROUTE_SAMPLES) / (_ROUTE_SAMPLES - 1))[None, :] * (count[check, None] - 1)
+        rank = np.cumsum(above[check], axis=1) - 1  # the rank of each sample above, per beam
+        samples = np.empty((check.size, _ROUTE_SAMPLES), dtype=np.int64)
+        for row, b in enumerate(check):  # evenly spread samples among those above
+            samples[row] = first_native + np.searchsorted(rank[row], spread[row].astype(np.int64))
+        _refine_many(spec, value, done, check, samples, slack, doppler_margin)
+        still = (value[check[:, None], samples] * delay_margin >= level[check, None]).mean(axis=1)
+        result[check] = count[check] * still > n_c * _DENSE_FRACTION
+    return result
 
 
 class _ColumnBounds:
     """Upper bounds on max_ν |z(ν, τ_i)|² per native delay sample i [n_c], tightened on demand.
 
-    Starts from the triangle bound (Σ_k |R_k(i)|)²; :meth:`refine` replaces it, for the given
-    samples, by the smaller of it and the native-grid Doppler maximum times ``doppler_margin``.
+    ``value`` starts as the triangle bound (Σ_k |R_k(i)|)², already refined where ``done``;
+    :meth:`refine` replaces it, for the given samples, by the smaller of it and the native-grid
+    Doppler maximum times ``doppler_margin``. Both arrays are updated in place.
     """
 
-    def __init__(self, spec: np.ndarray, triangle: np.ndarray, doppler_margin: float, slack: float) -> None:
-        self.spec, self.value, self.margin, self.slack = spec, triangle.copy(), doppler_margin, slack
-        self.done = np.zeros(triangle.shape, dtype=bool)
+    def __init__(self, spec: np.ndarray, value: np.ndarray, doppler_margin: float, slack: float,
+                 done: np.ndarray) -> None:
+        self.spec, self.value, self.margin, self.slack, self.done = spec, value, doppler_margin, slack, done
 
     def refine(self, samples: np.ndarray) -> None:
         todo = samples[~self.done[samples]]
@@ -376,6 +410,9 @@ class _DensePlan:
         ``e^{j2π m k / 2L}``: the kernel rows of the plane's midpoints (odd m).
     column : int array [P₂, P₁]
         The delay bin p = P₂·a + b of the plane's column [b, :, a].
+    spare : SimpleQueue of _DenseWork
+        Workspaces not in use (one per thread that ran a dense search; kept with the plan so that
+        the next scan does not fault its pages in again).
     """
 
     _cache: dict[tuple[int, int, int, int], _DensePlan] = {}
@@ -403,6 +440,7 @@ class _DensePlan:
         self.midpoints = _dft_table(2 * self.length, k, 2 * self.length).astype(np.complex64)  # [2L, K]
         # Fine column p of the plane layout [b, r, a]: p = P₂·a + b.
         self.column = np.arange(p1)[None, :] * p2 + np.arange(p2)[:, None]  # [P₂, P₁]
+        self.spare: SimpleQueue[_DenseWork] = SimpleQueue()
 
     @classmethod
     def get(cls, k: int, n: int, n_dft: int, k_dft: int) -> _DensePlan:
@@ -429,27 +467,25 @@ class _DenseWork:
         self.ends = np.empty((p2, plan.length, p1), bool)
 
 
-def _dense_beam(y: np.ndarray, plan: _DensePlan, work: _DenseWork, first: int, w_k: np.ndarray,
-                w_n: np.ndarray, w32: np.ndarray, lower: float) -> tuple[int, int, float, np.ndarray]:
+def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWork, first: int, w_k: np.ndarray,
+                w_n: np.ndarray, lower: float) -> tuple[int, int, float, np.ndarray]:
     """The grid maximum of one beam ``y [K, N]`` (not windowed) whose columns could not be screened.
 
     The module notes' dense search: the fine range transform and an L-point Doppler plane in
     complex64, Szegő's bound to keep only the grid bins that can hold the maximum, complex64
     values there and float64 values for the few within the error bounds of the largest.
-    ``w32`` is the float32 window w_K·w_N [K, N]; ``lower`` is a grid amplitude |z| known not to
-    exceed the maximum (or -inf). Returns (q, p, unnormalised |z|², kernel row of q [K]).
+    ``x32`` is the windowed beam in complex64 [K, N] (within 3u of w_K·w_N·y); ``lower`` is a grid
+    amplitude |z| known not to exceed the maximum (or -inf). Returns (q, p, unnormalised |z|², kernel row of q [K]).
     """
     k, n = y.shape
     n_dft, k_dft, p1, p2, length = plan.n_dft, plan.k_dft, plan.p1, plan.p2, plan.length
     table = _dft_table(k_dft, k, k_dft)
     # a. The fine range transform, a_k(P₂·a + b) at [b, k, a].
     whole = n // p1
-    np.multiply(y[:, :whole * p1].reshape(k, whole, p1), w32[:, :whole * p1].reshape(k, whole, p1),
-                out=work.xs[:whole].transpose(1, 0, 2), casting="same_kind")
+    work.xs[:whole].transpose(1, 0, 2)[...] = x32[:, :whole * p1].reshape(k, whole, p1)
     if whole < plan.blocks:
-        np.multiply(y[:, whole * p1:], w32[:, whole * p1:], out=work.xs[whole, :, :n - whole * p1],
-                    casting="same_kind")
-    l1 = float(np.abs(work.xs).sum(dtype=np.float64)) * (1.0 + 1e-6)  # >= ‖x‖₁ (x within 3u of xs)
+        work.xs[whole, :, :n - whole * p1] = x32[:, whole * p1:]
+    l1 = float(np.abs(x32).sum(dtype=np.float64)) * (1.0 + 1e-6)  # >= ‖x‖₁ (x within 3u of x32)
     if l1 < 1e-30:  # zero, or so small that float32 loses it: the float64 grid decides
         if not np.any(y):  # every cell ties at 0 and the first searchable one wins
             return 0, first, 0.0, table[0]
