@@ -101,7 +101,7 @@ SCREEN_HEADROOM_DB = 1.5
 _F32_SLACK = 1e-5
 
 #: Bytes of complex64 screen work per chunk of beams (cache-sized).
-_SCREEN_CHUNK = 4 * 2**20
+_SCREEN_CHUNK = 2 * 2**20
 
 #: Unit roundoff of float32.
 _U32 = 2.0**-24
