@@ -5,37 +5,76 @@ captures are processed with ``dsp.localize(dsp.scan_beams(...))`` — the paper'
 ``doppler_search="full"`` (the N_DFT × K_DFT transform of every beam, the reference) and once with
 the screened ``"zoom"`` search, on the same cube. It prints the median time of each, their ratio,
 and whether the best beam, every beam's grid peak (delay and Doppler bins) and the estimate are
-identical, plus the largest relative difference of the peak and P_ave values.
+identical, plus the largest relative difference of the peak and P_ave values. Times are wall
+clock and CPU (process) seconds per cube; a closing line gives the paper DSP's speed against the
+straight paper method (the full grid) next to its exactness, all from the same run.
+
+``--threads 1`` runs the DSP and BLAS on one thread (one core). ``--baseline FILE`` also times
+another version of ``dsp/gridscreen.py`` (e.g. ``git show REV:dsp/gridscreen.py > /tmp/old.py``)
+on the same cubes, alternating with the current one, and checks its bins too.
 
 Synthesis: a Table I capture of the default hall's kept paths (``simulate``), with the standard
 noise stream and with the fast one (float32 per-beam streams, threaded), median of ``--repeat``.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2] [--low-power 0,10]
+        [--threads 1] [--baseline /tmp/old_gridscreen.py]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib.util
 import os
 import platform
+import sys
 import time
 import warnings
 from dataclasses import replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 import dsp
+import dsp.beamscan
 from risloc_rt.hall.pruning import AliasWarning
 from risloc_rt.hall.scenario import hall_paths, hall_scenario
 from risloc_rt.model.scenario import PAPER_CASES, paper_scenario
 from risloc_rt.model.simulate import simulate
 
 
-def _paper_path(cube, capture, search):
-    t0 = time.perf_counter()
-    scan = dsp.scan_beams(cube, capture.sweep, capture.radar, replace(capture.processing, doppler_search=search))
-    loc = dsp.localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
-    return loc, time.perf_counter() - t0
+def _paper_path(cube, capture, search, screen=None):
+    """``dsp.localize(dsp.scan_beams(...))`` with ``search``; ``screen``: another screened_scan to use.
+
+    Returns (localization, wall seconds, CPU seconds).
+    """
+    original = dsp.beamscan.screened_scan
+    if screen is not None:
+        dsp.beamscan.screened_scan = screen
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        scan = dsp.scan_beams(cube, capture.sweep, capture.radar, replace(capture.processing, doppler_search=search))
+        loc = dsp.localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
+        return loc, time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        dsp.beamscan.screened_scan = original
+
+
+def _load_baseline(path):
+    """Another version of ``dsp/gridscreen.py`` loaded as a module of the package (its ``screened_scan``)."""
+    spec = importlib.util.spec_from_file_location("dsp._gridscreen_baseline", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module.screened_scan
+
+
+def _same(a, b):
+    """(same best beam, same bins in every beam, same estimate, max rel. diff of peak and P_ave)."""
+    bins = bool(np.array_equal(a.scan.delay_bin, b.scan.delay_bin) and np.array_equal(a.scan.doppler_bin, b.scan.doppler_bin))
+    diff = max(float(np.max(np.abs(x / y - 1))) for x, y in ((a.scan.peak_power, b.scan.peak_power),
+                                                             (a.scan.average_power, b.scan.average_power)))
+    return a.beam_index == b.beam_index, bins, bool(np.array_equal(a.position, b.position)), diff
 
 
 def _cases(low_powers=()):
@@ -51,29 +90,47 @@ def _cases(low_powers=()):
             yield f"paper_hall radar {index}", hs.base, hall_paths(hs).paths
 
 
-def bench_dsp(realizations: int, full: int, seed: int, low_powers=()) -> None:
-    print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
-          f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}")
+def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=None) -> None:
+    """Screened zoom vs the full grid per case; with ``baseline`` (a screened_scan) also the older screen."""
+    print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'cpu [s]':>8} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
+          f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}"
+          + (f" {'baseline [s]':>12} {'cpu [s]':>8} {'base/zoom':>9} {'base bins':>9}" if baseline else ""))
     cases = list(_cases(low_powers))
+    ratios, exact, worst = [], [0, 0], 0.0
     for (name, scenario, paths), ss in zip(cases, np.random.SeedSequence(seed).spawn(len(cases))):
-        t_zoom, t_full, beam, bins, est, diff = [], [], 0, 0, 0, 0.0
+        t_zoom, c_zoom, t_full, t_base, c_base, beam, bins, est, diff, base_bins = [], [], [], [], [], 0, 0, 0, 0.0, 0
         for r, child in enumerate(ss.spawn(realizations)):
             cap = simulate(scenario, rng=np.random.default_rng(child), paths=paths)
-            zoom, t = _paper_path(cap.cube, cap, "zoom")
+            if baseline is not None:  # alternating with the current screen, on the same cube
+                old, t, c = _paper_path(cap.cube, cap, "zoom", baseline)
+                t_base.append(t)
+                c_base.append(c)
+            zoom, t, c = _paper_path(cap.cube, cap, "zoom")
             t_zoom.append(t)
+            c_zoom.append(c)
+            if baseline is not None:
+                base_bins += _same(old, zoom)[1]
             if r >= full:
                 continue
-            ref, t = _paper_path(cap.cube, cap, "full")
+            ref, t, _ = _paper_path(cap.cube, cap, "full")
             t_full.append(t)
-            beam += zoom.beam_index == ref.beam_index
-            bins += bool(np.array_equal(zoom.scan.delay_bin, ref.scan.delay_bin)
-                         and np.array_equal(zoom.scan.doppler_bin, ref.scan.doppler_bin))
-            est += bool(np.array_equal(zoom.position, ref.position))
-            for a, b in ((zoom.scan.peak_power, ref.scan.peak_power), (zoom.scan.average_power, ref.scan.average_power)):
-                diff = max(diff, float(np.max(np.abs(a / b - 1))))
+            same = _same(zoom, ref)
+            beam, bins, est, diff = beam + same[0], bins + same[1], est + same[2], max(diff, same[3])
         mz, mf = np.median(t_zoom), np.median(t_full)
-        print(f"{name:<24} {len(t_zoom):>3} {mz:>9.3f} {mf:>9.2f} {mf / mz:>9.0f} {beam:>6}/{full:<2} "
-              f"{bins:>6}/{full:<2} {est:>10}/{full:<2} {diff:>13.1e}")
+        ratios.append((name, mz, np.median(c_zoom), mf / mz))
+        exact = [exact[0] + bins, exact[1] + full]
+        worst = max(worst, diff)
+        line = (f"{name:<24} {len(t_zoom):>3} {mz:>9.3f} {np.median(c_zoom):>8.3f} {mf:>9.2f} {mf / mz:>9.0f} "
+                f"{beam:>6}/{full:<2} {bins:>6}/{full:<2} {est:>10}/{full:<2} {diff:>13.1e}")
+        if baseline is not None:
+            line += (f" {np.median(t_base):>12.3f} {np.median(c_base):>8.3f} {np.median(t_base) / mz:>9.2f} "
+                     f"{base_bins:>6}/{realizations:<2}")
+        print(line)
+    slowest = max(ratios, key=lambda r: r[1])
+    print(f"paper DSP against the straight paper method (full grid): {min(r[3] for r in ratios):.0f}-"
+          f"{max(r[3] for r in ratios):.0f}x faster, slowest case {slowest[0]} {slowest[1]:.3f} s per cube "
+          f"(cpu {slowest[2]:.3f} s) [goal >= 170x, <= 0.07 s]; exact: same bins in {exact[0]}/{exact[1]} cubes, "
+          f"max rel. diff of peak and P_ave {worst:.1e}")
 
 
 def bench_random_beams(count: int, seed: int) -> None:
@@ -165,16 +222,28 @@ def main() -> None:
     parser.add_argument("--adversarial", type=int, default=0, help="also run N batches of 40 adversarial small beams per window")
     parser.add_argument("--low-power", default="", metavar="DBM,...",
                         help="also the off-broadside paper case at these transmit powers, e.g. 0,10")
+    parser.add_argument("--threads", type=int, default=0,
+                        help="DSP and BLAS threads (default: all cores); 1 measures one core")
+    parser.add_argument("--baseline", default="", metavar="FILE",
+                        help="another dsp/gridscreen.py to time on the same cubes (before/after)")
+    parser.add_argument("--no-synthesis", action="store_true", help="skip the synthesis benchmark")
     args = parser.parse_args()
     print(f"risloc-rt fast-path benchmark; {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
-          f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+          f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
+          f"threads {args.threads or 'all'}, load average {os.getloadavg()[0]:.1f}")
     lows = [float(v) for v in args.low_power.split(",") if v.strip()]
-    bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows)
-    if args.random_beams:
-        bench_random_beams(args.random_beams, args.seed)
-    if args.adversarial:
-        bench_adversarial(args.adversarial, args.seed)
-    bench_synthesis(args.repeat)
+    baseline = _load_baseline(args.baseline) if args.baseline else None
+    with contextlib.ExitStack() as stack:
+        if args.threads:
+            stack.enter_context(dsp.limit_threads(args.threads))
+            stack.enter_context(threadpool_limits(args.threads))
+        bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows, baseline)
+        if args.random_beams:
+            bench_random_beams(args.random_beams, args.seed)
+        if args.adversarial:
+            bench_adversarial(args.adversarial, args.seed)
+        if not args.no_synthesis:
+            bench_synthesis(args.repeat)
 
 
 if __name__ == "__main__":

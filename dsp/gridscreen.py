@@ -396,8 +396,9 @@ class _DensePlan:
     ----------
     p1, p2, blocks : int
         N_DFT = P₁·P₂ and ⌈N/P₁⌉: the range transform's split (module notes, step a).
-    stage1 : complex64 array [P₂, ⌈N/P₁⌉]
-        ``e^{j2π b c / P₂}``.
+    stage1 : float32 array [2H, ⌈N/P₁⌉]
+        ``cos(2π b c / P₂)`` over ``sin(2π b c / P₂)`` for b < H = ⌊P₂/2⌋ + 1 (rows b and P₂ - b
+        are conjugate: two real products give all P₂ rows).
     stage2 : complex64 array [P₂, P₁, P₁]
         ``e^{j2π b d / N_DFT} e^{j2π d a / P₁}`` [b, d, a].
     length : int
@@ -425,14 +426,15 @@ class _DensePlan:
         self.k, self.n, self.n_dft, self.k_dft = k, n, n_dft, k_dft
         self.p1, self.p2, self.blocks = p1, p2, blocks
         b, c, d = np.arange(p2), np.arange(blocks), np.arange(p1)
-        self.stage1 = np.exp(2j * np.pi * (np.outer(b, c) % p2) / p2).astype(np.complex64)
+        half = np.outer(b[:p2 // 2 + 1], c) % p2
+        self.stage1 = np.concatenate([np.cos(2 * np.pi * half / p2), np.sin(2 * np.pi * half / p2)]).astype(np.float32)
         twiddle = np.exp(2j * np.pi * (np.outer(b, d) % n_dft) / n_dft)  # [b, d]
         small = np.exp(2j * np.pi * (np.outer(d, d) % p1) / p1)  # [d, a]
         self.stage2 = (twiddle[:, :, None] * small[None, :, :]).astype(np.complex64)
         self.length = 1 << int(np.ceil(np.log2(2 * k)))
         self.sigma = np.pi * (k - 1)
         self.alpha0 = self.sigma / (2.0 * k_dft)
-        err_a = np.sqrt(2.0) * (_gamma(blocks + 2) + _gamma(p1 + 2) + 2 * _U32) + 3 * _U32
+        err_a = 2.0 * (_gamma(blocks + 2) + _U32) + np.sqrt(2.0) * (_gamma(p1 + 2) + _U32) + 3 * _U32
         err_l = sum(2.0 * (f + 2) for f in _prime_factors(self.length)) * _U32
         self.err_plane = 2.0 * (err_a + err_l + 2 * _U32)
         self.err_grid = 2.0 * (err_a + 1e-13)
@@ -459,6 +461,8 @@ class _DenseWork:
     def __init__(self, plan: _DensePlan) -> None:
         k, p1, p2 = plan.k, plan.p1, plan.p2
         self.xs = np.zeros((plan.blocks, k, p1), np.complex64)  # x[k, P₁c + d] at [c, k, d]
+        self.cs = np.empty((2 * (p2 // 2 + 1), 2 * k * p1), np.float32)  # C x over S x, re/im interleaved
+        self.jsx = np.empty((p2 // 2 + 1, k * p1), np.complex64)
         self.v = np.empty((p2, k * p1), np.complex64)
         self.a = np.empty((p2, k, p1), np.complex64)  # a_k(P₂·a + b) at [b, k, a]
         self.plane = np.zeros((p2, plan.length, p1), np.complex64)
@@ -491,7 +495,13 @@ def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWo
             return 0, first, 0.0, table[0]
         return _full_beam(y, plan, first, w_k, w_n)
     eps_plane, eps_grid = plan.err_plane * l1, plan.err_grid * l1
-    np.matmul(plan.stage1, work.xs.reshape(plan.blocks, k * p1), out=work.v)
+    # v[b] = C x + j S x and v[P₂-b] = C x - j S x: real products on the interleaved complex x.
+    half = p2 // 2 + 1
+    np.matmul(plan.stage1, work.xs.reshape(plan.blocks, k * p1).view(np.float32), out=work.cs)
+    cx, sx = work.cs[:half].view(np.complex64), work.cs[half:].view(np.complex64)  # [H, K·P₁]
+    np.multiply(sx, 1j, out=work.jsx)
+    np.add(cx, work.jsx, out=work.v[:half])
+    np.subtract(cx[1:p2 - half + 1][::-1], work.jsx[1:p2 - half + 1][::-1], out=work.v[half:])
     a = np.matmul(work.v.reshape(p2, k, p1), plan.stage2, out=work.a)
     # b. The Doppler plane at L points and its magnitude.
     plane = work.plane

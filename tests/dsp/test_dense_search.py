@@ -115,12 +115,13 @@ def test_float64_decides_below_the_complex64_slack(make_radar, make_processing, 
     assert 1e-7 * np.sqrt(full[2]) < plan.err_grid * l1
 
 
+@pytest.mark.parametrize("n_dft", [127, 128, 150])  # prime (one product), 8·16 and 10·15 (P₂ even, odd)
 @pytest.mark.parametrize("window", ["hann", "hamming", "boxcar", "blackman"])
-def test_noise_only_beams_give_the_full_grid_answer(make_radar, make_processing, window):
+def test_noise_only_beams_give_the_full_grid_answer(make_radar, make_processing, window, n_dft):
     # 25 beams per window of noise only, or noise with a return below it per sample, with and
     # without min_range: the dense search's cell is the full grid's, its value equal to 1e-12.
     radar = make_radar(num_samples=64, num_chirps=16)
-    processing = make_processing(radar, n_dft=127, k_dft=67, window=window)
+    processing = make_processing(radar, n_dft=n_dft, k_dft=67, window=window)
     w_k, w_n, _ = dft_windows(radar, processing)
     rng = np.random.default_rng(sum(map(ord, window)))
     kk, nn = np.arange(16)[:, None], np.arange(64)[None, :]
@@ -130,7 +131,8 @@ def test_noise_only_beams_give_the_full_grid_answer(make_radar, make_processing,
             f2, f1 = rng.uniform(0, 1, 2)
             y += 10 ** (-rng.uniform(0, 15) / 20) * np.exp(2j * np.pi * (kk * f2 + nn * f1))
         first = 0 if trial % 3 else int(rng.integers(1, 60))
-        q, p, value, *_ = _dense(y, processing, w_k, w_n, first)
+        q, p, value, plan, _ = _dense(y, processing, w_k, w_n, first)
+        assert plan.p1 * plan.p2 == n_dft
         fq, fp, fvalue = _full_grid(y, w_k, w_n, processing.n_dft, processing.k_dft, first)
         assert (q, p) == (fq, fp)
         assert value == pytest.approx(fvalue, rel=1e-12)
