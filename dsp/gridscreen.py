@@ -566,6 +566,8 @@ def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWo
 def _exclusion(value: np.ndarray, t: float, slack: float, plan: _DensePlan) -> np.ndarray:
     """(arccos(min(1, (value + slack)/t)) - α₀)/σ, >= 0: the reach [cycles] of a sample's exclusion."""
     ratio = np.minimum(1.0, (value.astype(np.float64) + slack) / t)
+    if plan.sigma == 0.0:  # one chirp: |g| is the same at every Doppler
+        return np.where(ratio < 1.0, np.inf, 0.0)
     return np.maximum(0.0, np.arccos(ratio) - plan.alpha0) / plan.sigma
 
 

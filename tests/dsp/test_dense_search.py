@@ -203,3 +203,15 @@ def test_noise_only_beams_are_routed_to_the_dense_search(make_radar, make_proces
         fq, fp, fvalue = _full_grid(cube[m], w_k, w_n, 1199, 4793)
         assert (int(zoom.doppler_bin[m]), int(zoom.delay_bin[m])) == (fq, fp)
         assert zoom.peak_power[m] == pytest.approx(fvalue / gain**2, rel=1e-12)
+
+
+def test_one_chirp_has_no_doppler_to_search(make_radar, make_processing):
+    # K = 1: every Doppler bin of a column holds the same value (σ = 0), so the first, q = 0, wins
+    # in the full search's order and the delay bin is the range spectrum's maximum.
+    radar = make_radar(num_samples=32, num_chirps=1)
+    processing = make_processing(radar, n_dft=63, k_dft=5, window="boxcar")
+    w_k, w_n, _ = dft_windows(radar, processing)
+    y = add_noise(np.zeros((1, 32), complex), 1.0, np.random.default_rng(8))
+    q, p, value, *_ = _dense(y, processing, w_k, w_n)
+    assert (q, p) == _full_grid(y, w_k, w_n, 63, 5)[:2]
+    assert q == 0
