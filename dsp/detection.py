@@ -21,6 +21,7 @@ above η but none beam-dependent: ``no-beam-dependence`` (and no detection).
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -370,8 +371,9 @@ def detect_batch(cubes: Any, radar: RadarConfig, *, backend: ArrayBackend | None
     """
     backend = numpy_backend() if backend is None else backend
     xp = backend.xp
-    if not (isinstance(pfa, (float, int)) and 0 < pfa < 1):
-        raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
+    if isinstance(pfa, bool) or not isinstance(pfa, numbers.Real) or not 0 < pfa < 1:
+        raise ValueError(f"pfa={pfa!r} must be a number in (0, 1), e.g. 1e-3")
+    pfa = float(pfa)
     rmin = non_negative(min_range, "min_range", "m")
     if oversample not in (1, 2):
         raise ValueError(f"oversample={oversample!r} must be 1 (DFT bins) or 2 (half bins)")

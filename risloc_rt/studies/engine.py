@@ -413,7 +413,7 @@ def _one_thread() -> Iterator[None]:
 
 
 def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int, stop: int,
-              study_seed: int, device: str = "cpu") -> dict[str, Any]:
+              study_seed: int, device: str = "cpu", share: int = 1) -> dict[str, Any]:
     """Run one batch (in a worker): the point prepared by ``prepare``, then runs ``start`` … ``stop - 1``.
 
     Always on one thread — the DSP's (``dsp.limit_threads``) and BLAS's (threadpoolctl) — in a
@@ -436,6 +436,9 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         worker: a Dask worker uses its own GPU, the one ``$CUDA_VISIBLE_DEVICES`` or ``$RISLOC_GPU``
         gives it). The rows' realizations are evaluated B at a time
         (:func:`risloc_rt.studies.kernel.run_runs`; B from the memory estimate).
+    share : int
+        Worker processes sharing this machine's GPU (the local pool's size): each sizes its batches
+        from its share of the GPU's free memory.
 
     Returns
     -------
@@ -461,7 +464,7 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         prep = _prepared(prepare, params)
         buffer = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else None
         rows = run_runs(prep, study_seed=study_seed, point=point, runs=range(start, stop), backend=backend,
-                        buffer=buffer)
+                        buffer=buffer, share=share)
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
             "warnings": list(prep.params.get("warnings", ())), "device": run_environment(backend)}
 
@@ -616,7 +619,7 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
                     try:
                         while b is not None and len(running) < workers:  # one batch per worker: a death names its batch
                             running[pool.submit(run_batch, prepare, b.params, b.point, b.start, b.stop,
-                                                spec.seed, device)] = b
+                                                spec.seed, device, workers)] = b
                             b = next_batch()
                     except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
                         broken += list(running.values())

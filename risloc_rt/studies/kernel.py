@@ -241,7 +241,8 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
 
 
 def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buffer: np.ndarray | None = None,
-             backend: dsp.ArrayBackend | None = None, batch: int | None = None) -> list[dict[str, Any]]:
+             backend: dsp.ArrayBackend | None = None, batch: int | None = None,
+             share: int = 1) -> list[dict[str, Any]]:
     """Monte Carlo runs of one point, B realizations per call of the whole-cube steps.
 
     For each group of B runs: their receiver noise (:func:`risloc_rt.model.beat.add_noise_batch`,
@@ -265,6 +266,9 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     batch : int, optional
         B; default from the memory estimate (:func:`dsp.budget.detect_batch_size`: the memory limit
         on the host, the GPU's free memory on a GPU).
+    share : int
+        Processes sharing the GPU (a study's local workers): each sizes B from its share of the free
+        memory.
 
     Returns
     -------
@@ -279,7 +283,9 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     runs = [int(r) for r in runs]
     p = prep.params
     if batch is None:
-        batch = detect_batch_size(prep.cube.shape, free_bytes=backend.free_memory(), runs=len(runs))
+        free = backend.free_memory()
+        batch = detect_batch_size(prep.cube.shape, free_bytes=None if free is None else free // max(1, int(share)),
+                                  runs=len(runs))
     if buffer is not None and buffer.shape[0] < min(batch, len(runs)):
         buffer = None
     device_cube = backend.asarray(prep.cube) if backend.name == "cupy" else None

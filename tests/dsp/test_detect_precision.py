@@ -83,3 +83,18 @@ def test_every_cell_of_the_batch_statistic_is_within_the_bound(make_radar, paper
         # relative to each cell's own value: the statistic is a sum of squares, never near 0 for M = 61 beams
         assert np.max(np.abs(d_raw[i] - ref_d) / ref_d) < REL
         assert np.max(np.abs(best[i] - ref_best) / ref_best) < REL
+
+
+def test_a_numpy_scalar_pfa_is_a_number(make_radar, paper_sweep):
+    """Regression: pfa=np.float32(1e-3) was refused as 'must lie in (0, 1)' (isinstance float/int only)."""
+    radar = make_radar(num_chirps=16, num_samples=32)
+    sweep = paper_sweep()
+    rng = np.random.default_rng(2)
+    cube = rng.standard_normal((1, sweep.num_beams, 16, 32)) + 1j * rng.standard_normal((1, sweep.num_beams, 16, 32))
+    a = dsp.detect_batch(cube, radar, pfa=np.float32(1e-3), pattern=dsp.BeamPattern(), sweep=sweep, oversample=2)[0]
+    b = dsp.detect_batch(cube, radar, pfa=float(np.float32(1e-3)), pattern=dsp.BeamPattern(), sweep=sweep,
+                         oversample=2)[0]
+    assert a.threshold == b.threshold and a.false_alarm_probability == b.false_alarm_probability
+    for bad in (True, 0.0, 1.0, "1e-3", np.nan):
+        with pytest.raises(ValueError, match=r"pfa=.* must be a number in \(0, 1\)"):
+            dsp.detect_batch(cube, radar, pfa=bad, pattern=dsp.BeamPattern(), sweep=sweep, oversample=2)

@@ -57,3 +57,33 @@ def test_device_cuda_without_a_gpu_is_one_line_and_makes_no_folder(small_spec, t
     with pytest.raises(dsp.DeviceError, match=r"--device=cuda but .*; use --device cpu \(or auto\) on this machine"):
         run_study(small_spec(runs=1), tmp_path / "s", workers=1, quiet=True, figures=False, device="cuda")
     assert not (tmp_path / "s").exists()
+
+
+def test_workers_sharing_a_gpu_size_their_batches_from_their_share(monkeypatch):
+    """Local workers on one GPU: each sizes B from free memory / workers (helper report: each claimed it all)."""
+    import dataclasses
+
+    import dsp.budget
+    from risloc_rt.studies.kernel import prepare_point, run_runs
+    from risloc_rt.studies.params import complete_point
+
+    from .conftest import SMALL
+
+    class PretendGpu(dsp.ArrayBackend):
+        def free_memory(self) -> int:
+            return 8 << 30
+
+    seen = []
+    real = dsp.budget.detect_batch_size
+
+    def spy(shape, *, free_bytes=None, runs=None):
+        seen.append(free_bytes)
+        return real(shape, free_bytes=free_bytes, runs=runs)
+
+    monkeypatch.setattr(dsp.budget, "detect_batch_size", spy)
+    backend = PretendGpu(**{f.name: getattr(dsp.numpy_backend(), f.name) for f in dataclasses.fields(dsp.ArrayBackend)})
+    prep = prepare_point(complete_point({**SMALL, "tx_power_dbm": 30.0}))
+    one = run_runs(prep, study_seed=1, point=0, runs=range(2), backend=backend)
+    four = run_runs(prep, study_seed=1, point=0, runs=range(2), backend=backend, share=4)
+    assert seen == [8 << 30, 2 << 30]
+    assert [r["distance"] for r in one] == [r["distance"] for r in four]  # B changes nothing in the rows
