@@ -464,8 +464,8 @@ class _DenseWork:
         self.cs = np.empty((2 * (p2 // 2 + 1), 2 * k * p1), np.float32)  # C x over S x, re/im interleaved
         self.jsx = np.empty((p2 // 2 + 1, k * p1), np.complex64)
         self.v = np.empty((p2, k * p1), np.complex64)
-        self.a = np.empty((p2, k, p1), np.complex64)  # a_k(P₂·a + b) at [b, k, a]
-        self.plane = np.zeros((p2, plan.length, p1), np.complex64)
+        self.padded = np.zeros((p2, plan.length, p1), np.complex64)  # rows K.. stay zero
+        self.a = self.padded[:, :k, :]  # a_k(P₂·a + b) at [b, k, a]
         self.amp = np.empty((p2, plan.length, p1), np.float32)
         self.mask = np.empty((p2, plan.length, p1), bool)
         self.ends = np.empty((p2, plan.length, p1), bool)
@@ -502,13 +502,9 @@ def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWo
     np.multiply(sx, 1j, out=work.jsx)
     np.add(cx, work.jsx, out=work.v[:half])
     np.subtract(cx[1:p2 - half + 1][::-1], work.jsx[1:p2 - half + 1][::-1], out=work.v[half:])
-    a = np.matmul(work.v.reshape(p2, k, p1), plan.stage2, out=work.a)
+    a = np.matmul(work.v.reshape(p2, k, p1), plan.stage2, out=work.a)  # into the zero-padded buffer
     # b. The Doppler plane at L points and its magnitude.
-    plane = work.plane
-    plane[:, :k] = a
-    plane[:, k:] = 0.0
-    plane = scipy.fft.ifft(plane, axis=1, norm="forward", overwrite_x=True)  # in place
-    amp = np.abs(plane, out=work.amp)
+    amp = np.abs(scipy.fft.ifft(work.padded, axis=1, norm="forward"), out=work.amp)
     if first:
         b_out, a_out = np.nonzero(plan.column < first)
         amp[b_out, :, a_out] = -1.0
