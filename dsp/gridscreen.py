@@ -34,10 +34,11 @@ loss plus ``SCREEN_HEADROOM_DB``) is sized for sums of returns, not proven for e
 dense search below uses no such allowance.
 
 **Routing.** A beam with no return above the per-chirp noise (noise only) cannot be screened:
-more than a quarter of its columns stay above the bound. Such a beam is recognised early, from
-the bound of 32 of its samples refined against the largest refined native value, and sent to the
-dense search without the screen's exact steps; a beam that reaches step 3 with more than a
-quarter of its columns above T₁ goes there too. Routing decides only the work, never the cell.
+most of its columns stay above the bound. Such a beam is recognised early, from the bound of
+32 of its samples refined against the largest refined native value, and sent to the dense
+search without the screen's exact steps; a beam that reaches step 3 with more than
+``_DENSE_FRACTION`` (1/8) of its columns above T₁ goes there too (evaluating them one by one
+would cost more). Routing decides only the work, never the cell.
 
 **Dense search** (:func:`_dense_beam`), for those beams, with every step proven:
 
@@ -46,13 +47,16 @@ a. *Fine range transform (complex64).* ``a_k(p) = Σ_n x[k, n] e^{+j2π p n / N_
    1199; the index split of Cooley–Tukey with the DFTs as products, p = P₂·a + b):
    ``v[b, k, d] = Σ_c e^{j2π b c / P₂} x[k, P₁c + d]`` and
    ``a[b, k, a] = Σ_d e^{j2π b d / N_DFT} e^{j2π d a / P₁} v[b, k, d]`` (P₁ + ⌈N/P₁⌉ products
-   per output instead of N; as fast as the FFT at this length, with an elementwise error bound).
+   per output instead of N). Rows b and P₂ - b of the first are conjugate, so it is two real
+   products (cos and sin rows, on the interleaved real and imaginary parts): half the work of
+   the FFT at this prime-factor length (109), with an elementwise error bound.
 b. *Doppler plane (complex64).* ``c(r, p) = Σ_k a_k(p) e^{j2π r k / L}`` at L = 2^⌈log₂ 2K⌉
    points (256) by a power-of-two FFT (radix-4/2 Cooley–Tukey), and |c|.
 c. *Szegő's bound.* In column p, ``g(ν) = Σ_k a_k(p) e^{j2π ν k}`` (ν in cycles per chirp) times
    ``e^{-jπ(K-1)ν}`` is a trigonometric sum of exponential type σ = π(K-1). For any phase φ,
    ``f = Re(e^{-jφ} e^{-jπ(K-1)ν} g)`` obeys ``f'² + σ²f² ≤ σ²M²``, M = max_ν |g| (Szegő's
-   inequality; Boas, *Entire Functions*, 11.4), so ``θ = arccos(f/M)`` moves by at most σ|Δν|.
+   inequality, Szegő 1928; Duffin & Schaeffer 1937 for functions of exponential type), so
+   ``θ = arccos(f/M)`` moves by at most σ|Δν| (``|θ'| = |f'|/√(M² - f²) ≤ σ``).
    Take q* the column's largest grid value m = |g(q*)| and φ its phase: θ(q*) = α with
    ``cos α = m/M ≥ cos α₀``, α₀ = σ/(2 K_DFT) (the maximum of |g| is within half a grid bin of a
    grid bin). Hence ``|g(ν)| ≥ M cos(α + σ|ν - q*|)`` for all ν, and a value r at ν puts q*
@@ -66,16 +70,20 @@ d. *Search.* T is a lower bound of the grid maximum: the largest complex64 grid 
    widened by one bin, are evaluated in complex64 (float64 sums of the complex64 a), and only
    those within the error bounds of the largest are evaluated in float64 (as in step 3). No
    margin in dB and no ``zoom_margin_db``: the bins that can hold the maximum are all kept.
-e. *Precision.* Elementwise, with u = 2⁻²⁴ and ‖x‖₁ = Σ|x| over the beam (summed in float64): casting
-   and windowing in float32 moves x by ≤ 3u|x|; a product of unit-modulus (rounded) coefficients
-   with n inputs errs by ≤ √2(γ_{n+2} + u)·Σ|inputs| (γ_n = nu/(1-nu)), and every intermediate
-   of step a is bounded by the ℓ1 norm of its inputs, so
-   ``|Δa_k(p)| ≤ e_a·‖x_k‖₁``, ``e_a = √2(γ_{⌈N/P₁⌉+2} + γ_{P₁+2} + 2u) + 3u``; a Cooley–Tukey pass
-   of radix ρ adds ≤ 2(ρ+2)u·Σ_k|a_k(p)| (its outputs are unit-weighted sums of ρ values, each
-   bounded by the ℓ1 norm of the values it sums). So a plane value errs by ≤ (e_a + e_L + 2u)·‖x‖₁
-   (e_L the sum over the passes; +2u for |·| in float32) and a complex64 grid value by
-   ≤ e_a·‖x‖₁ + 1e-13·‖x‖₁; twice these are the slacks (≈1e-5·‖x‖₁, 0.1 % of a noise-only
-   maximum at Table I). Every value that reaches the result is float64, as above.
+e. *Precision.* Elementwise, with u = 2⁻²⁴ and ‖x‖₁ = Σ|x| over the beam (summed in float64):
+   casting and windowing in float32 moves x by ≤ 3u|x|; a product of unit-modulus (rounded)
+   coefficients with n complex inputs errs by ≤ √2(γ_{n+2} + u)·Σ|inputs| (γ_n = nu/(1-nu)),
+   the real cos/sin products by ≤ 2(γ_{n+2} + u)·Σ|inputs| (|cos| + |sin| ≤ √2 on
+   |re| + |im| ≤ √2|x|), and every intermediate of step a is bounded by the ℓ1 norm of its
+   inputs, so ``|Δa_k(p)| ≤ e_a·‖x_k‖₁``, ``e_a = 2(γ_{⌈N/P₁⌉+2} + u) + √2(γ_{P₁+2} + u) + 3u``;
+   a Cooley–Tukey pass of radix ρ adds ≤ 2(ρ+2)u·Σ_k|a_k(p)| (its outputs are unit-weighted
+   sums of ρ values, each bounded by the ℓ1 norm of the values it sums). So a plane value errs by
+   ≤ (e_a + e_L + 2u)·‖x‖₁ (e_L the sum over the passes; +2u for |·| in float32), a midpoint
+   (complex64 products of K terms) by ≤ (e_a + √2(γ_{K+2} + u))·‖x‖₁ and a grid value (float64
+   sums of the complex64 a) by ≤ e_a·‖x‖₁ + 1e-13·‖x‖₁; twice these are the slacks
+   (≈ 1e-5–2e-5·‖x‖₁: 0.1 % of a noise-only maximum at Table I, measured errors 1e-3–1e-2 of
+   them). Every value that reaches the result is float64, as above. A beam whose ‖x‖₁ is below
+   1e-30 (float32 would lose it) is searched on the whole float64 grid instead.
 """
 
 from __future__ import annotations
