@@ -550,6 +550,8 @@ def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWo
     q_lo = np.ceil(start * k_dft).astype(np.int64) - 1
     count = np.floor(stop * k_dft).astype(np.int64) + 2 - q_lo
     total = int(count.sum())
+    if total == 0:  # cannot happen: the maximum's interval always survives (module notes)
+        return _full_beam(y, plan, first, w_k, w_n)
     offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
     q = (np.repeat(q_lo, count) + offset) % k_dft
     b, a_idx = np.repeat(b, count), np.repeat(a_idx, count)
