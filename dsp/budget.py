@@ -137,9 +137,11 @@ def dsp_memory(shape: Any, *, n_dft: int, k_dft: int, itemsize: int = 16) -> int
     return int(cube + 2 * (fast + beam))
 
 
-#: Realizations per detector call on the host: measured on a 2-core x86 host, Table I, one thread,
-#: 0.122 s per cube at B = 1 and 0.113 s at B = 4 (cell blocks shrinking with B); more buys nothing.
-HOST_BATCH = 4
+#: Realizations per detector call on the host. A whole Table I run (noise, detector, estimate; one core)
+#: measured 0.253-0.257 s at B = 1 and 1-6 % more at B = 2 and 4 (the refined estimator; 2-17 % more for the
+#: paper's: benchmarks/bench_device.py, docs/benchmarks.md, "Devices and batches"): batching buys nothing on a
+#: CPU, whose transforms are not launch-bound, and costs B cubes of memory. A GPU batches (DEVICE_BATCH).
+HOST_BATCH = 1
 #: Largest batch on a GPU (beyond it a kernel call is long enough that launch costs are nothing).
 DEVICE_BATCH = 64
 
