@@ -188,3 +188,70 @@ def rng() -> np.random.Generator:
     """A fresh, seeded Generator per test."""
     return np.random.default_rng(20240607)
 
+
+#: An 8 m × 6 m × 3 m concrete box with a 16×4 relay RIS and one radar: the smallest hall that traces
+#: in well under a second (floor maps, the CLI's device tests).
+TINY_HALL_SPEC = """
+[scene]
+name = "tiny_box"
+description = "8 m x 6 m x 3 m concrete box with a 16x4 relay RIS"
+frequency = 60e9
+[hall]
+size = [8.0, 6.0]
+height = 3.0
+wall_thickness = 0.2
+[hall.materials]
+walls = { itu = "concrete", thickness = 0.2 }
+floor = { itu = "concrete", thickness = 0.2 }
+ceiling = { itu = "concrete", thickness = 0.2 }
+[[ris]]
+name = "ris0"
+position = [7.0, 3.0, 1.2]
+facing = [1.0, 3.0, 1.2]
+rows = 16
+columns = 4
+spacing = "half-wavelength"
+amplification_db = 45.532
+loopback_delay = 1.78e-9
+mode = "relay"
+panel = { width = 0.10, height = 0.05, material = "metal" }
+[radar]
+positions = [[2.0, 3.0, 1.2]]
+facing = "ris0"
+"""
+
+
+@pytest.fixture(scope="session")
+def tiny_hall_spec() -> str:
+    """The TOML spec of :data:`TINY_HALL_SPEC` (write it to a ``spec.toml`` and ``risloc scene build`` it)."""
+    return TINY_HALL_SPEC
+
+
+def _detect_with_candidates(cubes: Any, prep: Any, backend: Any, options: dict, monkeypatch: Any) -> tuple:
+    """``dsp.detect_batch`` on ``backend`` (the host cubes copied there explicitly) and the candidates it
+    handed to the sweep-modulation test: (detections, candidate cells [B, 5], their statistics [B, 5])."""
+    import dsp
+    from dsp import detection
+
+    seen = []
+    original = detection._candidates
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        out = original(*args, **kwargs)
+        seen.append(out)
+        return out
+
+    monkeypatch.setattr(detection, "_candidates", spy)
+    try:
+        dets = dsp.detect_batch(backend.asarray(cubes), prep.radar, backend=backend, **options)
+    finally:
+        monkeypatch.setattr(detection, "_candidates", original)
+    assert len(seen) == 1
+    cells, stats, _values = seen[0]
+    return dets, cells, stats
+
+
+@pytest.fixture(scope="session")
+def detect_with_candidates():
+    """``detect_with_candidates(cubes, prep, backend, options, monkeypatch)``: see :func:`_detect_with_candidates`."""
+    return _detect_with_candidates

@@ -29,34 +29,6 @@ from risloc_rt.model.simulate import simulate
 #: The fixed parameters of a ~20 ms study run (tests/studies/conftest.py's SMALL).
 SMALL = {"num_chirps": 32, "num_samples": 64, "n_dft": 128, "k_dft": 128, "sweep_span_deg": 15.0, "aod_deg": 10.3}
 
-TINY_HALL = """
-[scene]
-name = "tiny_box"
-description = "8 m x 6 m x 3 m concrete box with a 16x4 relay RIS"
-frequency = 60e9
-[hall]
-size = [8.0, 6.0]
-height = 3.0
-wall_thickness = 0.2
-[hall.materials]
-walls = { itu = "concrete", thickness = 0.2 }
-floor = { itu = "concrete", thickness = 0.2 }
-ceiling = { itu = "concrete", thickness = 0.2 }
-[[ris]]
-name = "ris0"
-position = [7.0, 3.0, 1.2]
-facing = [1.0, 3.0, 1.2]
-rows = 16
-columns = 4
-spacing = "half-wavelength"
-amplification_db = 45.532
-loopback_delay = 1.78e-9
-mode = "relay"
-panel = { width = 0.10, height = 0.05, material = "metal" }
-[radar]
-positions = [[2.0, 3.0, 1.2]]
-facing = "ris0"
-"""
 
 HAS_GPU = cuda_available()[0]
 
@@ -328,9 +300,10 @@ def test_study_sweep_gives_the_same_runs_with_device_cpu_and_prints_the_device(t
 
 
 @pytest.mark.slow
-def test_study_map_gives_the_same_cells_with_device_cpu_and_prints_the_device(tmp_path, capsys, monkeypatch):
+def test_study_map_gives_the_same_cells_with_device_cpu_and_prints_the_device(tmp_path, capsys, monkeypatch,
+                                                                            tiny_hall_spec):
     monkeypatch.setenv("RISLOC_CACHE_DIR", str(tmp_path / "cache"))
-    (tmp_path / "spec.toml").write_text(TINY_HALL)
+    (tmp_path / "spec.toml").write_text(tiny_hall_spec)
     assert main(["scene", "build", str(tmp_path / "spec.toml"), "-o", str(tmp_path / "hall")]) == 0
     argv = ["study", "map", str(tmp_path / "hall"), "--spacing", "3", "--runs", "1", "--depth", "1",
             "--samples", "10000", "--workers", "1", "--out"]

@@ -36,7 +36,6 @@ import pytest
 import scipy.special
 
 import dsp
-import dsp.detection as detection
 from dsp import SPEED_OF_LIGHT, DeviceError, backend_for, cuda_available, numpy_backend, strict_backend
 from dsp.budget import DEVICE_BATCH, HOST_BATCH, MEMORY_LIMIT_ENV, detect_batch_size, detect_memory
 from dsp.sweep_window import sweep_windows
@@ -95,27 +94,6 @@ def detector_options(prep, *, windowed, oversample, pfa):
     return dict(pfa=pfa, min_range=prep.processing.min_range, max_candidates=5,
                 pattern=prep.pattern if windowed else None, sweep=prep.sweep if windowed else None,
                 oversample=oversample)
-
-
-def run_detector(cubes, prep, backend, options, monkeypatch):
-    """detect_batch on ``backend`` (cubes copied there explicitly), and the candidates it handed to the
-    sweep-modulation test: (detections, candidate cells [B, 5], their statistics [B, 5])."""
-    seen = []
-    original = detection._candidates
-
-    def spy(*args, **kwargs):
-        out = original(*args, **kwargs)
-        seen.append(out)
-        return out
-
-    monkeypatch.setattr(detection, "_candidates", spy)
-    try:
-        dets = dsp.detect_batch(backend.asarray(cubes), prep.radar, backend=backend, **options)
-    finally:
-        monkeypatch.setattr(detection, "_candidates", original)
-    assert len(seen) == 1
-    cells, stats, _values = seen[0]
-    return dets, cells, stats
 
 
 def float64_reference(cube, prep, *, windowed, oversample, pfa, count=5):
@@ -179,7 +157,7 @@ def test_strict_device_refuses_an_implicit_host_copy():
 
 @pytest.mark.parametrize("config", list(CONFIGS))
 @pytest.mark.parametrize("case", list(CASES))
-def test_detect_batch_strict_equals_numpy_and_float64(points, case, config, monkeypatch):
+def test_detect_batch_strict_equals_numpy_and_float64(points, case, config, monkeypatch, detect_with_candidates):
     """Same decisions on array_api_strict ('device1') as on NumPy; the numbers within the stated precision
     of each other and of the float64 sweep-CFAR."""
     power, pfa = CASES[case]
@@ -189,8 +167,8 @@ def test_detect_batch_strict_equals_numpy_and_float64(points, case, config, monk
     options = detector_options(prep, windowed=windowed, oversample=oversample, pfa=pfa)
     rtol = HALF_BIN_PRECISION if oversample == 2 else DFT_BIN_PRECISION
 
-    ref_dets, ref_cells, ref_stats = run_detector(cubes, prep, numpy_backend(), options, monkeypatch)
-    dets, cells, stats = run_detector(cubes, prep, strict_backend("device1"), options, monkeypatch)
+    ref_dets, ref_cells, ref_stats = detect_with_candidates(cubes, prep, numpy_backend(), options, monkeypatch)
+    dets, cells, stats = detect_with_candidates(cubes, prep, strict_backend("device1"), options, monkeypatch)
 
     # the case is what it claims to be
     detected = [d.detected for d in ref_dets]

@@ -35,7 +35,6 @@ import pytest
 import scipy.stats
 
 import dsp
-import dsp.detection as detection
 from risloc_rt.model.beat import add_noise_batch
 from risloc_rt.studies.kernel import prepare_point, run_rng, run_runs
 from risloc_rt.studies.params import complete_point
@@ -69,39 +68,20 @@ def table_i():
     return get
 
 
-def detect_with_candidates(cubes, prep, backend, monkeypatch):
-    """detect_batch on ``backend`` and the candidates it handed to the sweep-modulation test (cells, statistics)."""
-    seen = []
-    original = detection._candidates
-
-    def spy(*args, **kwargs):
-        out = original(*args, **kwargs)
-        seen.append(out)
-        return out
-
-    monkeypatch.setattr(detection, "_candidates", spy)
-    try:
-        dets = dsp.detect_batch(backend.asarray(cubes), prep.radar, backend=backend, pfa=1e-3,
-                                min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
-                                sweep=prep.sweep, oversample=2)
-    finally:
-        monkeypatch.setattr(detection, "_candidates", original)
-    cells, stats, _ = seen[0]
-    return dets, cells, stats
-
-
 # ------------------------------------------------------------------------------------------ (a)
 
 
 @pytest.mark.parametrize("case", ["near-threshold", "high-snr", "noise-only"])
-def test_detect_batch_on_the_gpu_equals_numpy(table_i, gpu, monkeypatch, case):
+def test_detect_batch_on_the_gpu_equals_numpy(table_i, gpu, monkeypatch, case, detect_with_candidates):
     # -8 dBm: the windowed statistic within ~1 dB of η (some runs detect, some not); 10 dBm: ~33 dB above
     power = {"near-threshold": -8.0, "high-snr": 10.0, "noise-only": 10.0}[case]
     prep = table_i(power)
     clean = np.zeros_like(prep.cube) if case == "noise-only" else prep.cube
     cubes = add_noise_batch(clean, prep.radar.noise_power, [run_rng(21, 0, r) for r in range(4)])
-    ref, ref_cells, ref_stats = detect_with_candidates(cubes, prep, dsp.numpy_backend(), monkeypatch)
-    got, cells, stats = detect_with_candidates(cubes, prep, gpu, monkeypatch)
+    options = dict(pfa=1e-3, min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
+                   sweep=prep.sweep, oversample=2)
+    ref, ref_cells, ref_stats = detect_with_candidates(cubes, prep, dsp.numpy_backend(), options, monkeypatch)
+    got, cells, stats = detect_with_candidates(cubes, prep, gpu, options, monkeypatch)
 
     if case == "near-threshold":
         assert any(d.detected for d in ref) and not all(d.detected for d in ref)

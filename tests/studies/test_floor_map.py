@@ -7,42 +7,14 @@ import json
 import numpy as np
 import pytest
 
-SPEC = """
-[scene]
-name = "tiny_box"
-description = "8 m x 6 m x 3 m concrete box with a 16x4 relay RIS"
-frequency = 60e9
-[hall]
-size = [8.0, 6.0]
-height = 3.0
-wall_thickness = 0.2
-[hall.materials]
-walls = { itu = "concrete", thickness = 0.2 }
-floor = { itu = "concrete", thickness = 0.2 }
-ceiling = { itu = "concrete", thickness = 0.2 }
-[[ris]]
-name = "ris0"
-position = [7.0, 3.0, 1.2]
-facing = [1.0, 3.0, 1.2]
-rows = 16
-columns = 4
-spacing = "half-wavelength"
-amplification_db = 45.532
-loopback_delay = 1.78e-9
-mode = "relay"
-panel = { width = 0.10, height = 0.05, material = "metal" }
-[radar]
-positions = [[2.0, 3.0, 1.2]]
-facing = "ris0"
-"""
 
 
 @pytest.fixture(scope="module")
-def tiny_hall(tmp_path_factory):
+def tiny_hall(tmp_path_factory, tiny_hall_spec):
     from risloc_rt.cli import main
 
     root = tmp_path_factory.mktemp("tiny")
-    (root / "spec.toml").write_text(SPEC)
+    (root / "spec.toml").write_text(tiny_hall_spec)
     assert main(["scene", "build", str(root / "spec.toml"), "-o", str(root / "built")]) == 0
     return root / "built"
 
