@@ -252,12 +252,12 @@ def sweep_statistics(x: Any, windows: SweepWindows | None, backend: ArrayBackend
     for c0 in range(0, c, cell_block):
         xb = x[:, :, c0:min(c0 + cell_block, c)]
         dev = xb - xp.mean(xb, axis=1, keepdims=True)
-        energy = xp.real(dev) ** 2 + xp.imag(dev) ** 2
+        energy = xp.astype(xp.real(dev) ** 2 + xp.imag(dev) ** 2, xp.float64)  # one cast per block, not per beam
         # the running sums over the beams in float64, beam by beam (a cumulative sum along a middle axis is
         # several times slower on NumPy); cum[i] = Σ_{m<i} E_m
         cum = [xp.zeros((b, xb.shape[-1]), dtype=xp.float64, device=backend.device)]
         for i in range(m):
-            cum.append(cum[-1] + xp.astype(energy[:, i, :], xp.float64))
+            cum.append(cum[-1] + energy[:, i, :])
         d_parts.append(cum[m])
         if runs is not None:
             best = None
