@@ -58,7 +58,10 @@ def main() -> None:
     ap.add_argument("--batches", default="1,2,4", help="realizations per detector call, comma-separated")
     ap.add_argument("--device", default="cpu", choices=("cpu", "cuda", "strict"))
     args = ap.parse_args()
-    backend = _backend(args.device)
+    try:
+        backend = _backend(args.device)
+    except dsp.DeviceError as exc:
+        raise SystemExit(f"bench_device.py: {exc}") from None
     powers = [float(v) for v in args.tx_powers.split(",")]
     batches = [int(v) for v in args.batches.split(",")]
     goal = GOALS[args.device]
