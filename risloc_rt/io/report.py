@@ -86,7 +86,8 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     pfa : float, optional
         Detector false-alarm probability per capture (default ``dsp``'s, 1e-3).
     backend : dsp.ArrayBackend, optional
-        Where the detector's whole-cube work runs (``--device``; :func:`dsp.self_localize`); default NumPy.
+        Where the whole-cube work runs (``--device``: the detector and the estimators' reads of the cube,
+        :func:`dsp.self_localize`); default NumPy.
 
     Returns
     -------
