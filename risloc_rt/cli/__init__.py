@@ -247,6 +247,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a ``KeyboardInterrupt`` is in ``exc``'s chain of causes and contexts."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
+            return True
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return False
+
+
 def _main(raw: list[str], state: dict[str, Any]) -> int:
     """:func:`main` without the Ctrl-C handling: imports the verbs, parses, runs, reports errors."""
     try:
@@ -256,6 +268,11 @@ def _main(raw: list[str], state: dict[str, Any]) -> int:
     except SystemExit as exc:  # argparse: --help (0) and usage errors (2, already printed as one line)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     except Exception as exc:  # noqa: BLE001 - the one place every error becomes one line
+        if state.get("interrupted") or _caused_by_interrupt(exc):
+            # Ctrl-C that Python turned into another error on its way out (Python 3.11 wraps an exception
+            # raised in a descriptor's __set_name__ while a class is made, e.g. a dataclass during an
+            # import, in a RuntimeError): it is still an interrupt, exit 130 with its one line
+            raise KeyboardInterrupt from None
         from .common import CliError
 
         if isinstance(exc, CliError):

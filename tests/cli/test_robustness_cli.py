@@ -75,6 +75,34 @@ def test_issue_11_ctrl_c_exits_130_and_failures_exit_1(monkeypatch, capsys, tmp_
     assert "kernel launch failed with details" in _one_error_line(capsys, "simulate")
 
 
+def test_an_interrupt_python_wrapped_in_another_error_is_still_an_interrupt(monkeypatch, capsys, tmp_path):
+    """Regression (CI, Ctrl-C at a random moment of scene build): Python 3.11 turns a KeyboardInterrupt raised
+    in a descriptor's __set_name__ while a dataclass is made (during an import) into a RuntimeError; that
+    was reported as 'the run failed' with exit 1. It is an interrupt: exit 130 and its one line."""
+    import risloc_rt.cli.simulate as sim
+
+    def wrapped(*a, **k):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error calling __set_name__ on 'Field' instance 'velocity' in 'PointTarget'") from exc
+
+    monkeypatch.setattr(sim, "simulate", wrapped)
+    assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "interrupted" in err[0] and "__set_name__" not in err[0]
+    assert not list(tmp_path.iterdir())
+
+    def context_only(*a, **k):  # raised while handling the interrupt, without "from"
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ValueError("half-built object")
+
+    monkeypatch.setattr(sim, "simulate", context_only)
+    assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 130
+
+
 def test_issue_11_scene_build_refusal_is_one_line(tmp_path, capsys):
     spec = tmp_path / "spec.toml"
     spec.write_text("[scene]\nname='t'\n[hall]\nsize=[30000.0, 18000.0]\nheight=7.0\n"
