@@ -139,7 +139,7 @@ def test_issue_19_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path):
         "demo": ["demo", "--analytic", "--out", str(tmp_path / "demo")],
         "simulate": ["simulate", "-o", str(tmp_path / "x.npz")],
     }
-    checked, finished = 0, False
+    checked = 0
     for verb, command in commands.items():
         for delay in (0.15, 0.4, 1.0, 2.0):
             status, err = _interrupt_after(command, delay)
@@ -148,7 +148,6 @@ def test_issue_19_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path):
             if status == 0 and not err:
                 # the signal came as the command was exiting, its work done: risloc ignores Ctrl-C
                 # then (so the exit cannot be cut); the output must be whole
-                finished = True
                 if verb == "simulate":
                     from risloc_rt.io.capture_file import load_capture
 
@@ -159,7 +158,15 @@ def test_issue_19_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path):
             assert len(err) == 1 and "Traceback" not in err[0], (verb, delay, err)
             assert err[0].startswith("risloc") and "interrupted" in err[0], (verb, delay, err)
     assert checked >= 6
-    assert finished or not (tmp_path / "x.npz").exists()
+    # An interrupt that lands after simulate's atomic write (late in a fast run: the capture was written at
+    # ~1.7 s on an idle machine and the Ctrl-C came at 2.0 s, during the exit) leaves that capture: whole,
+    # never torn, and no temporary file beside it. (This asserted "no capture unless finished", which a
+    # fast machine broke: the interrupted line says each file written is complete, not that none was.)
+    if (tmp_path / "x.npz").exists():
+        from risloc_rt.io.capture_file import load_capture
+
+        assert load_capture(tmp_path / "x.npz").cube.shape == (61, 128, 600)
+    assert not list(tmp_path.glob(".x.npz.*.tmp")), "a torn temporary was left behind"
 
 
 def test_issue_19_a_call_from_python_leaves_the_signal_handling_as_it_was(monkeypatch, capsys, tmp_path):
