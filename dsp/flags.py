@@ -43,6 +43,7 @@ FLAG_CODES: dict[str, str] = {
     "schedule-mismatch": "the recording does not support the sweep schedule's first_frame: the beams may be shifted",
     "damaged-beams": "frames of some beams hold zero-filled lost packets: their power and phase are wrong",
     "uncalibrated": "measured data without a calibration file: range offset and tau_RB are nominal",
+    "inconsistent-ris": "the fixes of several RISs disagree beyond their 1σ: one is left out (named), or none can be",
     # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
     "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
     "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",

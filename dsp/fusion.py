@@ -1,0 +1,327 @@
+"""One position from several RIS landmarks: fused fixes with their covariance and a consistency test.
+
+Each detected RIS i gives the radar's distance dᵢ and angle of departure (azimuth, and elevation
+where its sweep sees it) in its own frame, each with a 1σ (:class:`RisFix`, e.g. from a
+:class:`dsp.Localization` by :meth:`RisFix.from_localization`). The fused position x̂ minimises
+
+    T(x) = Σᵢ Σⱼ (zᵢⱼ − hᵢⱼ(x))² / σᵢⱼ²,   hᵢ(x) = (‖x − pᵢ‖, az(Rᵢᵀ(x − pᵢ)), el(Rᵢᵀ(x − pᵢ))),
+
+by Gauss–Newton from the best single fix (azimuth residuals wrapped to (−π, π]). Its covariance
+is the inverse of the summed Fisher information ``Σᵢ Jᵢᵀ Wᵢ Jᵢ`` (Jᵢ = ∂hᵢ/∂x at x̂, Wᵢ = diag(1/σ²)):
+with each fix's σ its Cramér–Rao bound this is the multi-RIS position bound, and ``peb`` its trace's
+square root.
+
+**Consistency.** At x̂, T is χ² with n − 3 degrees of freedom (n measurements) when every fix is
+right. Above its level of probability ``pfa`` (:func:`scipy.stats.chi2.isf`) the fixes disagree:
+each fix is left out in turn, and the one whose removal lowers T most is excluded — named, with its
+own residual, in :attr:`FusedFix.excluded` and the flag ``inconsistent-ris`` — when the others then
+pass; so on until they agree, never below what still over-determines the position (n − 3 ≥ 1).
+Fixes that cannot be told apart (two fixes of three measurements each that disagree: either may be
+the wrong one) are kept, and the flag says so. A grating-lobe twin, a blocked RIS whose peak is
+another path, or a path taken for a return shows up this way; an average would hide it.
+
+**Observability.** Directions along which the information is below 1e-12 of its largest
+eigenvalue (times the largest σ-scaled lever) cannot be seen: two RISs at one height whose sweeps
+cannot see elevation leave the height unobservable (the mirror image below the sweep plane gives
+the same distances and azimuths). The covariance is then infinite along them, the flag
+``unobservable`` names the world direction, and the position lies where the best single fix put it
+along that direction (its elevation as given). RISs at different heights, or a sweep that sees
+elevation, make it observable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.stats
+
+from .flags import Flag
+from .geometry import RisPose, angles_from_direction, direction_from_angles
+from .validation import as_finite_array, finite, positive
+
+__all__ = ["RisFix", "FusedFix", "fuse_fixes"]
+
+#: Gauss–Newton steps at most, and the step [m] below which it has converged.
+_MAX_STEPS, _TOLERANCE = 50, 1e-10
+#: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.
+_RANK_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class RisFix:
+    """One RIS's answer: the radar's distance and AoD from it, with their 1σ.
+
+    Attributes
+    ----------
+    name : str
+        The RIS (its name in the scene).
+    pose : RisPose
+        Its position and orientation.
+    distance : float
+        d [m] from the RIS.
+    std_distance : float
+        Its 1σ [m], > 0.
+    aod : float array [2]
+        [az, el] in the RIS frame [rad].
+    std_aod : float array [2]
+        Their 1σ [rad], > 0; NaN or inf for an angle the sweep cannot see (not used; a 1-D sweep's
+        elevation).
+    flags : tuple of str
+        The fix's own flag codes (kept with it).
+    """
+
+    name: str
+    pose: RisPose
+    distance: float
+    std_distance: float
+    aod: np.ndarray
+    std_aod: np.ndarray
+    flags: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"RisFix name {self.name!r} must be a non-empty string (the RIS's name)")
+        if not isinstance(self.pose, RisPose):
+            raise TypeError(f"RisFix {self.name}: pose must be a dsp.RisPose, got {type(self.pose).__name__}")
+        object.__setattr__(self, "distance", positive(self.distance, f"RisFix {self.name}: distance", "m"))
+        object.__setattr__(self, "std_distance", positive(self.std_distance, f"RisFix {self.name}: std_distance", "m"))
+        aod = as_finite_array(self.aod, f"RisFix {self.name}: aod", shape=(2,))
+        std = np.asarray(self.std_aod, dtype=float)
+        if std.shape != (2,):
+            raise ValueError(f"RisFix {self.name}: std_aod has shape {list(std.shape)}; it must be [σ_az, σ_el] [rad]")
+        seen = np.isfinite(std)
+        if np.any(seen & ~(std > 0)):
+            raise ValueError(f"RisFix {self.name}: std_aod={std.tolist()} must be > 0 where finite "
+                             "(NaN or inf for an angle the sweep cannot see)")
+        if not seen[0] and not seen[1]:
+            pass  # distance only: a sphere (kept; the fusion says what it cannot see)
+        object.__setattr__(self, "aod", aod)
+        object.__setattr__(self, "std_aod", np.where(seen, std, np.nan))
+        object.__setattr__(self, "flags", tuple(str(f) for f in self.flags))
+
+    @classmethod
+    def from_localization(cls, name: str, pose: RisPose, loc: Any) -> "RisFix":
+        """The fix of a detected :class:`dsp.Localization` (its distance, AoD, 1σ and flag codes).
+
+        Parameters
+        ----------
+        name : str
+            The RIS.
+        pose : RisPose
+            Its pose (the one ``loc`` was computed with).
+        loc : dsp.Localization
+            Detected, with ``std``.
+
+        Returns
+        -------
+        RisFix
+        """
+        if not getattr(loc, "detected", False) or loc.std is None:
+            raise ValueError(f"RIS {name}: nothing was detected, so it gives no fix; leave it out of the fusion")
+        return cls(name=name, pose=pose, distance=float(loc.distance), std_distance=float(loc.std.distance),
+                   aod=np.asarray(loc.aod, dtype=float), std_aod=np.asarray(loc.std.aod, dtype=float),
+                   flags=tuple(loc.flag_codes))
+
+    @property
+    def measurements(self) -> int:
+        """How many numbers the fix gives: the distance and each angle it sees."""
+        return 1 + int(np.sum(np.isfinite(self.std_aod)))
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """(z − h(x)) / σ for the measurements it has [unitless]; the azimuth residual wrapped to (−π, π]."""
+        rel = np.asarray(x, dtype=float) - self.pose.position
+        dist = float(np.linalg.norm(rel))
+        out = [(self.distance - dist) / self.std_distance]
+        if dist > 0:
+            az, el = angles_from_direction(self.pose.to_local(rel / dist))
+        else:
+            az = el = 0.0
+        if np.isfinite(self.std_aod[0]):
+            out.append(math.remainder(self.aod[0] - az, 2 * math.pi) / self.std_aod[0])
+        if np.isfinite(self.std_aod[1]):
+            out.append((self.aod[1] - el) / self.std_aod[1])
+        return np.asarray(out)
+
+    def position(self, elevation: float | None = None) -> np.ndarray:
+        """The fix's own position [3] [m] (its elevation, or ``elevation`` [rad] where it cannot see it)."""
+        el = self.aod[1] if elevation is None else elevation
+        return self.pose.position + self.distance * self.pose.to_world(direction_from_angles([self.aod[0], el]))
+
+
+@dataclass(frozen=True, eq=False)
+class FusedFix:
+    """The fused position of several RIS fixes.
+
+    Attributes
+    ----------
+    position : float array [3]
+        x̂, world frame [m].
+    covariance : float array [3, 3]
+        Its covariance [m²]: the inverse of the summed Fisher information; ``inf`` on the diagonal
+        along a direction the fixes cannot see.
+    peb : float
+        sqrt(trace(covariance)) [m] (inf when a direction is unobservable).
+    used : tuple of str
+        The fixes in the fusion.
+    excluded : tuple of (str, str)
+        The fixes left out, each with why.
+    statistic, threshold : float
+        T at x̂ over the used fixes and its χ² level at ``pfa`` [unitless] (NaN when the used fixes
+        do not over-determine the position).
+    dof : int
+        n − 3 of the used fixes (≤ 0: nothing to test).
+    unobservable : tuple of float arrays [3]
+        World directions the fixes cannot see (unit vectors).
+    flags : tuple of dsp.Flag
+        ``inconsistent-ris`` (fixes left out, or a disagreement that cannot be pinned on one),
+        ``unobservable`` (a direction the geometry cannot see).
+    """
+
+    position: np.ndarray
+    covariance: np.ndarray
+    peb: float
+    used: tuple[str, ...]
+    excluded: tuple[tuple[str, str], ...]
+    statistic: float
+    threshold: float
+    dof: int
+    unobservable: tuple[np.ndarray, ...] = field(default_factory=tuple)
+    flags: tuple[Flag, ...] = ()
+
+    @property
+    def std(self) -> np.ndarray:
+        """1σ along the world axes [3] [m]."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
+    """∂r/∂x of the fix's normalised residuals at x [n_i, 3] (central differences, 1 µm steps)."""
+    h = 1e-6
+    cols = []
+    for axis in range(3):
+        e = np.zeros(3)
+        e[axis] = h
+        cols.append((fix.residuals(x + e) - fix.residuals(x - e)) / (2 * h))
+    return np.column_stack(cols)
+
+
+def _solve(fixes: list[RisFix], start: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Gauss–Newton from ``start``: (x̂, information [3, 3] at x̂ [1/m²], T at x̂)."""
+    x = np.array(start, dtype=float)
+    for _ in range(_MAX_STEPS):
+        r = np.concatenate([f.residuals(x) for f in fixes])
+        jac = np.vstack([_jacobian(f, x) for f in fixes])  # ∂r/∂x = −∂h/∂x / σ
+        step, *_ = np.linalg.lstsq(jac, -r, rcond=None)  # minimum-norm: no move along an unseen direction
+        x = x + step
+        if float(np.linalg.norm(step)) < _TOLERANCE * max(1.0, float(np.linalg.norm(x))):
+            break
+    jac = np.vstack([_jacobian(f, x) for f in fixes])
+    r = np.concatenate([f.residuals(x) for f in fixes])
+    return x, jac.T @ jac, float(r @ r)
+
+
+def _covariance(info: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The inverse of the information on what it sees, ``inf`` along what it does not; the unseen directions."""
+    vals, vecs = np.linalg.eigh(info)
+    seen = vals > _RANK_TOLERANCE * max(float(vals.max()), 1e-300)
+    cov = (vecs[:, seen] / vals[seen]) @ vecs[:, seen].T
+    unseen = tuple(vecs[:, i] * np.sign(vecs[np.argmax(np.abs(vecs[:, i])), i]) for i in np.flatnonzero(~seen))
+    if unseen:
+        cov = cov.copy()
+        for v in unseen:
+            cov[np.abs(v) > 1e-6, :] = np.inf  # the axes that direction moves
+            cov[:, np.abs(v) > 1e-6] = np.inf
+    return cov, unseen
+
+
+def _describe(direction: np.ndarray) -> str:
+    """'the height (z)' for a vertical direction, else the world vector."""
+    if abs(direction[2]) > 0.999:
+        return "the height (z)"
+    return f"the world direction [{direction[0]:+.2f}, {direction[1]:+.2f}, {direction[2]:+.2f}]"
+
+
+def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
+    """Fuse the fixes of several RISs into one position with its covariance (module notes).
+
+    Parameters
+    ----------
+    fixes : sequence of RisFix
+        One per detected RIS (distinct names).
+    pfa : float, default 1e-3
+        Probability that consistent fixes fail the χ² test (and one is left out wrongly).
+
+    Returns
+    -------
+    FusedFix
+
+    Raises
+    ------
+    ValueError
+        No fix, two with one name, or ``pfa`` outside (0, 1): one line naming it.
+    """
+    fixes = list(fixes)
+    if not fixes:
+        raise ValueError("fuse_fixes needs at least one RisFix (a detected RIS); none was given")
+    for f in fixes:
+        if not isinstance(f, RisFix):
+            raise TypeError(f"fuse_fixes takes dsp.fusion.RisFix items, got {type(f).__name__}")
+    names = [f.name for f in fixes]
+    if len(set(names)) != len(names):
+        raise ValueError(f"RIS names must be distinct, got {names}")
+    pfa = finite(pfa, "pfa", "")
+    if not 0 < pfa < 1:
+        raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
+
+    # the start: the single fix whose own position is best determined (smallest σ·d lever), elevation 0 if unseen
+    def lever(f: RisFix) -> float:
+        s_az = f.std_aod[0] if np.isfinite(f.std_aod[0]) else np.inf
+        return float(np.hypot(f.std_distance, f.distance * s_az))
+
+    used = sorted(fixes, key=lever)
+    start = used[0].position(None if np.isfinite(used[0].std_aod[1]) else 0.0)
+    excluded: list[tuple[str, str]] = []
+    flags: list[Flag] = []
+    while True:
+        x, info, stat = _solve(used, start)
+        dof = sum(f.measurements for f in used) - 3
+        threshold = float(scipy.stats.chi2.isf(pfa, dof)) if dof > 0 else float("nan")
+        if dof <= 0 or stat <= threshold:
+            break
+        trials = []  # leave each fix out; the remaining fixes must still over-determine the position
+        for i, f in enumerate(used):
+            rest = used[:i] + used[i + 1:]
+            rest_dof = sum(g.measurements for g in rest) - 3
+            if rest_dof < 1:
+                continue
+            xr, _, tr = _solve(rest, x)
+            if tr <= float(scipy.stats.chi2.isf(pfa, rest_dof)):
+                trials.append((tr, i, xr))
+        if not trials:
+            flags.append(Flag("inconsistent-ris", (
+                f"the fixes of {', '.join(f.name for f in used)} disagree (χ² {stat:.1f} against {threshold:.1f} at "
+                f"{dof} degrees of freedom) and no one of them explains it: the position is their compromise; "
+                "check each RIS's flags (grating-lobe, unresolved-peaks) and add a RIS to tell them apart")))
+            break
+        _, i, xr = min(trials)
+        bad = used[i]
+        own = float(np.sum(bad.residuals(xr) ** 2))
+        excluded.append((bad.name, f"inconsistent with the others: its residual χ² {own:.1f} over "
+                                   f"{bad.measurements} measurement(s) at their fused position"))
+        used = used[:i] + used[i + 1:]
+        start = xr
+    if excluded:
+        flags.insert(0, Flag("inconsistent-ris", "left out: " + "; ".join(f"{n} ({why})" for n, why in excluded)))
+    cov, unseen = _covariance(info)
+    for v in unseen:
+        flags.append(Flag("unobservable", (
+            f"{_describe(v)} cannot be seen by the fixes of {', '.join(f.name for f in used)} (e.g. RISs at one "
+            "height whose sweeps cannot see elevation): the position takes the first fix's value along it; "
+            "a RIS at another height, a 2-D sweep or a known height resolves it")))
+    peb = float(np.sqrt(np.trace(cov))) if not unseen else float("inf")
+    return FusedFix(position=x, covariance=cov, peb=peb, used=tuple(f.name for f in used), excluded=tuple(excluded),
+                    statistic=stat if dof > 0 else float("nan"), threshold=threshold, dof=int(dof),
+                    unobservable=unseen, flags=tuple(flags))

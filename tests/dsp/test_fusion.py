@@ -1,0 +1,155 @@
+"""Fused fixes of several RISs (dsp.fusion): geometry as the oracle, the stated covariance checked by its coverage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from dsp import RisPose
+from dsp.fusion import FusedFix, RisFix, fuse_fixes
+
+TRUTH = np.array([6.0, 4.0, 1.2])
+SIGMA_D, SIGMA_AZ, SIGMA_EL = 2e-3, np.deg2rad(0.2), np.deg2rad(0.5)
+
+
+def _pose(position, target=(6.0, 4.0, 1.0)) -> RisPose:
+    return RisPose.facing(np.asarray(position, float), np.asarray(target, float))
+
+
+def _fix(name, pose, x, *, rng=None, sees_elevation=True, sd=SIGMA_D, saz=SIGMA_AZ, sel=SIGMA_EL, offset=(0, 0, 0)):
+    """The fix a RIS at ``pose`` would give of a radar at ``x``: exact, or with N(0, σ²) errors from ``rng``."""
+    rel = np.asarray(x, float) - pose.position
+    d = float(np.linalg.norm(rel))
+    az, el = pose.angles_to(np.asarray(x, float))
+    z = np.array([d, az, el]) + np.asarray(offset, float)
+    if rng is not None:
+        z = z + rng.standard_normal(3) * np.array([sd, saz, sel])
+    return RisFix(name=name, pose=pose, distance=z[0], std_distance=sd, aod=z[1:],
+                  std_aod=np.array([saz, sel if sees_elevation else np.nan]))
+
+
+POSES = {"ris-a": _pose([0.0, 4.0, 2.5]), "ris-b": _pose([12.0, 0.0, 0.8]), "ris-c": _pose([6.0, 12.0, 3.5])}
+
+
+def test_exact_fixes_give_the_truth_and_the_summed_information():
+    fixes = [_fix(n, p, TRUTH) for n, p in POSES.items()]
+    fused = fuse_fixes(fixes)
+    assert isinstance(fused, FusedFix)
+    np.testing.assert_allclose(fused.position, TRUTH, atol=1e-9)  # [m]
+    assert fused.statistic == pytest.approx(0.0, abs=1e-12) and fused.dof == 9 - 3
+    assert set(fused.used) == set(POSES)
+    assert not fused.excluded and not fused.flags
+    # the covariance is the inverse of the summed Fisher information: adding a RIS never widens it
+    two = fuse_fixes(fixes[:2])
+    assert np.all(np.linalg.eigvalsh(two.covariance - fused.covariance) > -1e-15)
+    assert fused.peb < two.peb < min(fuse_fixes([f]).peb for f in fixes[:2])
+
+
+def test_two_rises_at_different_heights_see_the_height_without_elevation():
+    """1-D sweeps (no elevation) at 2.5 m and 0.8 m: distances and azimuths fix the height."""
+    fixes = [_fix(n, POSES[n], TRUTH, sees_elevation=False) for n in ("ris-a", "ris-b")]
+    fused = fuse_fixes(fixes)
+    np.testing.assert_allclose(fused.position, TRUTH, atol=1e-6)
+    assert np.all(np.isfinite(fused.std)) and not fused.unobservable
+
+
+def test_two_rises_at_one_height_cannot_see_it_and_say_so():
+    """The mirror image in the sweep plane gives the same distances and azimuths: z is not seen there."""
+    a, b = _pose([0.0, 4.0, 1.2], (6, 4, 1.2)), _pose([12.0, 0.0, 1.2], (6, 4, 1.2))
+    fixes = [_fix("ris-a", a, TRUTH, sees_elevation=False), _fix("ris-b", b, TRUTH, sees_elevation=False)]
+    fused = fuse_fixes(fixes)
+    assert len(fused.unobservable) == 1 and abs(fused.unobservable[0][2]) > 0.999
+    assert fused.std[2] == np.inf and np.isfinite(fused.std[0]) and np.isfinite(fused.std[1])
+    assert fused.peb == np.inf
+    (flag,) = [f for f in fused.flags if f.code == "unobservable"]
+    assert "the height (z)" in flag.message and "ris-a" in flag.message
+    np.testing.assert_allclose(fused.position[:2], TRUTH[:2], atol=1e-6)
+
+
+def test_the_stated_covariance_covers_the_errors():
+    """2000 noisy fusions of three RISs: the NEES εᵀ C⁻¹ ε is χ²(3); its mean within the 99.9 % band of
+    the mean of 2000 χ²(3), and 1σ/2σ/3σ coverage of each axis within binomial 99.9 % intervals."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    nees, errs, stds = [], [], []
+    for _ in range(n):
+        fused = fuse_fixes([_fix(k, p, TRUTH, rng=rng) for k, p in POSES.items()])
+        e = fused.position - TRUTH
+        nees.append(float(e @ np.linalg.solve(fused.covariance, e)))
+        errs.append(e)
+        stds.append(fused.std)
+    lo, hi = scipy.stats.chi2.ppf([5e-4, 1 - 5e-4], 3 * n) / n
+    assert lo <= np.mean(nees) <= hi
+    z = np.abs(np.array(errs)) / np.array(stds)
+    for k, p in ((1, 0.6827), (2, 0.9545), (3, 0.9973)):
+        a, b = scipy.stats.binom.ppf([5e-4, 1 - 5e-4], n, p) / n
+        share = (z <= k).mean(axis=0)
+        assert np.all((a - 1e-9 <= share) & (share <= b + 1e-9)), (k, share, (a, b))
+
+
+def test_a_grating_twin_is_left_out_and_named():
+    """ris-c reports the AoD of its grating lobe (25° off): the other two agree, ris-c is excluded."""
+    rng = np.random.default_rng(3)
+    fixes = [_fix("ris-a", POSES["ris-a"], TRUTH, rng=rng), _fix("ris-b", POSES["ris-b"], TRUTH, rng=rng),
+             _fix("ris-c", POSES["ris-c"], TRUTH, rng=rng, offset=(0.0, np.deg2rad(25.0), 0.0))]
+    fused = fuse_fixes(fixes)
+    assert [n for n, _ in fused.excluded] == ["ris-c"] and set(fused.used) == {"ris-a", "ris-b"}
+    (flag,) = [f for f in fused.flags if f.code == "inconsistent-ris"]
+    assert "ris-c" in flag.message and "left out" in flag.message
+    np.testing.assert_allclose(fused.position, fuse_fixes(fixes[:2]).position, atol=1e-9)
+    assert np.linalg.norm(fused.position - TRUTH) < 5 * fused.peb
+    assert fused.statistic <= fused.threshold
+
+
+def test_consistent_fixes_are_all_kept_at_the_stated_false_alarm_rate():
+    """200 consistent triples at pfa 1e-2: exclusions are binomial(200, ≤ 1e-2), 99.9 % level."""
+    rng = np.random.default_rng(11)
+    left_out = sum(bool(fuse_fixes([_fix(k, p, TRUTH, rng=rng) for k, p in POSES.items()], pfa=1e-2).excluded)
+                   for _ in range(200))
+    assert left_out <= scipy.stats.binom.ppf(1 - 1e-3, 200, 1e-2)
+
+
+def test_two_disagreeing_fixes_are_kept_and_flagged():
+    """Two RISs, 3 measurements each, 1 m apart in distance: either may be wrong; both kept, flagged."""
+    fixes = [_fix("ris-a", POSES["ris-a"], TRUTH), _fix("ris-b", POSES["ris-b"], TRUTH, offset=(1.0, 0, 0))]
+    fused = fuse_fixes(fixes)
+    assert not fused.excluded and set(fused.used) == {"ris-a", "ris-b"}
+    (flag,) = [f for f in fused.flags if f.code == "inconsistent-ris"]
+    assert "no one of them explains it" in flag.message
+    assert fused.statistic > fused.threshold
+
+
+def test_one_fix_is_its_own_position():
+    f = _fix("ris-a", POSES["ris-a"], TRUTH)
+    fused = fuse_fixes([f])
+    np.testing.assert_allclose(fused.position, TRUTH, atol=1e-9)
+    assert fused.dof == 0 and np.isnan(fused.statistic)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ([], "at least one RisFix"),
+    ("twice", "distinct"),
+    ("pfa", r"pfa=.* must lie in \(0, 1\)"),
+])
+def test_bad_input_is_one_line(bad, match):
+    f = _fix("ris-a", POSES["ris-a"], TRUTH)
+    with pytest.raises(ValueError, match=match):
+        if bad == "twice":
+            fuse_fixes([f, f])
+        elif bad == "pfa":
+            fuse_fixes([f], pfa=1.5)
+        else:
+            fuse_fixes(bad)
+
+
+def test_a_fix_checks_its_numbers():
+    pose = POSES["ris-a"]
+    with pytest.raises(ValueError, match="std_distance"):
+        RisFix("r", pose, 5.0, 0.0, np.zeros(2), np.ones(2))
+    with pytest.raises(ValueError, match=r"std_aod=.* must be > 0"):
+        RisFix("r", pose, 5.0, 0.01, np.zeros(2), np.array([-1.0, np.nan]))
+    with pytest.raises(ValueError, match="aod"):
+        RisFix("r", pose, 5.0, 0.01, np.array([np.nan, 0.0]), np.ones(2))
+    with pytest.raises(TypeError, match="RisPose"):
+        RisFix("r", "pose", 5.0, 0.01, np.zeros(2), np.ones(2))
