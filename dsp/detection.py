@@ -57,37 +57,24 @@ def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.
         arr = np.asarray(cube, dtype=complex)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"cube must be a complex array [M, K, N], got {type(cube).__name__}: {exc}") from None
-    if arr.ndim != 3:
-        raise ValueError(f"cube has shape {list(arr.shape)}; it must be [M, K, N] = (beams, chirps, samples)")
-    if arr.size == 0:
-        raise ValueError(f"cube is empty (shape {list(arr.shape)}); record at least 2 beams of K chirps × N samples")
+    _check_layout(arr.shape)
     arr = as_finite_array(arr, "cube", shape=(None, None, None), dtype=complex)
-    m, k, n = arr.shape
-    if (k, n) != (radar.num_chirps, radar.num_samples):
-        raise ValueError(
-            f"cube has shape [M, K, N] = {list(arr.shape)} but the radar has K={radar.num_chirps} chirps and "
-            f"N={radar.num_samples} samples; pass the RadarConfig the cube was recorded with (axis order beams, chirps, samples)"
-        )
-    if m < min_beams:
-        raise ValueError(
-            f"cube has {m} beam(s); the AoD needs a sweep of at least {min_beams} beams (one frame per RIS beam)"
-        )
+    _check_sizes(arr.shape, radar, min_beams)
     if not np.any(arr):
         raise ValueError("cube is all zeros: nothing was recorded; check the capture (ADC, file) before localizing")
     return arr
 
 
-def _check_device_cube(cube: Any, radar: RadarConfig, min_beams: int) -> Any:
-    """:func:`check_beat_cube` for an array on a device: the same rules and messages, evaluated there."""
-    xp = backend_of(cube).xp
-    if not xp.isdtype(cube.dtype, "complex floating"):
-        raise TypeError(f"cube must hold complex beat samples [M, K, N], got dtype {cube.dtype}; "
-                        "convert real ADC data with scipy.signal.hilbert")
-    shape = tuple(int(v) for v in cube.shape)
+def _check_layout(shape: tuple[int, ...]) -> None:
+    """A cube is three axes and not empty (one-line errors)."""
     if len(shape) != 3:
         raise ValueError(f"cube has shape {list(shape)}; it must be [M, K, N] = (beams, chirps, samples)")
     if 0 in shape:
         raise ValueError(f"cube is empty (shape {list(shape)}); record at least 2 beams of K chirps × N samples")
+
+
+def _check_sizes(shape: tuple[int, ...], radar: RadarConfig, min_beams: int) -> None:
+    """The cube's K and N are the radar's and it has at least ``min_beams`` beams (one-line errors)."""
     m, k, n = shape
     if (k, n) != (radar.num_chirps, radar.num_samples):
         raise ValueError(
@@ -98,6 +85,17 @@ def _check_device_cube(cube: Any, radar: RadarConfig, min_beams: int) -> Any:
         raise ValueError(
             f"cube has {m} beam(s); the AoD needs a sweep of at least {min_beams} beams (one frame per RIS beam)"
         )
+
+
+def _check_device_cube(cube: Any, radar: RadarConfig, min_beams: int) -> Any:
+    """:func:`check_beat_cube` for an array on a device: the same rules and messages, evaluated there."""
+    xp = backend_of(cube).xp
+    if not xp.isdtype(cube.dtype, "complex floating"):
+        raise TypeError(f"cube must hold complex beat samples [M, K, N], got dtype {cube.dtype}; "
+                        "convert real ADC data with scipy.signal.hilbert")
+    shape = tuple(int(v) for v in cube.shape)
+    _check_layout(shape)
+    _check_sizes(shape, radar, min_beams)
     arr = xp.astype(cube, xp.complex128, copy=False)
     if not bool(xp.all(xp.isfinite(arr))):
         raise ValueError("cube holds non-finite values (NaN or inf); check the capture before localizing")
