@@ -21,7 +21,7 @@ the wrong one) are kept, and the flag says so. A grating-lobe twin, a blocked RI
 another path, or a path taken for a return shows up this way; an average would hide it.
 
 **Observability.** Directions along which the information is below 1e-12 of its largest
-eigenvalue (times the largest σ-scaled lever) cannot be seen: two RISs at one height whose sweeps
+eigenvalue cannot be seen: two RISs at one height whose sweeps
 cannot see elevation leave the height unobservable (the mirror image below the sweep plane gives
 the same distances and azimuths). The covariance is then infinite along them, the flag
 ``unobservable`` names the world direction, and the position lies where the best single fix put it
@@ -96,8 +96,6 @@ class RisFix:
         if np.any(seen & ~(std > 0)):
             raise ValueError(f"RisFix {self.name}: std_aod={std.tolist()} must be > 0 where finite "
                              "(NaN or inf for an angle the sweep cannot see)")
-        if not seen[0] and not seen[1]:
-            pass  # distance only: a sphere (kept; the fusion says what it cannot see)
         object.__setattr__(self, "aod", aod)
         object.__setattr__(self, "std_aod", np.where(seen, std, np.nan))
         object.__setattr__(self, "flags", tuple(str(f) for f in self.flags))
