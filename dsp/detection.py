@@ -199,16 +199,10 @@ def _db(x: float) -> float:
     return float(10.0 * np.log10(x)) if x > 0 else -99.0
 
 
-def _window_runs(windows: SweepWindows) -> tuple[np.ndarray, np.ndarray]:
-    """Each window as runs of consecutive beams: ``lo``, ``hi`` [G, R] (an unused slot: lo = hi = 0)."""
-    runs = [np.split(w, np.flatnonzero(np.diff(w) != 1) + 1) for w in windows.beams]
-    width = max(len(r) for r in runs)
-    lo = np.zeros((len(runs), width), dtype=np.int64)
-    hi = np.zeros((len(runs), width), dtype=np.int64)
-    for i, rr in enumerate(runs):
-        for j, r in enumerate(rr):
-            lo[i, j], hi[i, j] = r[0], r[-1] + 1
-    return lo, hi
+def _window_runs(windows: SweepWindows) -> list[list[tuple[int, int]]]:
+    """Each window as its runs of consecutive beams, ``[(first, one past the last), ...]``."""
+    return [[(int(r[0]), int(r[-1]) + 1) for r in np.split(w, np.flatnonzero(np.diff(w) != 1) + 1)]
+            for w in windows.beams]
 
 
 #: Cells per pass of the window statistics on the host: the float64 running sums of a block stay in cache.
@@ -242,10 +236,9 @@ def sweep_statistics(x: Any, windows: SweepWindows | None, backend: ArrayBackend
     """
     xp = backend.xp
     b, m, c = x.shape
-    if cell_block is None:  # on the host the block's cells shrink with the batch (B = 4: 0.113 s per cube, not 0.39)
+    if cell_block is None:  # on the host the block's cells shrink with an explicit batch (B = 4: 0.113 s per cube, not 0.39)
         cell_block = max(256, HOST_CELL_BLOCK // b) if backend.name != "cupy" else c
-    runs = None if windows is None else [[(int(lo), int(hi)) for lo, hi in zip(rl, rh) if hi > lo]
-                                         for rl, rh in zip(*_window_runs(windows))]
+    runs = None if windows is None else _window_runs(windows)
     d_parts, w_parts = [], []
     for c0 in range(0, c, cell_block):
         xb = x[:, :, c0:min(c0 + cell_block, c)]
@@ -419,15 +412,13 @@ def detect_batch(cubes: Any, radar: RadarConfig, *, backend: ArrayBackend | None
     searched = backend.asarray(np.tile(np.arange(no) >= first, ko))  # [Kₒ·Nₒ]: delay bins at or beyond min_range
     stat = xp.where(searched, raw / backend.asarray(noise)[:, None], -xp.inf)  # [B, Kₒ·Nₒ]
     thr_db = _db(eta - dof)
-    best_cell = xp.argmax(stat, axis=1)
     best_stat = backend.to_host(xp.max(stat, axis=1))
-    best_cell = backend.to_host(best_cell)
     cand_cells, cand_stats, cand_values = _candidates(stat, flat, eta, (ko, no), max(1, int(max_candidates)), backend)
     out = []
     for i in range(b):
-        out.append(_decide(radar, pfa=pfa, m=m, k=k, n=n, ko=ko, no=no, cell_noise=float(noise[i]),
-                           best=float(best_stat[i]), best_cell=int(best_cell[i]), eta=eta, dof=dof, thr_db=thr_db,
-                           num_cells=num_cells, cells=cand_cells[i], stats=cand_stats[i], values=cand_values[i]))
+        out.append(_decide(radar, pfa=pfa, k=k, n=n, ko=ko, no=no, cell_noise=float(noise[i]),
+                           best=float(best_stat[i]), eta=eta, dof=dof, thr_db=thr_db, num_cells=num_cells,
+                           cells=cand_cells[i], stats=cand_stats[i], values=cand_values[i]))
     return out
 
 
@@ -462,8 +453,8 @@ def _candidates(stat: Any, flat: Any, eta: float, shape: tuple[int, int], count:
     return cells_h, stats_h, backend.to_host(values)
 
 
-def _decide(radar: RadarConfig, *, pfa: float, m: int, k: int, n: int, ko: int, no: int, cell_noise: float,
-            best: float, best_cell: int, eta: float, dof: int, thr_db: float, num_cells: int, cells: np.ndarray,
+def _decide(radar: RadarConfig, *, pfa: float, k: int, n: int, ko: int, no: int, cell_noise: float,
+            best: float, eta: float, dof: int, thr_db: float, num_cells: int, cells: np.ndarray,
             stats: np.ndarray, values: np.ndarray) -> Detection:
     """One realization's :class:`Detection` from its candidates: the sweep-modulation test, strongest first."""
     noise_power = cell_noise / (k * n)

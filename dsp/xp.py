@@ -2,8 +2,9 @@
 
 The heavy, whole-cube steps of a run — the receiver noise of a batch of realizations
 (:func:`risloc_rt.model.beat.add_noise_batch`), the detector's half-bin transform, window statistics and
-threshold (:func:`dsp.detection.detect_batch`) — are written against the Python array API
-standard (``array_api_compat``), so the same lines run on:
+threshold (:func:`dsp.detection.detect_batch`), and every read of the cube by the estimators and the
+flags (:func:`dsp.dtft_subspace.contract_samples` and its siblings) — are written against the Python
+array API standard (``array_api_compat``), so the same lines run on:
 
 - ``numpy`` (the default; transforms through ``scipy.fft`` with the DSP's thread budget),
 - ``cupy`` on an NVIDIA GPU (``pip install .[gpu]``; transforms through ``cupy.fft``, cuFFT),
@@ -25,6 +26,7 @@ from the run's ``numpy.random.Generator``, CuPy on the GPU from cuRAND seeded by
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 from dataclasses import dataclass
@@ -171,6 +173,7 @@ class ArrayBackend:
         return f"{d['device']} ({d['library']}, {d['hardware']}, {d['detail']})"
 
 
+@functools.lru_cache(maxsize=1)
 def _cpu_model() -> str:
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
@@ -183,6 +186,7 @@ def _cpu_model() -> str:
     return f"{platform.machine() or 'CPU'}, {os.cpu_count()} cores"
 
 
+@functools.lru_cache(maxsize=1)
 def _blas() -> str:
     try:
         cfg = np.show_config(mode="dicts")  # type: ignore[call-arg]

@@ -29,14 +29,12 @@ import numpy as np
 
 from dsp.validation import integer, non_negative, one_of, positive
 
-from dsp.xp import backend_for, device_choice
-
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
-from .store import RunLog, StudyFolderError, check_stream, keep_log, noise_stream
+from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "grid_budget", "prepare_cell", "MAX_GRID_POINTS"]
 
@@ -382,18 +380,14 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
     grid_budget(settings, long_ok=force_long)
     folder = Path(out)
-    device = device_choice(device)
-    if dask is None:
-        backend_for(device)  # no CuPy or no GPU for --device cuda: one line before any folder is made
-    stream = noise_stream(device)
+    device, stream = study_device(device, local=dask is None)  # one line before any folder is made
     manifest = folder / "map-study.json"
     if manifest.exists():
         old_manifest = json.loads(manifest.read_text())
         old = old_manifest.get("key")
         if old == settings.key:
-            log_file = folder / "runs.jsonl"
-            check_stream(folder, old_manifest, stream, log_file.exists() and log_file.stat().st_size > 0)
-        if old != settings.key:
+            check_stream(folder, old_manifest, stream, folder / "runs.jsonl")
+        else:
             if not force:
                 raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
                                        f"--force (the old log is kept as runs-{old}.jsonl, or runs-{old}-N.jsonl)")

@@ -250,8 +250,8 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     the whole group; then each realization's cube goes through ``dsp.self_localize`` with its
     detection, where it lives: its whole-cube reads (the refined estimator's projections, the flags'
     DTFTs) run on the backend and only small results come to the host (the paper's grid search takes
-    one explicit host copy). A run's row depends on
-    the study seed, the point and its run index only: not on B, the order or the worker.
+    one explicit host copy). A run's row depends on the study seed, the point and its run index
+    only: not on B, the order or the worker.
 
     Parameters
     ----------
@@ -288,29 +288,26 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
                                   runs=len(runs))
     if buffer is not None and buffer.shape[0] < min(batch, len(runs)):
         buffer = None
-    device_cube = backend.asarray(prep.cube) if backend.name == "cupy" else None
+    spread = p.get("aod_spread_deg", 0.0) > 0
+    # the point's cube on the GPU once per call (the host backends draw the noise on the host)
+    device_cube = backend.asarray(prep.cube) if backend.name == "cupy" and not spread else None
     rows: list[dict[str, Any]] = []
     for g in range(0, len(runs), batch):
         group = runs[g:g + batch]
         start = time.perf_counter()
         rngs = [run_rng(study_seed, point, r) for r in group]
         truths = [prep.truth] * len(group)
-        if p.get("aod_spread_deg", 0.0) > 0:  # each run's UE azimuth: its own cube (no sharing), one at a time
-            shared = None
-            cleans = []
+        if spread:  # each run's UE azimuth: its own cube (no sharing)
+            noisy = []
             for i, rng in enumerate(rngs):
                 az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
                 cap = simulate(point_scenario({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
-                cleans.append(cap.cube)
                 truths[i] = cap.truth
+                noisy.append(add_noise_batch(cap.cube, prep.radar.noise_power, [rng], backend=backend))
+            cubes = backend.xp.concat(noisy, axis=0)
         else:
-            shared = prep.cube
-        if shared is not None:
-            cubes = add_noise_batch(shared, prep.radar.noise_power, rngs, backend=backend, out=buffer,
+            cubes = add_noise_batch(prep.cube, prep.radar.noise_power, rngs, backend=backend, out=buffer,
                                     device_cube=device_cube)
-        else:
-            cubes = backend.xp.concat([add_noise_batch(c, prep.radar.noise_power, [rng], backend=backend)
-                                       for c, rng in zip(cleans, rngs)], axis=0)
         dets = dsp.detect_batch(cubes, prep.radar, backend=backend, pfa=p["pfa"],
                                 min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
                                 sweep=prep.sweep, oversample=2)

@@ -25,7 +25,7 @@ from typing import Any, Callable, Iterable
 from .._files import atomic_write_bytes
 from .spec import StudySpec
 
-__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "noise_stream", "open_study_folder",
+__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "open_study_folder", "study_device",
            "write_parquet", "read_runs_table"]
 
 MANIFEST = "study.json"
@@ -185,27 +185,41 @@ def _stderr(message: str) -> None:
     print(message, file=sys.stderr)
 
 
-def noise_stream(device: str) -> str:
-    """The noise stream a study's runs draw on ``device``: ``"host"`` (NumPy's "fast" stream, the CPU and
-    array_api_strict) or ``"cuda"`` (cuRAND on a GPU). ``auto`` is resolved on this machine.
+def study_device(device: str | None, *, local: bool) -> tuple[str, str]:
+    """A study's device, checked before any folder is made, and the noise stream its runs draw.
 
     Parameters
     ----------
-    device : {"cpu", "cuda", "auto"}
+    device : {"cpu", "cuda", "auto"} or None
+        ``--device`` (None: ``$RISLOC_DEVICE``, else ``cpu``).
+    local : bool
+        The runs go to this machine's workers: ``cuda`` without CuPy or a GPU is refused here, with
+        one line (on a Dask cluster the workers resolve it on their own machines).
 
     Returns
     -------
-    str
+    device : str
+        The checked name, passed to the workers.
+    stream : {"host", "cuda"}
+        NumPy's "fast" stream (the CPU and array_api_strict) or cuRAND's on a GPU; ``auto`` is
+        resolved on this machine.
+
+    Raises
+    ------
+    dsp.DeviceError
+        An unknown name, or ``cuda`` where it cannot run (``local``).
     """
-    if device == "auto":
-        from dsp import cuda_available
+    from dsp import backend_for, cuda_available, device_choice
 
-        device = "cuda" if cuda_available()[0] else "cpu"
-    return "cuda" if device == "cuda" else "host"
+    device = device_choice(device)
+    if local:
+        backend_for(device)
+    resolved = device if device != "auto" else ("cuda" if cuda_available()[0] else "cpu")
+    return device, "cuda" if resolved == "cuda" else "host"
 
 
-def check_stream(out: Path, manifest: dict[str, Any], stream: str, has_rows: bool) -> None:
-    """Refuse to continue a study folder whose rows were drawn on another noise stream (:func:`noise_stream`).
+def check_stream(out: Path, manifest: dict[str, Any], stream: str, log: Path) -> None:
+    """Refuse to continue a study folder whose rows were drawn on another noise stream (:func:`study_device`).
 
     Parameters
     ----------
@@ -215,8 +229,8 @@ def check_stream(out: Path, manifest: dict[str, Any], stream: str, has_rows: boo
         Its manifest as read (``noise_stream`` absent: written before devices existed, the host's).
     stream : str
         This sitting's stream.
-    has_rows : bool
-        The folder's log holds runs.
+    log : Path
+        The folder's run log (a missing or empty one holds no runs).
 
     Raises
     ------
@@ -224,7 +238,7 @@ def check_stream(out: Path, manifest: dict[str, Any], stream: str, has_rows: boo
         The streams differ and the log holds runs.
     """
     old = str(manifest.get("noise_stream", "host"))
-    if has_rows and old != stream:
+    if old != stream and log.exists() and log.stat().st_size > 0:
         was = "a GPU (--device cuda)" if old == "cuda" else "the CPU (--device cpu)"
         raise StudyFolderError(f"{str(out)!r} holds runs whose noise was drawn on {was}; continue it with that "
                                "device, or use a new --out (a table of both streams would mix two random streams)")
@@ -248,7 +262,7 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     notice : callable, optional
         Receives the one-line note naming where a previous study's log was kept (default: stderr).
     stream : {"host", "cuda"}
-        The noise stream of this sitting's runs (:func:`noise_stream`); a folder whose runs were
+        The noise stream of this sitting's runs (:func:`study_device`); a folder whose runs were
         drawn on the other one is refused (:func:`check_stream`).
 
     Returns
@@ -272,7 +286,7 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
         except (ValueError, KeyError, TypeError):
             old_key = "unreadable"
         if old_key == spec.key:
-            check_stream(out, old, stream, (out / LOG).exists() and (out / LOG).stat().st_size > 0)
+            check_stream(out, old, stream, out / LOG)
         if old_key != spec.key:
             if not force:
                 raise StudyFolderError(

@@ -11,15 +11,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dsp.xp import backend_for, device_choice
-
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_summary
 from .kernel import prepare_point
 from .spec import StudySpec
-from .store import SUMMARY, TABLE, noise_stream, open_study_folder, write_parquet
+from .store import SUMMARY, TABLE, open_study_folder, study_device, write_parquet
 from .summary import summarize
 
 __all__ = ["StudyResult", "run_study"]
@@ -106,10 +104,8 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     else:  # batch sizes only: the cluster's threads are the parallelism
         workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
     folder = Path(out)
-    device = device_choice(device)
-    if dask is None:
-        backend_for(device)  # no CuPy or no GPU for --device cuda: one line before any folder is made
-    log = open_study_folder(folder, spec, force=force, stream=noise_stream(device))
+    device, stream = study_device(device, local=dask is None)  # one line before any folder is made
+    log = open_study_folder(folder, spec, force=force, stream=stream)
     try:
         info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
                        device=device)

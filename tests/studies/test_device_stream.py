@@ -8,13 +8,13 @@ import pytest
 
 import dsp
 from risloc_rt.studies import run_study
-from risloc_rt.studies.store import StudyFolderError, noise_stream
+from risloc_rt.studies.store import StudyFolderError, study_device
 
 
 def test_the_stream_of_each_device():
-    assert noise_stream("cpu") == "host"
-    assert noise_stream("cuda") == "cuda"
-    assert noise_stream("auto") == ("cuda" if dsp.cuda_available()[0] else "host")
+    assert study_device("cpu", local=True) == ("cpu", "host")
+    assert study_device("cuda", local=False) == ("cuda", "cuda")  # a Dask cluster's workers resolve it
+    assert study_device("AUTO", local=True) == ("auto", "cuda" if dsp.cuda_available()[0] else "host")
 
 
 def test_a_study_records_its_stream_and_its_devices(small_spec, tmp_path):
