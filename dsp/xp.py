@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ArrayBackend", "DeviceError", "DEVICE_ENV", "DEVICES", "GPU_ENV", "backend_for", "backend_of",
-           "device_choice", "is_host_array", "numpy_backend", "strict_backend",
+           "describe_line", "device_choice", "is_host_array", "numpy_backend", "strict_backend",
            "cuda_available"]
 
 #: Environment variable with the default device of every command (``cpu``, ``cuda`` or ``auto``).
@@ -169,8 +169,24 @@ class ArrayBackend:
 
     def summary(self) -> str:
         """One line for a console: ``cpu (numpy 2.4.6, AMD EPYC ..., BLAS openblas 0.3.30)``."""
-        d = self.describe()
-        return f"{d['device']} ({d['library']}, {d['hardware']}, {d['detail']})"
+        return describe_line(self.describe())
+
+
+def describe_line(description: dict[str, str]) -> str:
+    """:meth:`ArrayBackend.describe`'s dict (from this process or a worker's JSON) as one line.
+
+    Parameters
+    ----------
+    description : dict
+        ``device``, ``library``, ``hardware``, ``detail``.
+
+    Returns
+    -------
+    str
+        ``cpu (numpy 2.4.6, AMD EPYC ..., BLAS openblas 0.3.30)``.
+    """
+    d = description
+    return f"{d['device']} ({d['library']}, {d['hardware']}, {d['detail']})"
 
 
 @functools.lru_cache(maxsize=1)

@@ -18,7 +18,7 @@ from dsp import ProcessingConfig
 __all__ = ["CliError", "vector", "angle_pair", "processing_overrides", "trace_cache", "trace_settings", "quiet_hall_paths",
            "plot_traced_profile", "add_trace_flags", "add_processing_flags", "add_estimator_flags",
            "estimator_options", "add_force_flag", "npz_target", "EXIT_NO_DETECTION", "add_device_flag",
-           "device_backend", "device_name"]
+           "device_backend"]
 
 
 class CliError(Exception):
@@ -315,14 +315,9 @@ def add_device_flag(p: argparse.ArgumentParser) -> None:
         A verb's parser.
     """
     p.add_argument("--device", metavar="{cpu,cuda,auto}",
-                   help="where the DSP's whole-cube work (receiver noise, detector) runs: cpu (NumPy), cuda (CuPy on "
-                        "an NVIDIA GPU; pip install '.[gpu]') or auto (the GPU when CuPy finds one, else cpu); "
-                        "default $RISLOC_DEVICE, else cpu")
-
-
-def _device_error(exc: Exception) -> CliError:
-    """A :class:`dsp.DeviceError` (it names ``--device=...`` or ``$RISLOC_DEVICE``) as a one-line CLI error."""
-    return CliError(str(exc))
+                   help="where the DSP's whole-cube work (receiver noise, detector, the estimators' reads of the "
+                        "cube) runs: cpu (NumPy), cuda (CuPy on an NVIDIA GPU; pip install '.[gpu]') or auto (the "
+                        "GPU when CuPy finds one, else cpu); default $RISLOC_DEVICE, else cpu")
 
 
 def device_backend(args: argparse.Namespace) -> Any:
@@ -339,40 +334,12 @@ def device_backend(args: argparse.Namespace) -> Any:
 
     Raises
     ------
-    CliError
-        An unknown device name (flag or ``$RISLOC_DEVICE``), or ``cuda`` without CuPy or a GPU: one line
-        naming the problem and the fix (exit status 2).
+    dsp.DeviceError
+        An unknown device name (flag or ``$RISLOC_DEVICE``), or ``cuda`` without CuPy or a GPU: a
+        ``ValueError`` whose one line names the problem and the fix (exit status 2, :func:`risloc_rt.cli.main`).
     """
-    from dsp import DeviceError, backend_for
+    from dsp import backend_for
 
-    try:
-        return backend_for(getattr(args, "device", None))
-    except DeviceError as exc:
-        raise _device_error(exc) from None
+    return backend_for(getattr(args, "device", None))
 
 
-def device_name(args: argparse.Namespace) -> str:
-    """``--device`` (else ``$RISLOC_DEVICE``, else ``cpu``) checked but not resolved: ``cpu``, ``cuda`` or ``auto``.
-
-    For work resolved elsewhere (a study's workers, on their own machines: :func:`dsp.xp.device_choice`).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed flags (:func:`add_device_flag`).
-
-    Returns
-    -------
-    str
-
-    Raises
-    ------
-    CliError
-        An unknown device name (exit status 2).
-    """
-    from dsp import DeviceError, device_choice
-
-    try:
-        return device_choice(getattr(args, "device", None))
-    except DeviceError as exc:
-        raise _device_error(exc) from None

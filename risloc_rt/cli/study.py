@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import argparse
 import errno
-import json
 import sys
 from pathlib import Path
 
-from .common import CliError, add_device_flag, device_backend, device_name
+from .common import CliError, add_device_flag
 
 __all__ = ["add_parser"]
 
@@ -68,28 +67,16 @@ def _sweep(args: argparse.Namespace) -> int:
                                      name=args.out.name or "sweep")
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    device = _device(args)
     result = _on_cluster(args, lambda dask: run_study(spec, args.out, workers=args.workers, dask=dask,
                                                       quiet=args.quiet, force=args.force,
                                                       force_long=args.force_long,
-                                                      force_workers=args.force_workers, device=device))
+                                                      force_workers=args.force_workers, device=args.device))
     if isinstance(result, int):
         return result
     if not args.quiet:
         _print_summary(result)
         _print_devices(result.summary.get("devices"))
     return 0
-
-
-def _device(args: argparse.Namespace) -> str:
-    """``--device`` (else ``$RISLOC_DEVICE``, else ``cpu``) for the workers, checked before the study folder is touched.
-
-    On this machine (no ``--dask``) it is resolved here too, so a missing GPU or CuPy is one line before any
-    work; a Dask cluster's workers resolve it on their own machines.
-    """
-    if args.dask is None:
-        device_backend(args)
-    return device_name(args)
 
 
 def _print_devices(devices) -> None:
@@ -145,16 +132,15 @@ def _map(args: argparse.Namespace) -> int:
                                tx_power_dbm=args.tx_power_dbm, margin=args.margin)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    device = _device(args)
     result = _on_cluster(args, lambda dask: run_map(settings, args.out, workers=args.workers, dask=dask,
                                                     quiet=args.quiet, force=args.force,
                                                     force_long=args.force_long,
-                                                    force_workers=args.force_workers, device=device))
+                                                    force_workers=args.force_workers, device=args.device))
     if isinstance(result, int):
         return result
     if not args.quiet:
         print(result.describe())
-        _print_devices(json.loads((result.folder / "map.json").read_text()).get("devices"))
+        _print_devices(result.devices)
     return 0
 
 

@@ -366,9 +366,9 @@ def format_environment(env: dict[str, Any]) -> str:
     str
         The DSP part as :meth:`dsp.ArrayBackend.summary`; ``; trace VARIANT`` only where a hall was traced.
     """
-    d = env["dsp"]
-    line = f"device: dsp {d['device']} ({d['library']}, {d['hardware']}, {d['detail']})"
-    return line + (f"; trace {env['trace']}" if env.get("trace") else "")
+    from dsp.xp import describe_line
+
+    return f"device: dsp {describe_line(env['dsp'])}" + (f"; trace {env['trace']}" if env.get("trace") else "")
 
 
 def significant(value: float, digits: int = 2) -> str:

@@ -21,7 +21,7 @@ import sys
 import time
 import warnings
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -303,12 +303,16 @@ class MapResult:
         ``map.png``.
     wall_seconds : float
         Wall-clock time of the runs [s].
+    devices : list of dict
+        What ran this sitting's runs (``map.json``'s ``devices``: :func:`risloc_rt.io.report.run_environment`
+        of each distinct device); empty when every run was already in the log.
     """
 
     cells: list[dict[str, Any]]
     folder: Path
     figure: Path
     wall_seconds: float
+    devices: list[dict[str, Any]] = field(default_factory=list)
 
     def describe(self) -> str:
         """One line for the terminal.
@@ -439,5 +443,6 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
                                                           indent=1).encode() + b"\n")
         atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())
         plot_map(spec, out_cells, settings, stage / "map.png")
-    return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall)
+    return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall,
+                     devices=info["devices"])
 

@@ -336,8 +336,9 @@ def test_result_json_has_the_device_object_only_when_given(tmp_path):
 
 
 @pytest.mark.parametrize("verb, target", [("sweep", "run_study"), ("map", "run_map")])
-def test_a_studys_device_goes_to_its_workers_checked_not_resolved(verb, target, tmp_path, monkeypatch, capsys):
-    """``study sweep|map`` hand the checked choice to the engine (a Dask worker resolves it on its own machine)."""
+def test_a_studys_device_goes_to_the_study_as_given(verb, target, tmp_path, monkeypatch, capsys):
+    """``study sweep|map`` hand ``--device`` as given (None without it) to run_study / run_map, which check it and
+    read $RISLOC_DEVICE (risloc_rt.studies.store.study_device, tests/studies/test_device_stream.py)."""
     import risloc_rt.studies as studies
     import risloc_rt.studies.floor_map as floor_map
 
@@ -350,10 +351,7 @@ def test_a_studys_device_goes_to_its_workers_checked_not_resolved(verb, target, 
     monkeypatch.setattr(studies if verb == "sweep" else floor_map, target, stop)
     fixed = [a for k, v in SMALL.items() for a in ("--set", f"{k}={v}")]
     argv = (["study", "sweep", "--vary", "tx_power_dbm=30", *fixed] if verb == "sweep" else ["study", "map"])
-    for given, expect in ((["--device", "AUTO"], "auto"), ([], "cpu"), (["--device", "cpu"], "cpu")):
+    for given, expect in ((["--device", "AUTO"], "AUTO"), ([], None), (["--device", "cpu"], "cpu")):
         assert main([*argv, "--runs", "1", "--out", str(tmp_path / "o"), *given]) == 0
         assert seen.pop("device") == expect
-    monkeypatch.setenv(DEVICE_ENV, "auto")
-    assert main([*argv, "--runs", "1", "--out", str(tmp_path / "o")]) == 0
-    assert seen.pop("device") == "auto"
     capsys.readouterr()
