@@ -42,7 +42,7 @@ from .flags import Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .validation import as_finite_array, finite, positive
 
-__all__ = ["RisFix", "FusedFix", "fuse_fixes"]
+__all__ = ["RisFix", "FusedFix", "fuse_fixes", "central_jacobian"]
 
 #: Gauss–Newton steps at most, and the step [m] below which it has converged.
 _MAX_STEPS, _TOLERANCE = 50, 1e-10
@@ -195,15 +195,34 @@ class FusedFix:
         return np.sqrt(np.diag(self.covariance))
 
 
-def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
-    """∂r/∂x of the fix's normalised residuals at x [n_i, 3] (central differences, 1 µm steps)."""
-    h = 1e-6
+def central_jacobian(fun: Any, x: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """∂fun/∂x at x by central differences [len(fun(x)), len(x)].
+
+    Parameters
+    ----------
+    fun : callable
+        ``x [P] -> float array [Q]``.
+    x : float array [P]
+        Where [x's units].
+    step : float
+        The difference step in x's units (1e-6: 1 µm for positions in m, 1 µm/s for velocities).
+
+    Returns
+    -------
+    float array [Q, P]
+    """
+    x = np.asarray(x, dtype=float)
     cols = []
-    for axis in range(3):
-        e = np.zeros(3)
-        e[axis] = h
-        cols.append((fix.residuals(x + e) - fix.residuals(x - e)) / (2 * h))
+    for i in range(x.size):
+        e = np.zeros(x.size)
+        e[i] = step
+        cols.append((np.asarray(fun(x + e)) - np.asarray(fun(x - e))) / (2 * step))
     return np.column_stack(cols)
+
+
+def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
+    """∂r/∂x of the fix's normalised residuals at x [n_i, 3] (1 µm steps)."""
+    return central_jacobian(fix.residuals, x)
 
 
 def _solve(fixes: list[RisFix], start: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

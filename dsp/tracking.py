@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
-from .fusion import RisFix
+from .fusion import RisFix, central_jacobian
 from .validation import finite, positive
 
 __all__ = ["RisMeasurement", "TrackState", "TrackUpdate", "predict", "update", "start_track"]
@@ -162,11 +162,7 @@ def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0) -> Track
     def place(p: np.ndarray) -> np.ndarray:
         return fix.pose.point_at(p[1:], p[0])
 
-    jac = np.empty((3, 3))  # ∂position/∂(d, az, el), central differences
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = 1e-6
-        jac[:, i] = (place(params + e) - place(params - e)) / 2e-6
+    jac = central_jacobian(place, params)  # ∂position/∂(d, az, el)
     big = np.zeros((6, 6))
     big[:3, :3] = jac @ np.diag(sigma**2) @ jac.T
     big[3:, 3:] = np.eye(3) * speed_std**2
@@ -205,13 +201,7 @@ def predict(state: TrackState, time: float, *, accel_density: float) -> TrackSta
 
 def _linearised(measurement: RisMeasurement, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The innovation (z − h(x))/σ and ∂h/∂s/σ at x [n], [n, 6] (central differences, 1e-6 steps)."""
-    r = measurement.normalised_residuals(x)
-    jac = np.empty((r.size, 6))
-    for i in range(6):
-        e = np.zeros(6)
-        e[i] = 1e-6
-        jac[:, i] = -(measurement.normalised_residuals(x + e) - measurement.normalised_residuals(x - e)) / 2e-6
-    return r, jac
+    return measurement.normalised_residuals(x), -central_jacobian(measurement.normalised_residuals, x)
 
 
 #: Relinearisations of the iterated update at most.
@@ -239,8 +229,8 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
         raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
     prior = predict(state, measurement.time, accel_density=accel_density)
     x0, p0 = prior.mean, prior.covariance
-    r0, jac = _linearised(measurement, x0)
-    s_cov = jac @ p0 @ jac.T + np.eye(r0.size)
+    r0, h0 = _linearised(measurement, x0)
+    s_cov = h0 @ p0 @ h0.T + np.eye(r0.size)
     nis = float(r0 @ np.linalg.solve(s_cov, r0))
     dof = int(r0.size)
     gate = float(scipy.stats.chi2.isf(gate_pfa, dof))
@@ -248,7 +238,7 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
         return TrackUpdate(state=prior, nis=nis, dof=dof, gate=gate, accepted=False, ris=measurement.fix.name)
     # iterated update: relinearise h at the updated state (Gauss-Newton on the posterior); a prior metres wide
     # against millimetre measurements is far outside one linearisation's reach (NEES 27 for 6 after one step)
-    x, r, h_jac = x0, r0, jac
+    x, r, h_jac = x0, r0, h0
     for _ in range(_ITERATIONS):
         s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
         gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
@@ -260,12 +250,11 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
             break
     s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
     gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
-    mean = x
     ikh = np.eye(6) - gain @ h_jac
     cov = ikh @ p0 @ ikh.T + gain @ gain.T  # Joseph form (R = I in σ units)
     cov = 0.5 * (cov + cov.T)
     if not math.isfinite(float(np.sum(cov))):
         raise ValueError(f"RIS {measurement.fix.name}: the update at t = {measurement.time} s is not finite")
-    return TrackUpdate(state=TrackState(time=prior.time, mean=mean, covariance=cov), nis=nis, dof=dof, gate=gate,
+    return TrackUpdate(state=TrackState(time=prior.time, mean=x, covariance=cov), nis=nis, dof=dof, gate=gate,
                        accepted=True, ris=measurement.fix.name)
 
