@@ -57,6 +57,7 @@ def test_half_bin_statistic_is_within_its_stated_precision_of_float64(make_radar
     assert det.noise_power * k * n == pytest.approx(ref_noise, rel=REL)
     q, p = np.unravel_index(int(np.argmax(ref_stat)), ref_stat.shape)
     assert det.statistic == pytest.approx(float(ref_stat[q, p]), rel=REL)
+    assert det.detected == (snr_scale > 0)  # a tone (26 dB and more, integrated) is found, noise alone is not
     if det.detected:
         assert det.cell == (q, p)
         assert det.statistic == pytest.approx(float(ref_stat[det.cell]), rel=REL)
