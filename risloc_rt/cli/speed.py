@@ -3,7 +3,7 @@
 A thin verb over :mod:`risloc_rt.studies.speed`: it prints the study's table (times beside the
 model error and the position RMSE against the Cramér–Rao bound, ratios against the paper's
 full-grid method) and the mechanism verdicts, and writes the rows as JSON (``--json``) and the
-trade-off figure (``--plot``). ``--device`` chooses where the refined estimator's detector runs; the
+trade-off figure (``--plot``). ``--device`` chooses where the refined estimator's whole-cube work runs; the
 line ``device: ...`` and the JSON's ``"device"`` object say what ran the DSP and the ray tracer.
 """
 

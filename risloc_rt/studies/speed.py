@@ -137,7 +137,7 @@ def run_speed_study(scenes: list[str], *, realizations: int, full: int, seed: in
     log : callable
         Receives one progress line per scene, position and setting.
     backend : dsp.ArrayBackend, optional
-        Where the refined estimator's detector runs its whole-cube work (``--device``;
+        Where the refined estimator's whole-cube work runs (detector and reads of the cube; ``--device``;
         :func:`risloc_rt.io.report.process_capture`); default NumPy. The synthesis and the paper's two grid
         methods run on the host.
 
