@@ -6,18 +6,21 @@ where its sweep sees it) in its own frame, each with a 1σ (:class:`RisFix`, e.g
 
     T(x) = Σᵢ Σⱼ (zᵢⱼ − hᵢⱼ(x))² / σᵢⱼ²,   hᵢ(x) = (‖x − pᵢ‖, az(Rᵢᵀ(x − pᵢ)), el(Rᵢᵀ(x − pᵢ))),
 
-by Gauss–Newton from the best single fix (azimuth residuals wrapped to (−π, π]). Its covariance
+by trust-region Gauss–Newton (:func:`scipy.optimize.least_squares`) from the best single fix
+(azimuth residuals wrapped to (−π, π]). Its covariance
 is the inverse of the summed Fisher information ``Σᵢ Jᵢᵀ Wᵢ Jᵢ`` (Jᵢ = ∂hᵢ/∂x at x̂, Wᵢ = diag(1/σ²)):
 with each fix's σ its Cramér–Rao bound this is the multi-RIS position bound, and ``peb`` its trace's
 square root.
 
-**Consistency.** At x̂, T is χ² with n − 3 degrees of freedom (n measurements) when every fix is
-right. Above its level of probability ``pfa`` (:func:`scipy.stats.chi2.isf`) the fixes disagree:
+**Consistency.** At x̂, T is χ² with n − r degrees of freedom (n measurements, r the directions
+they see: 3, or 2 when the height is unobservable) when every fix is right. Above its level of probability ``pfa`` (:func:`scipy.stats.chi2.isf`) the fixes disagree:
 each fix is left out in turn, and the one whose removal lowers T most is excluded — named, with its
 own residual, in :attr:`FusedFix.excluded` and the flag ``inconsistent-ris`` — when the others then
-pass; so on until they agree, never below what still over-determines the position (n − 3 ≥ 1).
-Fixes that cannot be told apart (two fixes of three measurements each that disagree: either may be
-the wrong one) are kept, and the flag says so. A grating-lobe twin, a blocked RIS whose peak is
+pass; so on until they agree, never below what still over-determines the position (n − r ≥ 1).
+When the test cannot say which fix is wrong (two fixes that each determine the position alone:
+either may be the wrong one), the fixes that carry a doubt of their own (:data:`DOUBT_CODES`:
+``aliased``, ``grating-lobe``, ...) are left out, named; fixes that still cannot be told apart are
+kept, and the flag says their position is a compromise. A grating-lobe twin, a blocked RIS whose peak is
 another path, or a path taken for a return shows up this way; an average would hide it.
 
 **Observability.** Directions along which the information is below 1e-12 of its largest
@@ -36,16 +39,22 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.optimize
 import scipy.stats
 
 from .flags import Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .validation import as_finite_array, finite, positive
 
-__all__ = ["RisFix", "FusedFix", "fuse_fixes", "central_jacobian"]
+__all__ = ["DOUBT_CODES", "RisFix", "FusedFix", "fuse_fixes", "central_jacobian"]
 
 #: Gauss–Newton steps at most, and the step [m] below which it has converged.
 _MAX_STEPS, _TOLERANCE = 50, 1e-10
+#: A fix's own flags that cast doubt on its position: when the fixes disagree and the χ² test cannot
+#: say which one is wrong, the fixes that carry one of these are left out (named) before any compromise.
+DOUBT_CODES = frozenset({"aliased", "grating-lobe", "unresolved-peaks", "before-ris-delay", "beam-edge",
+                         "no-beam-dependence", "schedule-mismatch", "damaged-beams", "pattern-mismatch",
+                         "ris-facing-away"})
 #: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.
 _RANK_TOLERANCE = 1e-12
 
@@ -226,18 +235,29 @@ def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
 
 
 def _solve(fixes: list[RisFix], start: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Gauss–Newton from ``start``: (x̂, information [3, 3] at x̂ [1/m²], T at x̂)."""
-    x = np.array(start, dtype=float)
-    for _ in range(_MAX_STEPS):
-        r = np.concatenate([f.residuals(x) for f in fixes])
-        jac = np.vstack([_jacobian(f, x) for f in fixes])  # ∂r/∂x = −∂h/∂x / σ
-        step, *_ = np.linalg.lstsq(jac, -r, rcond=None)  # minimum-norm: no move along an unseen direction
-        x = x + step
-        if float(np.linalg.norm(step)) < _TOLERANCE * max(1.0, float(np.linalg.norm(x))):
-            break
-    jac = np.vstack([_jacobian(f, x) for f in fixes])
-    r = np.concatenate([f.residuals(x) for f in fixes])
+    """Weighted least squares from ``start``: (x̂, information [3, 3] at x̂ [1/m²], T at x̂).
+
+    A trust-region Gauss–Newton (:func:`scipy.optimize.least_squares`, ``"trf"``): plain
+    Gauss–Newton steps can run away when the fixes disagree (two range circles that do not meet);
+    a trust region only takes steps that lower T. Steps along a direction no fix sees are zero.
+    """
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([f.residuals(x) for f in fixes])
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        return np.vstack([_jacobian(f, x) for f in fixes])  # ∂r/∂x = −∂h/∂x / σ
+
+    fit = scipy.optimize.least_squares(residuals, np.array(start, dtype=float), jac=jacobian, method="trf",
+                                       xtol=_TOLERANCE, ftol=1e-15, gtol=1e-15, max_nfev=20 * _MAX_STEPS)
+    x = fit.x
+    jac, r = jacobian(x), residuals(x)
     return x, jac.T @ jac, float(r @ r)
+
+
+def _rank(info: np.ndarray) -> int:
+    """How many directions the information sees (eigenvalues above ``_RANK_TOLERANCE`` of the largest)."""
+    vals = np.linalg.eigvalsh(info)
+    return int(np.sum(vals > _RANK_TOLERANCE * max(float(vals.max()), 1e-300)))
 
 
 def _covariance(info: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
@@ -304,19 +324,26 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
     flags: list[Flag] = []
     while True:
         x, info, stat = _solve(used, start)
-        dof = sum(f.measurements for f in used) - 3
+        dof = sum(f.measurements for f in used) - _rank(info)
         threshold = float(scipy.stats.chi2.isf(pfa, dof)) if dof > 0 else float("nan")
         if dof <= 0 or stat <= threshold:
             break
-        trials = []  # leave each fix out; the remaining fixes must still over-determine the position
+        trials = []  # leave each fix out; the remaining fixes must still over-determine what they see
         for i, f in enumerate(used):
             rest = used[:i] + used[i + 1:]
-            rest_dof = sum(g.measurements for g in rest) - 3
-            if rest_dof < 1:
-                continue
-            xr, _, tr = _solve(rest, x)
-            if tr <= float(scipy.stats.chi2.isf(pfa, rest_dof)):
+            xr, info_r, tr = _solve(rest, x)
+            rest_dof = sum(g.measurements for g in rest) - _rank(info_r)
+            if rest_dof >= 1 and tr <= float(scipy.stats.chi2.isf(pfa, rest_dof)):
                 trials.append((tr, i, xr))
+        doubtful = [f for f in used if set(f.flags) & DOUBT_CODES]
+        if not trials and doubtful and len(doubtful) < len(used):
+            # the test cannot say which fix is wrong, but some carry a doubt of their own: they go
+            for f in doubtful:
+                excluded.append((f.name, f"its own flags ({', '.join(sorted(set(f.flags) & DOUBT_CODES))}) and the "
+                                         "others disagree with it"))
+            used = [f for f in used if f not in doubtful]
+            start = used[0].position(None if np.isfinite(used[0].std_aod[1]) else 0.0)
+            continue
         if not trials:
             flags.append(Flag("inconsistent-ris", (
                 f"the fixes of {', '.join(f.name for f in used)} disagree (χ² {stat:.1f} against {threshold:.1f} at "

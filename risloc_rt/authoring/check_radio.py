@@ -103,12 +103,22 @@ def _grating_lobes(x: float, spacing_ratio: float, a: float, b: float) -> list[f
     return out
 
 
+def _serves(r, q: np.ndarray, radar: RadarConfig) -> bool:
+    """Whether RIS ``r`` can localize a radar at ``q`` [m]: in front of its plane and within range."""
+    rel = q - np.array(r.position)
+    return bool(rel @ r.pose.normal > 0 and
+                float(np.linalg.norm(rel)) + r.loopback_delay * SPEED_OF_LIGHT / 2 < radar.max_range)
+
+
 def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: BeamSweep) -> list[Issue]:
     out = []
     radars = spec.radar_positions()
     hard: Level = "error" if len(spec.ris) == 1 else "warning"
     a, b = _sweep_sin_range(sweep)
     lo_deg, hi_deg = np.rad2deg(np.arcsin([a, b]))
+    # With several RISs a radar position needs one that serves it (in front, within range): another
+    # RIS's back or range is then no issue of that position (issue 22, time division).
+    served = [{r.name for r in spec.ris if _serves(r, q, radar)} for q in radars]
     for r in spec.ris:
         pose = r.pose
         p = pose.position
@@ -132,8 +142,10 @@ def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: Bea
             rel = q - p
             d = float(np.linalg.norm(rel))
             az, el = pose.angles_to(q)
+            other = len(spec.ris) > 1 and bool(served[i] - {r.name})
             if rel @ pose.normal <= 0:
-                behind.append((i, math.degrees(math.acos(np.clip(rel @ pose.normal / d, -1, 1)))))
+                if not other:
+                    behind.append((i, math.degrees(math.acos(np.clip(rel @ pose.normal / d, -1, 1)))))
                 continue
             if not a - 1e-12 <= math.sin(az) <= b + 1e-12:
                 outside.append((i, math.degrees(az)))
@@ -141,7 +153,7 @@ def ris_issues(spec: HallSpec, geo: HallGeometry, radar: RadarConfig, sweep: Bea
             if hit_name is not None and hit_dist < d - 1e-6:
                 blocked.append((i, hit_name, hit_dist))
             apparent = d + r.loopback_delay * SPEED_OF_LIGHT / 2
-            if apparent >= radar.max_range:
+            if apparent >= radar.max_range and not other:
                 far.append((i, d, apparent))
         if behind:
             idx = [f"radar.positions[{i}] ({ang:.0f}° off boresight)" for i, ang in behind]

@@ -13,16 +13,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from dsp import RadarConfig
+from dsp import BeamSweep, RadarConfig
 
 from .antenna import RadarAntenna
 from ..model.link_budget import carrier_phase
 from ..model.paths import PathSet
 from ..model.plate import Plate, plate_scattering
-from ..model.ris import RisConfig
+from ..model.ris import RisConfig, ris_response
 from .traced import TracedPaths
 
-__all__ = ["monostatic_paths", "ris_loopback_paths", "ris_structure_paths", "leg_pairs"]
+__all__ = ["idle_parked_paths", "idle_structure_paths", "monostatic_paths", "ris_loopback_paths", "ris_structure_paths",
+           "leg_pairs"]
 
 
 def _describe_all(traced: TracedPaths) -> list[str]:
@@ -133,3 +134,65 @@ def ris_structure_paths(
         ris_incidence=np.full((n, 2), np.nan), ris_departure=np.full((n, 2), np.nan),
         labels=_pair_labels(leg, "ris_structure", p, q),
     )
+
+
+def _relabelled(paths: PathSet, kind: str, name: str) -> PathSet:
+    labels = tuple(f"{kind}[{name}]:{lab.split(':', 1)[1]}" for lab in paths.labels)
+    return PathSet(gain=paths.gain, delay=paths.delay, delay_rate=paths.delay_rate,
+                   ris_incidence=paths.ris_incidence, ris_departure=paths.ris_departure, labels=labels)
+
+
+def idle_structure_paths(leg: TracedPaths, idle, *, radar: RadarConfig, antenna: RadarAntenna) -> PathSet:
+    """The panel of a RIS that does not sweep in this slot: a static echo of the hall.
+
+    Parameters
+    ----------
+    leg : TracedPaths
+        One-way paths radar → the idle RIS's centre.
+    idle : risloc_rt.hall.scenario.IdleRis
+        The idle RIS (its pose, hardware and plate).
+    radar, antenna
+        As :func:`ris_structure_paths`.
+
+    Returns
+    -------
+    PathSet
+        :func:`ris_structure_paths` of the idle RIS, labelled ``"ris_structure[<name>]: ..."``.
+    """
+    paths = ris_structure_paths(leg, radar=radar, ris=idle.ris, plate=idle.plate, antenna=antenna)
+    return _relabelled(paths, "ris_structure", idle.name)
+
+
+def idle_parked_paths(leg: TracedPaths, idle, *, radar: RadarConfig, antenna: RadarAntenna) -> PathSet:
+    """The loop-back of a RIS that holds one parked beam while another sweeps: a static echo.
+
+    Parameters
+    ----------
+    leg : TracedPaths
+        One-way paths radar → the idle RIS's centre.
+    idle : risloc_rt.hall.scenario.IdleRis
+        The idle RIS, with ``parked_beam`` set [rad].
+    radar, antenna
+        As :func:`ris_loopback_paths`.
+
+    Returns
+    -------
+    PathSet
+        :func:`ris_loopback_paths` of the idle RIS with its response to the parked beam,
+        ``r(θ_p, θ_q)`` of :func:`risloc_rt.model.ris.ris_response` for that one beam, folded into the
+        gain: the same in every beam of the sweeping RIS, so not a RIS path of the sweep (NaN
+        angles), labelled ``"ris_parked[<name>]: ..."``.
+    """
+    if idle.parked_beam is None:
+        raise ValueError(f"RIS {idle.name!r} is switched off (parked_beam=None): it has no loop-back")
+    paths = ris_loopback_paths(leg, radar=radar, ris=idle.ris, antenna=antenna)
+    n = len(paths)
+    if n:
+        r = ris_response(idle.ris, BeamSweep(np.asarray(idle.parked_beam)[None, :]), paths.ris_incidence,
+                         paths.ris_departure, wavelength=radar.wavelength)[0]
+    else:
+        r = np.zeros(0, complex)
+    static = PathSet(gain=paths.gain * r, delay=paths.delay, delay_rate=paths.delay_rate,
+                     ris_incidence=np.full((n, 2), np.nan), ris_departure=np.full((n, 2), np.nan),
+                     labels=paths.labels)
+    return _relabelled(static, "ris_parked", idle.name)

@@ -16,16 +16,56 @@ import numpy as np
 from dsp import BeamSweep, ProcessingConfig, RadarConfig
 
 from .antenna import RadarAntenna
-from .multipath import monostatic_paths, ris_loopback_paths, ris_structure_paths
+from .multipath import (idle_parked_paths, idle_structure_paths, monostatic_paths, ris_loopback_paths,
+                        ris_structure_paths)
 from ..model.paths import PathSet
 from ..model.plate import Plate
 from .pruning import ModelSettings, PruneReport, prune_paths
 from .raytrace.tracer import TraceResult, TraceSettings
-from ..model.ris import RisMode, check_ris_memory
+from ..model.ris import RisConfig, RisMode, check_ris_memory
 from ..model.scenario import Scenario
 from ..authoring.scene_folder import DEFAULT_SCENE, SceneError, scene_directory
 
-__all__ = ["HallScenario", "HallPaths", "check_up_to_date", "hall_paths", "hall_scenario"]
+__all__ = ["HallScenario", "HallPaths", "IdleRis", "IDLE_STATES", "check_up_to_date", "hall_paths", "hall_scenario",
+           "hall_slots", "facing_radar", "ris_index"]
+
+#: What a RIS does while another one sweeps (time division, ``docs/ray-tracing.md`` "Several RISs"):
+#: ``"off"``: a relay RIS's amplifier is off, only its panel's structural reflection remains (a
+#: reflective RIS cannot be switched off: it holds its parked beam); ``"parked"``: it keeps
+#: re-transmitting (relay) or reflecting with one fixed beam, its loop-back a static echo.
+IDLE_STATES = ("off", "parked")
+
+
+@dataclass(frozen=True)
+class IdleRis:
+    """A RIS of the scene that does not sweep in this slot: an echo in the sweeping RIS's capture.
+
+    Attributes
+    ----------
+    name : str
+        Its name in the spec.
+    ris : RisConfig
+        Its pose and hardware.
+    plate : Plate
+        Its panel's structure (always present: an echo by physical optics).
+    parked_beam : float array [2] or None
+        ``[az, el]`` of the beam it holds, RIS frame [rad]; None: switched off (a relay RIS with its
+        amplifier off, no re-transmission).
+    """
+
+    name: str
+    ris: RisConfig
+    plate: Plate
+    parked_beam: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.parked_beam is not None:
+            beam = np.asarray(self.parked_beam, dtype=float).reshape(2)
+            if not np.all(np.isfinite(beam)) or np.any(np.abs(beam) > np.pi / 2):
+                raise ValueError(f"parked_beam of RIS {self.name!r} must be finite [az, el] within ±90° of broadside "
+                                 f"[rad], got {beam.tolist()}")
+            beam.setflags(write=False)
+            object.__setattr__(self, "parked_beam", beam)
 
 
 @dataclass(frozen=True)
@@ -46,6 +86,11 @@ class HallScenario:
         Ray-tracer settings.
     model : ModelSettings
         IF filter and pruning.
+    ris_name : str
+        The spec's name of the sweeping RIS (``base.ris``).
+    idle : tuple of IdleRis
+        The scene's other RISs, which do not sweep in this slot (their panels and, parked, their
+        loop-back are static echoes of the hall).
     """
 
     base: Scenario
@@ -54,12 +99,19 @@ class HallScenario:
     antenna: RadarAntenna = field(default_factory=RadarAntenna.isotropic)
     trace: TraceSettings = field(default_factory=TraceSettings)
     model: ModelSettings = field(default_factory=ModelSettings)
+    ris_name: str = "ris0"
+    idle: tuple[IdleRis, ...] = ()
 
     def __post_init__(self) -> None:
         xml = Path(self.scene_xml)
         if not xml.is_file():
             raise FileNotFoundError(f"scene file {str(xml)!r} does not exist; build it with 'risloc scene build'")
         object.__setattr__(self, "scene_xml", xml)
+        idle = tuple(self.idle)
+        for other in idle:
+            if not isinstance(other, IdleRis):
+                raise TypeError(f"idle must hold IdleRis, got {type(other).__name__}")
+        object.__setattr__(self, "idle", idle)
 
     @property
     def name(self) -> str:
@@ -82,7 +134,8 @@ class HallPaths:
     trace : TraceResult
         The ray-tracer output (monostatic paths and radar→RIS legs).
     counts : dict of str -> int
-        Candidates per kind (``hall``, ``ris_loopback``, ``ris_structure``).
+        Candidates per kind (``hall``, ``ris_loopback``, ``ris_structure``; with idle RISs
+        ``idle_structure`` and, parked, ``idle_parked``).
     timing : dict of str -> float
         Seconds: ``trace`` (0 on a cache hit apart from loading), ``paths``.
     """
@@ -108,10 +161,11 @@ def hall_paths(scenario: HallScenario, *, cache: Any = None) -> HallPaths:
 
     base = scenario.base
     start = time.perf_counter()
+    positions = [base.ris.pose.position] + [other.ris.pose.position for other in scenario.idle]
     traced = trace_scene(
         scenario.scene_xml,
         radar_position=base.ue_position,
-        ris_positions=base.ris.pose.position[None, :],
+        ris_positions=np.array(positions),
         radar_velocity=base.ue_velocity,
         frequency=base.radar.carrier_frequency,
         settings=scenario.trace,
@@ -126,6 +180,14 @@ def hall_paths(scenario: HallScenario, *, cache: Any = None) -> HallPaths:
         "ris_structure": ris_structure_paths(leg, radar=base.radar, ris=base.ris, plate=scenario.plate,
                                              antenna=scenario.antenna),
     }
+    if scenario.idle:
+        parts["idle_structure"] = PathSet.concatenate([
+            idle_structure_paths(traced.legs[i + 1], other, radar=base.radar, antenna=scenario.antenna)
+            for i, other in enumerate(scenario.idle)])
+        parked = [idle_parked_paths(traced.legs[i + 1], other, radar=base.radar, antenna=scenario.antenna)
+                  for i, other in enumerate(scenario.idle) if other.parked_beam is not None]
+        if parked:
+            parts["idle_parked"] = PathSet.concatenate(parked)
     candidates = PathSet.concatenate(parts.values())
     kept, report = prune_paths(candidates, radar=base.radar, processing=base.processing, sweep=base.sweep,
                                ris=base.ris, settings=scenario.model)
@@ -158,6 +220,41 @@ def check_up_to_date(folder: Path, spec: Any = None) -> None:
             f"removed); run 'risloc scene build {folder}' (add --force to replace hand-edited files)")
 
 
+def ris_index(spec: Any, ris: int | str, *, where: str = "--ris") -> int:
+    """The index of one of a spec's RISs, given by its name or its index.
+
+    Parameters
+    ----------
+    spec : risloc_rt.authoring.spec.HallSpec
+        The scene's spec.
+    ris : int or str
+        A RIS name of the spec (``"ris1"``) or its index in spec order (an int or a decimal string).
+    where : str
+        What gave ``ris``, for the message.
+
+    Returns
+    -------
+    int
+        The index into ``spec.ris``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the RISs the spec has, when it has no such RIS.
+    """
+    names = [r.name for r in spec.ris]
+    if isinstance(ris, str) and ris in names:
+        return names.index(ris)
+    try:
+        index = int(ris)
+    except (TypeError, ValueError):
+        index = -1
+    if isinstance(ris, bool) or not 0 <= index < len(names) or (isinstance(ris, float) and ris != index):
+        raise ValueError(f"{where}={ris!r}: the scene {spec.name!r} has no such RIS; it has "
+                         f"{', '.join(names) or 'none'} (give a name or an index 0..{len(names) - 1})")
+    return index
+
+
 def hall_scenario(
     scene: str | Path = DEFAULT_SCENE,
     *,
@@ -170,8 +267,11 @@ def hall_scenario(
     model: ModelSettings | None = None,
     ue_position: Any = None,
     ue_velocity: Any = None,
+    ris: int | str = 0,
+    idle: str = "off",
+    parked_beam: Any = (0.0, 0.0),
 ) -> HallScenario:
-    """The scenario of a built scene folder: its first RIS and one of its radar positions.
+    """The scenario of a built scene folder: one of its RISs sweeping, at one of its radar positions.
 
     Parameters
     ----------
@@ -180,52 +280,140 @@ def hall_scenario(
     radar_index : int
         Which of the spec's radar positions to use.
     mode : {"relay", "reflective"}, optional
-        Override the RIS mode of the spec.
+        Override the RIS mode of the spec (of the sweeping RIS).
     radar, processing, sweep, trace, model
         Overrides of Table I's radar, the processing, the paper's sweep and the default
         ray-tracer and model settings.
     ue_position, ue_velocity : float array [3], optional
         Override the spec's radar position and velocity [m], [m/s].
+    ris : int or str
+        The RIS that sweeps (its name or index; default the first). With several RISs, time
+        division: the others are idle (``idle``) and their panels are echoes of this capture.
+    idle : {"off", "parked"}
+        What the other RISs do meanwhile (:data:`IDLE_STATES`): ``"off"`` (default; a relay's
+        amplifier is off, a reflective RIS cannot be and holds ``parked_beam``) or ``"parked"``.
+    parked_beam : float array [2]
+        ``[az, el]`` a parked RIS holds, its own frame [rad] (default broadside).
+
+    Notes
+    -----
+    The radar's boresight: ``radar.facing`` of the spec when it is a point; when it names a RIS (or
+    is left out), the radar faces the RIS that sweeps in this slot (a UE turned toward each RIS
+    in its slot, as the one-RIS experiment; give a point to model a fixed boresight).
     """
     from ..authoring.geometry import load_geometry
     from ..authoring.spec import load_spec
 
+    if idle not in IDLE_STATES:
+        raise ValueError(f"idle={idle!r} must be one of {IDLE_STATES} (what the other RISs do while one sweeps)")
     folder = scene_directory(scene)
     spec = load_spec(folder / "spec.toml")
     check_up_to_date(folder, spec)
     ris_list = spec.ris_configs()
     if not ris_list:
         raise ValueError(f"scene {folder} has no RIS; add a [[ris]] table to its spec")
+    index = ris_index(spec, ris, where="ris")
     positions = spec.radar_positions()
     if not 0 <= radar_index < len(positions):
         raise ValueError(f"radar_index={radar_index} is out of range: the scene has {len(positions)} radar position(s)")
     ue = np.asarray(positions[radar_index] if ue_position is None else ue_position, dtype=float)
     velocity = np.asarray(spec.radar_velocity() if ue_velocity is None else ue_velocity, dtype=float)
-    ris = ris_list[0]
-    if mode is not None:
-        ris = replace(ris, mode=mode)
-    if spec.ris[0].relay_rx_toward is None:  # as in the experiment: the Rx beam points at the UE
-        ris = ris.with_rx_toward(ue)
+    panels = spec.ris_panels()
+    configs = []
+    for i, cfg in enumerate(ris_list):
+        if i == index and mode is not None:
+            cfg = replace(cfg, mode=mode)
+        if spec.ris[i].relay_rx_toward is None:  # as in the experiment: the Rx beam points at the UE
+            cfg = cfg.with_rx_toward(ue)
+        configs.append(cfg)
+    sweeping = configs[index]
     load_geometry(folder / "scene.xml").check_point(ue, what="radar")
+    suffix = "" if len(ris_list) == 1 else f"/{spec.ris[index].name}"
     base = Scenario(
         radar=radar or RadarConfig(),
-        ris=ris,
+        ris=sweeping,
         sweep=sweep or BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5])),
         processing=processing or ProcessingConfig(),
         ue_position=ue,
         ue_velocity=velocity,
-        name=f"{spec.name}#{radar_index}" if ue_position is None else f"{spec.name}@{ue.tolist()}",
+        name=(f"{spec.name}#{radar_index}" if ue_position is None else f"{spec.name}@{ue.tolist()}") + suffix,
     )
     # Every simulation of the hall evaluates the RIS response for each beam of the sweep.
-    check_ris_memory(ris, base.sweep.num_beams, where=f"{folder / 'spec.toml'}: ris[0] (rows, columns)",
-                     fix=f"give ris[0] fewer rows and columns in {folder / 'spec.toml'} (the paper's panel has 16 x 4), "
-                         "or sweep fewer beams")
-    panel = spec.ris_panels()[0]
+    check_ris_memory(sweeping, base.sweep.num_beams, where=f"{folder / 'spec.toml'}: ris[{index}] (rows, columns)",
+                     fix=f"give ris[{index}] fewer rows and columns in {folder / 'spec.toml'} (the paper's panel has "
+                         "16 x 4), or sweep fewer beams")
+    parked = np.asarray(parked_beam, dtype=float)
+    others = tuple(
+        IdleRis(name=spec.ris[i].name, ris=configs[i], plate=panels[i],
+                parked_beam=parked if (idle == "parked" or configs[i].mode == "reflective") else None)
+        for i in range(len(configs)) if i != index)
+    facing = spec.radar.facing
+    target = np.array(facing, dtype=float) if isinstance(facing, tuple) else sweeping.pose.position
     return HallScenario(
         base=base,
         scene_xml=folder / "scene.xml",
-        plate=panel,
-        antenna=RadarAntenna.facing(ue, spec.radar_facing_point(ris_index=0)),
+        plate=panels[index],
+        antenna=RadarAntenna.facing(ue, target),
         trace=trace or TraceSettings(),
         model=model or ModelSettings(),
+        ris_name=spec.ris[index].name,
+        idle=others,
     )
+
+
+def hall_slots(scene: str | Path = DEFAULT_SCENE, *, order: Any = None,
+               **kwargs: Any) -> tuple[HallScenario | None, ...]:
+    """One :class:`HallScenario` per RIS of a scene: time division, each RIS sweeping in its own slot.
+
+    Parameters
+    ----------
+    scene : str or Path
+        A name in ``scenes/`` or a scene folder.
+    order : sequence of int or str, optional
+        The RISs in slot order (names or indices; default every RIS in spec order).
+    **kwargs
+        As :func:`hall_scenario` (``ue_position``, ``idle``, ``sweep``, ...), the same for every slot.
+
+    Returns
+    -------
+    tuple of HallScenario or None
+        Slot k's scenario: ``order[k]`` sweeps, the others idle. None where the radar stands
+        behind that RIS's plane (its sweep cannot reach the radar: that slot gives no return, and
+        is not simulated).
+    """
+    from ..authoring.spec import load_spec
+
+    if "ris" in kwargs:
+        raise TypeError("hall_slots takes the RISs as order=[...], not ris=")
+    spec = load_spec(scene_directory(scene) / "spec.toml")
+    order = list(range(len(spec.ris))) if order is None else list(order)
+    if not order:
+        raise ValueError("order is empty: name at least one RIS to sweep")
+    indices = [ris_index(spec, r, where="order") for r in order]
+    if len(set(indices)) != len(indices):
+        raise ValueError(f"order={order!r} names a RIS twice; each RIS sweeps in one slot")
+    position = kwargs.get("ue_position")
+    if position is None:
+        position = spec.radar_positions()[kwargs.get("radar_index", 0)]
+    configs = spec.ris_configs()
+    return tuple(hall_scenario(scene, ris=i, **kwargs) if facing_radar(configs[i], position) else None
+                 for i in indices)
+
+
+def facing_radar(ris: RisConfig, position: Any) -> bool:
+    """Whether ``position`` [m] lies in front of the RIS's plane (its sweep can reach it).
+
+    Parameters
+    ----------
+    ris : RisConfig
+        The RIS (its pose).
+    position : float array [3]
+        The radar, world frame [m].
+
+    Returns
+    -------
+    bool
+        True when the radar's azimuth in the RIS frame is within ±90° (not on or behind the plane).
+    """
+    az = float(ris.pose.angles_to(np.asarray(position, dtype=float))[0])
+    return abs(az) < np.pi / 2
