@@ -297,11 +297,12 @@ def json_safe(value: Any, *, where: str = "$", nonfinite: list[str] | None = Non
 
 
 def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult],
-                 device: dict[str, Any] | None = None) -> Path:
+                 device: dict[str, Any] | None = None, fused: dict[str, Any] | None = None) -> Path:
     """Write ``out_dir/result.json`` for ``cases``; returns its path.
 
     ``device`` (:func:`run_environment`: what ran the DSP and the ray tracer) becomes the document's
-    ``"device"`` object; without it the key is left out. The file is strict JSON: a value that is not
+    ``"device"`` object; without it the key is left out. ``fused`` (the captures of several RISs
+    fused, :func:`risloc_rt.io.fused.fused_dict`) becomes ``"fused"``. The file is strict JSON: a value that is not
     finite (an estimate of a capture where nothing was detected, say) is written as ``null`` and its
     path listed under ``"nonfinite"``. It is written to a unique temporary file in ``out_dir`` and
     renamed, so concurrent writers leave one complete file and an interrupted write leaves none.
@@ -315,6 +316,7 @@ def write_result(out_dir: str | os.PathLike[str], cases: list[CaseResult],
         "units": "SI: m, s, m/s, rad; delay_rate s/s; average_power W",
         **({} if device is None else {"device": device}),
         "cases": [case_dict(c) for c in cases],
+        **({} if fused is None else {"fused": fused}),
     }, nonfinite=nonfinite)
     doc["nonfinite"] = nonfinite
     return atomic_write_bytes(out / "result.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode())

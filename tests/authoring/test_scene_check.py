@@ -468,3 +468,19 @@ def test_check_and_show_never_import_the_ray_tracer():
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'sionna', 'mitsuba', 'drjit'}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_with_two_rises_a_radar_needs_one_that_serves_it(tmp_path):
+    """Issue 22: a radar behind one RIS or beyond its range is fine when the other RIS sees it; not when none does."""
+    two = ('[[ris]]\nname = "ris0"\nposition = [30.0, 4.0, 1.2]\nfacing = [8.0, 4.0, 1.2]\n'
+           '[[ris]]\nname = "ris1"\nposition = [2.0, 4.0, 1.2]\nfacing = [20.0, 4.0, 1.2]\n')
+    hall = "size = [40.0, 8.0]\nheight = 4.0"
+    # 22 m from ris0 (beyond its range), 6 m in front of ris1: served
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    radar = "[radar]\npositions = [[{}, 4.0, 1.2]]\nfacing = [20.0, 4.0, 1.2]\n"
+    served = check(tmp_path / "a", hall=hall, ris=two, radar=radar.format(8.0))
+    assert not {"ris.range", "ris.radar_behind"} & set(served.rules), served.format()
+    # behind ris1 (x < 2) and 29 m from ris0 (beyond its range): no RIS serves it, both are reported
+    lost = check(tmp_path / "b", hall=hall, ris=two, radar=radar.format(1.0))
+    assert {"ris.range", "ris.radar_behind"} <= set(lost.rules), lost.format()

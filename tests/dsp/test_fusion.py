@@ -153,3 +153,44 @@ def test_a_fix_checks_its_numbers():
         RisFix("r", pose, 5.0, 0.01, np.array([np.nan, 0.0]), np.ones(2))
     with pytest.raises(TypeError, match="RisPose"):
         RisFix("r", "pose", 5.0, 0.01, np.zeros(2), np.ones(2))
+
+
+def _with_flags(fix: RisFix, *codes: str) -> RisFix:
+    return RisFix(name=fix.name, pose=fix.pose, distance=fix.distance, std_distance=fix.std_distance, aod=fix.aod,
+                  std_aod=fix.std_aod, flags=tuple(codes))
+
+
+def test_a_fix_aliased_by_the_range_is_left_out_not_run_after():
+    """Regression (issue 22): two RISs at one height, 1-D sweeps, one fix folded back by 21.8 m.
+
+    Plain Gauss–Newton ran 30 km away between two range circles that do not meet. Each fix alone
+    sees the 2-D position, so the χ² test cannot say which is wrong; the one flagged ``aliased`` is
+    left out, named, and the other gives the position.
+    """
+    a, b = _pose([0.0, 4.0, 1.2], (6, 4, 1.2)), _pose([12.0, 0.0, 1.2], (6, 4, 1.2))
+    good = _fix("ris-a", a, TRUTH, sees_elevation=False)
+    folded = _with_flags(_fix("ris-b", b, TRUTH, sees_elevation=False, offset=(21.82, 0, 0)), "aliased")
+    fused = fuse_fixes([folded, good])
+    assert fused.used == ("ris-a",)
+    assert [name for name, _ in fused.excluded] == ["ris-b"] and "aliased" in fused.excluded[0][1]
+    np.testing.assert_allclose(fused.position[:2], TRUTH[:2], atol=1e-6)  # [m]
+    assert "inconsistent-ris" in {f.code for f in fused.flags}
+
+
+def test_disagreeing_fixes_without_a_doubt_of_their_own_stay_a_bounded_compromise():
+    """The same two fixes with no flags: both kept and flagged; the compromise lies between them, not 30 km away."""
+    a, b = _pose([0.0, 4.0, 1.2], (6, 4, 1.2)), _pose([12.0, 0.0, 1.2], (6, 4, 1.2))
+    fixes = [_fix("ris-a", a, TRUTH, sees_elevation=False),
+             _fix("ris-b", b, TRUTH, sees_elevation=False, offset=(21.82, 0, 0))]
+    fused = fuse_fixes(fixes)
+    assert set(fused.used) == {"ris-a", "ris-b"} and not fused.excluded
+    assert "no one of them explains it" in next(f.message for f in fused.flags if f.code == "inconsistent-ris")
+    assert np.linalg.norm(fused.position[:2] - TRUTH[:2]) < 25.0  # [m]: within the two fixes' spread
+
+
+def test_degrees_of_freedom_count_what_the_fixes_see():
+    """Two 1-D fixes at one height: 4 measurements of a 2-D position, 2 degrees of freedom (not 4 − 3 = 1)."""
+    a, b = _pose([0.0, 4.0, 1.2], (6, 4, 1.2)), _pose([12.0, 0.0, 1.2], (6, 4, 1.2))
+    fused = fuse_fixes([_fix("ris-a", a, TRUTH, sees_elevation=False), _fix("ris-b", b, TRUTH, sees_elevation=False)])
+    assert fused.dof == 2
+    assert fused.threshold == pytest.approx(scipy.stats.chi2.isf(1e-3, 2))
