@@ -50,11 +50,12 @@ __all__ = ["DOUBT_CODES", "RisFix", "FusedFix", "fuse_fixes", "central_jacobian"
 
 #: Gauss–Newton steps at most, and the step [m] below which it has converged.
 _MAX_STEPS, _TOLERANCE = 50, 1e-10
-#: A fix's own flags that cast doubt on its position: when the fixes disagree and the χ² test cannot
-#: say which one is wrong, the fixes that carry one of these are left out (named) before any compromise.
-DOUBT_CODES = frozenset({"aliased", "grating-lobe", "unresolved-peaks", "before-ris-delay", "beam-edge",
-                         "no-beam-dependence", "schedule-mismatch", "damaged-beams", "pattern-mismatch",
-                         "ris-facing-away"})
+#: A fix's own flags that say its position may be grossly wrong (not merely biased by millimetres, as
+#: ``unresolved-peaks`` and ``pattern-mismatch`` say of most fixes in a traced hall): when the fixes
+#: disagree and the χ² test cannot say which one is wrong, the fixes that carry one of these are left
+#: out (named) before any compromise.
+DOUBT_CODES = frozenset({"aliased", "grating-lobe", "before-ris-delay", "beam-edge", "no-beam-dependence",
+                         "schedule-mismatch", "damaged-beams", "ris-facing-away"})
 #: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.
 _RANK_TOLERANCE = 1e-12
 
