@@ -89,30 +89,20 @@ def _inspect(args: argparse.Namespace) -> int:
     return 0
 
 
-def _import(args: argparse.Namespace) -> int:
-    """``risloc capture import``: a recorded RIS sweep → a capture file (``-o``), with a summary line.
+def _import_options(args: argparse.Namespace) -> dict:
+    """The keywords of ``import_capture`` from the command line (``--first-frame``, ``--channels``, ...).
 
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line (RAW, --config, --sweep, -o, --first-frame, --leakage, --channels, ...).
+        The parsed command line.
 
     Returns
     -------
-    int
-        The exit status: 0 when the capture file is written (a first frame the recording
-        contradicts is a one-line ``warning:`` on stderr and the capture's ``schedule-mismatch``
-        flag); bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
+    dict
+        ``lanes``, ``iq_swap``, ``form``, ``first_frame`` (int, ``"auto"`` or None), ``leakage``,
+        ``gate_range`` [m], ``channels``, ``min_confidence``.
     """
-    from pathlib import Path
-
-    from ..io.capture_file import save_capture
-    from ..measured import import_capture
-
-    target = check_output_file(npz_target(args.output), force=args.force, flag="-o")
-    for name, given in (("RAW", args.raw), ("--config", args.config), ("--sweep", args.sweep)):
-        if Path(given).exists() and target.exists() and target.resolve() == Path(given).resolve():
-            raise CliError(f"-o {args.output} is the {name} input; give another file name for the capture")
     first = None
     if args.first_frame is not None:
         if args.first_frame == "auto":
@@ -131,20 +121,109 @@ def _import(args: argparse.Namespace) -> int:
         except ValueError:
             raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
                            "e.g. 0,1,2,3") from None
-    capture = import_capture(args.raw, args.config, args.sweep, lanes=args.lanes, iq_swap=args.iq_swap,
-                             form=args.form, first_frame=first, leakage=args.leakage, gate_range=args.gate_range,
-                             channels=channels, min_confidence=args.min_confidence)
-    with output_file(target, force=args.force, flag="-o") as staged:
-        save_capture(capture, staged)
-    path = target
+    return {"lanes": args.lanes, "iq_swap": args.iq_swap, "form": args.form, "first_frame": first,
+            "leakage": args.leakage, "gate_range": args.gate_range, "channels": channels,
+            "min_confidence": args.min_confidence}
+
+
+def _wrote_line(path, capture) -> str:
+    """The summary line of one imported capture.
+
+    Parameters
+    ----------
+    path : Path
+        The capture file written.
+    capture : Capture
+        The imported capture.
+
+    Returns
+    -------
+    str
+    """
     reader = capture.provenance["reader"]
     M, K, N = capture.cube.shape
     az = capture.sweep.angles[:, 0]
     truth = "none" if capture.truth is None else f"distance {capture.truth.distance:.4f} m"
-    print(f"wrote {path}: {M} beams (frames {capture.frame_index[0]}..{capture.frame_index[-1]} of "
-          f"{reader['frames_recorded']}, az {np.rad2deg(az[0]):+.2f}..{np.rad2deg(az[-1]):+.2f} deg) x {K} chirps x "
-          f"{N} samples, channel {reader['channel']}, {len(reader['dropped_packets'])} dropped-packet run(s), "
-          f"{len(reader['damaged_beams'])} damaged beam(s); truth: {truth}")
+    slot = capture.provenance.get("ris_slot")
+    who = "" if not slot else f"RIS {slot['name']}, "
+    return (f"wrote {path}: {who}{M} beams (frames {capture.frame_index[0]}..{capture.frame_index[-1]} of "
+            f"{reader['frames_recorded']}, az {np.rad2deg(az[0]):+.2f}..{np.rad2deg(az[-1]):+.2f} deg) x {K} chirps x "
+            f"{N} samples, channel {reader['channel']}, {len(reader['dropped_packets'])} dropped-packet run(s), "
+            f"{len(reader['damaged_beams'])} damaged beam(s); truth: {truth}")
+
+
+def _import_all(args: argparse.Namespace, schedules) -> int:
+    """``risloc capture import`` of a recording of several RISs without ``--ris``: ``-o`` a folder, one file per RIS.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    schedules : SweepSchedules
+        The recording's sweep schedule (``[[ris]]`` tables).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when every capture is written (``<RIS name>.npz`` in ``-o``, one line each).
+    """
+    from pathlib import Path
+
+    from .._outputs import output_folder, safe_name
+    from ..io.capture_file import save_capture
+    from ..measured import import_capture
+
+    folder = Path(args.output)
+    names = [f"{safe_name(n)}.npz" for n in schedules.names]
+    if folder.suffix == ".npz" and not folder.is_dir():
+        raise CliError(f"-o {args.output}: {args.sweep} describes {len(names)} RISs ({', '.join(schedules.names)}): -o "
+                       f"is a folder that gets one capture per RIS ({', '.join(names)}); give a folder, or --ris NAME "
+                       "to import one RIS into a file")
+    options = _import_options(args)
+    with output_folder(folder, force=args.force, flag="-o", expect=tuple(names)) as stage:
+        captures = [import_capture(args.raw, args.config, schedules, ris=n, **options) for n in schedules.names]
+        for name, capture in zip(names, captures):
+            save_capture(capture, stage / name)
+    for name, capture in zip(names, captures):
+        print(_wrote_line(folder / name, capture))
+        for warning in capture.provenance.get("import_warnings", []):
+            print(f"warning: {warning}", file=sys.stderr)
+    return 0
+
+
+def _import(args: argparse.Namespace) -> int:
+    """``risloc capture import``: a recorded RIS sweep → a capture file (``-o``), with a summary line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (RAW, --config, --sweep, -o, --ris, --first-frame, --leakage, --channels, ...).
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the capture file is written (a first frame the recording
+        contradicts is a one-line ``warning:`` on stderr and the capture's ``schedule-mismatch``
+        flag); bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2). A schedule of
+        several RISs without ``--ris``: ``-o`` is a folder that gets ``<RIS name>.npz`` per RIS.
+    """
+    from pathlib import Path
+
+    from ..io.capture_file import save_capture
+    from ..measured import import_capture, read_sweep_schedules
+
+    schedules = read_sweep_schedules(args.sweep)
+    if schedules.several and args.ris is None and len(schedules.names) > 1:
+        return _import_all(args, schedules)
+    schedules.index(args.ris)                                 # a RIS the recording does not have: one line
+    target = check_output_file(npz_target(args.output), force=args.force, flag="-o")
+    for name, given in (("RAW", args.raw), ("--config", args.config), ("--sweep", args.sweep)):
+        if Path(given).exists() and target.exists() and target.resolve() == Path(given).resolve():
+            raise CliError(f"-o {args.output} is the {name} input; give another file name for the capture")
+    capture = import_capture(args.raw, args.config, schedules, ris=args.ris, **_import_options(args))
+    with output_file(target, force=args.force, flag="-o") as staged:
+        save_capture(capture, staged)
+    print(_wrote_line(target, capture))
     for warning in capture.provenance.get("import_warnings", []):
         print(f"warning: {warning}", file=sys.stderr)
     a = capture.provenance["alignment"]
@@ -195,7 +274,11 @@ def add_parser(sub) -> None:
     imp.add_argument("--config", required=True, help="the radar configuration: mmWave SDK .cfg or mmWave Studio .json")
     imp.add_argument("--sweep", required=True, metavar="SWEEP.toml",
                      help="the sweep schedule: beams, frames per beam, first frame, channel, RIS (docs/formats.md)")
-    imp.add_argument("-o", "--output", required=True, help="capture file to write (.npz)")
+    imp.add_argument("-o", "--output", required=True,
+                     help="capture file to write (.npz); for a schedule of several RISs ([[ris]] tables) without "
+                          "--ris, a folder that gets <RIS name>.npz per RIS")
+    imp.add_argument("--ris", metavar="NAME|INDEX",
+                     help="a schedule of several RISs: import this RIS's slot only (its name in the schedule, or index)")
     add_force_flag(imp, "an existing -o file")
     imp.add_argument("--lanes", type=int, choices=[2, 4], help="LVDS lanes: 2 (xWR16/18/68xx, default) or 4 (xWR14xx)")
     imp.add_argument("--iq-swap", action="store_true", default=None,

@@ -40,13 +40,15 @@ from .emulate.experiment import EmulatedExperiment, dca1000_radar, emulate_captu
 from .emulate.raw_files import (AdcImpairments, EmulatedCapture, QuantizedCube, Recording, quantize_cube,
                                 write_raw_capture)
 from .emulate.recording import EmulatedRecording, RecordingPlan, emulate_recording
+from .emulate.time_division import EmulatedTimeDivision, emulate_time_division
 from .errors import MeasuredFormatError
 from .sweep.alignment import RisPowerSeries, SweepAlignment, fit_alignment, manual_alignment, ris_power_series
-from .sweep.importer import default_processing, import_capture
+from .sweep.importer import default_processing, import_capture, import_captures
 from .sweep.leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .sweep.ris_timing import RisProgram, chirp_states
-from .sweep.schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
-                             write_sweep_schedule)
+from .sweep.schedule import (SweepSchedule, SweepSchedules, format_sweep_schedule, format_sweep_schedules,
+                             parse_sweep_schedule, parse_sweep_schedules, read_sweep_schedule, read_sweep_schedules,
+                             write_sweep_schedule, write_sweep_schedules)
 from .ti.chirp_config import TiChirp, TiChirpConfig, device_steps, slope_step, start_frequency_step
 from .ti.config_file import load_config
 from .ti.sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg
@@ -65,4 +67,6 @@ __all__ = [
     "file_iq_swap", "inspect_capture", "iter_frames", "load_config", "open_raw", "pack_header", "parse_sdk_cfg",
     "parse_studio_json", "plot_inspection", "quantize_cube", "read_raw", "read_sdk_cfg", "read_studio_json",
     "device_steps", "slope_step", "start_frequency_step", "write_raw_capture",
+    "EmulatedTimeDivision", "SweepSchedules", "emulate_time_division", "format_sweep_schedules", "import_captures",
+    "parse_sweep_schedules", "read_sweep_schedules", "write_sweep_schedules",
 ]

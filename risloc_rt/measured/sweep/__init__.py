@@ -11,11 +11,12 @@ Room 3 of :mod:`risloc_rt.measured` (imports :mod:`..dca1000`, :mod:`..ti`, :mod
 
 from .alignment import (ASSEMBLE_MODES, DEFAULT_ASSEMBLE, SPAN_PREFERENCE, RisPowerSeries, ScheduleCheck, SweepAlignment,
                         check_first_frame, fit_alignment, manual_alignment, ris_power_series, select_chirps)
-from .importer import DEFAULT_LEAKAGE, default_processing, import_capture
+from .importer import DEFAULT_LEAKAGE, default_processing, import_capture, import_captures
 from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .ris_timing import MAX_SYNC_CHIPS, OFF, SYNC, RisProgram, chirp_fractions, chirp_states
-from .schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
-                       write_sweep_schedule)
+from .schedule import (SweepSchedule, SweepSchedules, format_sweep_schedule, format_sweep_schedules,
+                       parse_sweep_schedule, parse_sweep_schedules, read_sweep_schedule, read_sweep_schedules,
+                       write_sweep_schedule, write_sweep_schedules)
 
 __all__ = [
     "ASSEMBLE_MODES", "DEFAULT_ASSEMBLE", "MAX_SYNC_CHIPS", "SPAN_PREFERENCE", "ScheduleCheck", "check_first_frame",
@@ -24,4 +25,6 @@ __all__ = [
     "SweepAlignment", "SweepSchedule", "apply_range_gate", "chirp_fractions", "chirp_states", "default_processing",
     "fit_alignment", "format_sweep_schedule", "import_capture", "manual_alignment", "parse_sweep_schedule",
     "range_gate_basis", "read_sweep_schedule", "ris_power_series", "subtract_background", "write_sweep_schedule",
+    "SweepSchedules", "format_sweep_schedules", "import_captures", "parse_sweep_schedules", "read_sweep_schedules",
+    "write_sweep_schedules",
 ]

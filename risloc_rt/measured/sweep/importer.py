@@ -47,9 +47,9 @@ from .alignment import (DEFAULT_ASSEMBLE, ScheduleCheck, SweepAlignment, check_f
                         manual_alignment, ris_power_series)
 from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .ris_timing import chirp_fractions
-from .schedule import SweepSchedule, format_sweep_schedule, read_sweep_schedule
+from .schedule import SweepSchedule, SweepSchedules, format_sweep_schedule, read_sweep_schedules
 
-__all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture", "import_memory"]
+__all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture", "import_captures", "import_memory"]
 
 DEFAULT_LEAKAGE = "gate"
 """Self-interference removal on import (chosen by the measurements in docs/measured-captures.md)."""
@@ -281,8 +281,62 @@ def _combined_cube(beams: _BeamFrames, radar: RadarConfig, leakage: str, gate_ra
     return cube, weights
 
 
+def _slot_schedule(schedule: str | Path | SweepSchedule | SweepSchedules, ris: int | str | None,
+                   cfg: TiChirpConfig, first_frame: int | str | None,
+                   leakage: str) -> tuple[SweepSchedule, dict[str, Any] | None]:
+    """The schedule of the RIS imported (its slot's first frame) and the ``ris_slot`` provenance (None: one RIS)."""
+    if isinstance(schedule, SweepSchedule):
+        if ris is not None:
+            raise MeasuredFormatError(f"ris={ris!r}: the sweep schedule describes one RIS; leave out --ris")
+        return schedule, None
+    several = schedule if isinstance(schedule, SweepSchedules) else read_sweep_schedules(schedule)
+    frame_interval = cfg.to_radar_config().frame_interval
+    sched = several.schedule(ris, frame_interval=frame_interval)
+    if not several.several:
+        return sched, None
+    index = several.index(ris)
+    if len(several.names) > 1 and first_frame == "auto":
+        raise MeasuredFormatError(f"--first-frame auto: {several.source} describes {len(several.names)} RISs in "
+                                  "time division, whose sweeps look alike to the aligner; give the slot's first frame")
+    if len(several.names) > 1 and leakage == "background":
+        raise MeasuredFormatError(f"leakage removal 'background' needs RIS-off frames; in {several.source} the other "
+                                  "RISs sweep outside this RIS's slot; use --leakage gate")
+    slot = {"name": several.names[index], "index": index, "names": list(several.names),
+            "first_frames": list(several.first_frames(frame_interval)),
+            "time_division": several.time_division(frame_interval).to_dict()}
+    return sched, slot
+
+
+def import_captures(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
+                    schedule: str | Path | SweepSchedules, **options: Any) -> dict[str, Capture]:
+    """Import every RIS of a time-division recording: one capture per RIS (:func:`import_capture`).
+
+    Parameters
+    ----------
+    raw, config
+        As :func:`import_capture`.
+    schedule : path or SweepSchedules
+        A sweep schedule of one or several RISs (``[[ris]]`` tables, ``docs/formats.md`` "Several RISs").
+    **options
+        The other keywords of :func:`import_capture` (not ``ris``).
+
+    Returns
+    -------
+    dict of str to Capture
+        Each RIS's capture (its slot's beams, cube [ADC counts]) by its name, in file order; ``""``
+        for the one-RIS form.
+    """
+    if "ris" in options:
+        raise TypeError("import_captures imports every RIS; use import_capture(..., ris=NAME) for one")
+    several = schedule if isinstance(schedule, SweepSchedules) else read_sweep_schedules(schedule)
+    if not several.several:
+        return {"": import_capture(raw, config, several.schedules[0], **options)}
+    return {name: import_capture(raw, config, several, ris=name, **options) for name in several.names}
+
+
 def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | TiChirpConfig,
-                   schedule: str | Path | SweepSchedule, *, lanes: int | None = None, iq_swap: bool | None = None,
+                   schedule: str | Path | SweepSchedule | SweepSchedules, *, ris: int | str | None = None,
+                   lanes: int | None = None, iq_swap: bool | None = None,
                    form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
                    leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
                    channels: Sequence[int] | None = None, min_confidence: float = 0.5,
@@ -295,8 +349,10 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         ``adc_data_Raw_0.bin`` (split siblings are collected) or the files in order.
     config : path or TiChirpConfig
         mmWave SDK ``.cfg`` or mmWave Studio ``.json`` (its lane count is used when ``lanes`` is None).
-    schedule : path or SweepSchedule
-        The sweep schedule (TOML, ``docs/formats.md``).
+    schedule : path, SweepSchedule or SweepSchedules
+        The sweep schedule (TOML, ``docs/formats.md``), of one RIS or several (``[[ris]]`` tables).
+    ris : str, int or None
+        With several RISs: the one whose slot to import (its name or index); None for one RIS.
     lanes : {2, 4}, optional
         LVDS lanes (default: the Studio JSON's, else 2).
     iq_swap : bool, optional
@@ -335,7 +391,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         sha256 of every file, the config text, the schedule, the alignment, the leakage removal, the
         channels and the reader's issues; ``import_warnings`` (one-line texts) and ``import_flags``
         (``[{"code": "schedule-mismatch", "message": ...}]``) when the recording contradicts a given
-        first frame; ``truth`` from the schedule's ``[truth]`` or None.
+        first frame; ``truth`` from the schedule's ``[truth]`` or None; ``ris_slot`` (several RISs:
+        the RIS's name and index, every RIS's first frame, the time division; else None).
 
     Raises
     ------
@@ -348,7 +405,7 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     if leakage not in LEAKAGE_METHODS:
         raise MeasuredFormatError(f"leakage = {leakage!r} must be one of {', '.join(LEAKAGE_METHODS)}")
     cfg, cfg_lanes, config_path, config_text = _configuration(config)
-    sched = schedule if isinstance(schedule, SweepSchedule) else read_sweep_schedule(schedule)
+    sched, slot = _slot_schedule(schedule, ris, cfg, first_frame, leakage)
     chans = _channels(channels, sched, cfg)
     first_frame = _first_frame(first_frame, sched)
     lanes = lanes or cfg_lanes or 2
@@ -397,6 +454,7 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         alignment=alignment,
         import_warnings=warnings_,
         import_flags=flags,
+        ris_slot=slot,
         leakage={"method": leakage, "gate_range": gate_range if leakage == "gate" else None,
                  "background_frames": len(off)},
         channels={"channels": list(chans), "combine": "single" if len(chans) == 1 else "mrc",

@@ -32,7 +32,7 @@ from __future__ import annotations
 import difflib
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -41,11 +41,14 @@ import numpy as np
 from dsp.budget import check_memory
 
 from ..._files import atomic_write_bytes
+from ..._outputs import safe_name
+from ...model.time_division import TimeDivision, parse_time_division
 from ..errors import MeasuredFormatError, read_text_file
 from .ris_timing import MAX_SYNC_CHIPS, RisProgram
 
-__all__ = ["SweepSchedule", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule", "ris_memory",
-           "write_sweep_schedule"]
+__all__ = ["SweepSchedule", "SweepSchedules", "read_sweep_schedule", "parse_sweep_schedule", "format_sweep_schedule",
+           "ris_memory", "write_sweep_schedule", "parse_sweep_schedules", "read_sweep_schedules",
+           "format_sweep_schedules", "write_sweep_schedules"]
 
 _TOP = ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift", "sweep", "ris", "truth",
         "sync", "tolerance")
@@ -356,31 +359,36 @@ def _ris_fields(doc: dict[str, Any], source: str) -> dict[str, Any]:
     """The ``[ris]`` table: pose [m], τ_RB [ns], mode, element grid and pitch [m], relay Rx beam and yaw [deg]."""
     ris = _table(doc, "ris", source, required=True)
     _check_keys(ris, _RIS, source, "ris.")
+    return _ris_values(ris, source, "ris.")
+
+
+def _ris_values(ris: dict[str, Any], source: str, prefix: str) -> dict[str, Any]:
+    """One RIS table's values (keys checked by the caller); ``prefix`` names it in messages (``ris.``, ``ris[1].``)."""
     for key in ("position", "facing", "loopback_delay_ns"):
         if key not in ris:
-            raise MeasuredFormatError(f"{source}: ris.{key} is missing; add it (docs/formats.md, \"Sweep schedule "
+            raise MeasuredFormatError(f"{source}: {prefix}{key} is missing; add it (docs/formats.md, \"Sweep schedule "
                                       "files\": position and facing [m], loopback_delay_ns)")
-    position = _vector(ris["position"], source, "ris.position", 3, fix="give the RIS centre [x, y, z] in metres")
-    facing = _vector(ris["facing"], source, "ris.facing", 3,
+    position = _vector(ris["position"], source, prefix + "position", 3, fix="give the RIS centre [x, y, z] in metres")
+    facing = _vector(ris["facing"], source, prefix + "facing", 3,
                      fix="give the point the RIS broadside faces [x, y, z] in metres")
     if np.allclose(position, facing):
-        raise MeasuredFormatError(f"{source}: ris.facing equals ris.position; give a point the panel faces, "
+        raise MeasuredFormatError(f"{source}: {prefix}facing equals {prefix}position; give a point the panel faces, "
                                   "e.g. the radar's position")
-    delay = _float(ris["loopback_delay_ns"], source, "ris.loopback_delay_ns", minimum=0.0,
+    delay = _float(ris["loopback_delay_ns"], source, prefix + "loopback_delay_ns", minimum=0.0,
                    fix="give the RIS's receive-to-transmit delay τ_RB in nanoseconds, e.g. 1.78")
     mode = ris.get("mode", "relay")
     if mode not in ("relay", "reflective"):
-        raise MeasuredFormatError(f"{_where(source, 'ris.mode')} = {mode!r} must be \"relay\" or \"reflective\"")
-    rows = _int(ris.get("rows", 16), source, "ris.rows", minimum=1, fix="give the elements along azimuth, e.g. 16")
-    columns = _int(ris.get("columns", 4), source, "ris.columns", minimum=1,
+        raise MeasuredFormatError(f"{_where(source, prefix + 'mode')} = {mode!r} must be \"relay\" or \"reflective\"")
+    rows = _int(ris.get("rows", 16), source, prefix + "rows", minimum=1, fix="give the elements along azimuth, e.g. 16")
+    columns = _int(ris.get("columns", 4), source, prefix + "columns", minimum=1,
                    fix="give the elements along elevation, e.g. 4")
     spacing = None
     if "element_spacing" in ris:
-        spacing = _float(ris["element_spacing"], source, "ris.element_spacing", positive=True,
+        spacing = _float(ris["element_spacing"], source, prefix + "element_spacing", positive=True,
                          fix="give the element pitch in metres, e.g. 0.0025")
-    rx = _vector(ris.get("relay_rx_angle_deg", [0.0, 0.0]), source, "ris.relay_rx_angle_deg", 2,
+    rx = _vector(ris.get("relay_rx_angle_deg", [0.0, 0.0]), source, prefix + "relay_rx_angle_deg", 2,
                  fix="give the relay Rx beam [az, el] in degrees")
-    yaw = _float(ris.get("yaw_deg", 0.0), source, "ris.yaw_deg", fix="give the panel yaw in degrees")
+    yaw = _float(ris.get("yaw_deg", 0.0), source, prefix + "yaw_deg", fix="give the panel yaw in degrees")
     return {"ris_position": position, "ris_facing": facing, "loopback_delay_ns": delay, "ris_mode": mode,
             "ris_rows": rows, "ris_columns": columns, "ris_element_spacing": spacing,
             "relay_rx_angle_deg": (rx[0], rx[1]), "yaw_deg": yaw}
@@ -531,6 +539,11 @@ def parse_sweep_schedule(text: str, *, source: str = "<sweep schedule>") -> Swee
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise MeasuredFormatError(f"{source}: not valid TOML ({exc}); check quotes, brackets and '=' signs") from None
+    if isinstance(doc.get("ris"), list):
+        names = [t.get("name", "?") if isinstance(t, dict) else "?" for t in doc["ris"]]
+        raise MeasuredFormatError(
+            f"{source}: describes {len(names)} RIS(s) in [[ris]] tables ({', '.join(map(str, names))}); read it with "
+            "read_sweep_schedules (risloc_rt.measured.sweep.schedule), or import one RIS with --ris NAME")
     _check_keys(doc, _TOP, source, "")
     frames = _frame_fields(doc, source)
     sweep = _table(doc, "sweep", source, required=True)
@@ -662,3 +675,384 @@ def write_sweep_schedule(schedule: SweepSchedule, path: str | Path, *, comment: 
         ``path``.
     """
     return atomic_write_bytes(path, format_sweep_schedule(schedule, comment=comment).encode("utf-8"))
+
+
+# ---------------------------------------------------------------------------------------------- several RISs
+
+_MULTI_TOP = _TOP + ("schedule",)
+_MULTI_RIS = ("name", "first_frame") + _RIS
+#: ``[schedule]`` keys that place the slots in time (refused when every ``[[ris]]`` gives its ``first_frame``).
+_PLACING = ("start_ms", "gap_ms", "cycle_ms")
+
+
+@dataclass(frozen=True)
+class SweepSchedules:
+    """The sweep schedule of a recording with one or several RISs (time division: one RIS sweeps per slot).
+
+    A file with one ``[ris]`` table is the one-RIS form (:class:`SweepSchedule`); a file with an array
+    of ``[[ris]]`` tables names each RIS and gives its slot (``docs/formats.md`` "Several RISs").
+
+    Attributes
+    ----------
+    names : tuple of str
+        The RISs, in file order (``("",)`` for the one-RIS form, whose ``[ris]`` has no name).
+    schedules : tuple of SweepSchedule
+        Each RIS's schedule (the shared sweep, frames per beam, channel and truth; its own RIS); its
+        ``first_frame`` is the slot's first recorded frame, or None where ``[schedule]`` places it
+        (:meth:`first_frames`).
+    first_frame : int or None
+        The top-level ``first_frame``: the first slot's first frame when ``[schedule]`` places the slots.
+    division : dict or None
+        The ``[schedule]`` table as given (keys of :data:`risloc_rt.model.time_division.SCHEDULE_KEYS`).
+    several : bool
+        The file uses ``[[ris]]`` tables (False: the one-RIS ``[ris]`` form).
+    source : str
+        The file, for messages (not compared).
+    """
+
+    names: tuple[str, ...]
+    schedules: tuple[SweepSchedule, ...]
+    first_frame: int | None = None
+    division: dict[str, Any] | None = None
+    several: bool = True
+    source: str = field(default="<sweep schedule>", compare=False)
+
+    @classmethod
+    def single(cls, schedule: SweepSchedule, *, source: str = "<sweep schedule>") -> "SweepSchedules":
+        """The one-RIS form of ``schedule`` (name ``""``)."""
+        return cls(names=("",), schedules=(schedule,), first_frame=schedule.first_frame, several=False,
+                   source=source)
+
+    def index(self, ris: int | str | None, *, where: str = "--ris") -> int:
+        """The index of RIS ``ris`` (a name, or an index in file order); None: the only RIS.
+
+        Parameters
+        ----------
+        ris : str, int or None
+            The RIS's ``name`` in its ``[[ris]]`` table, or its index (0-based, file order).
+        where : str
+            What gave ``ris``, for the message.
+
+        Returns
+        -------
+        int
+        """
+        if not self.several:
+            if ris is None:
+                return 0
+            raise MeasuredFormatError(f"{where} {ris}: {self.source} describes one RIS in a [ris] table (no names); "
+                                      f"leave out {where}")
+        if ris is None:
+            if len(self.names) == 1:
+                return 0
+            raise MeasuredFormatError(f"{self.source} describes {len(self.names)} RISs ({', '.join(self.names)}); "
+                                      f"choose one with {where} NAME, or import them all")
+        if isinstance(ris, str) and ris in self.names:
+            return self.names.index(ris)
+        text = str(ris)
+        if text.isdigit() and int(text) < len(self.names):
+            return int(text)
+        raise MeasuredFormatError(f"{where} {ris}: {self.source} has no such RIS; it has {', '.join(self.names)} "
+                                  f"(give a name or an index 0..{len(self.names) - 1})")
+
+    def _slot_frames(self, frame_interval: float | None) -> float:
+        """One slot's length [frames]: M × frames per beam (or × beam_dwell_ms / T_f)."""
+        s = self.schedules[0]
+        if s.frames_per_beam is not None:
+            return float(s.num_beams * s.frames_per_beam)
+        if frame_interval is None:
+            raise MeasuredFormatError(f"{self.source}: beam_dwell_ms is on the RIS's clock; the radar's frame period "
+                                      "(the configuration's frameCfg) is needed to place the slots in frames")
+        return s.num_beams * s.beam_dwell_ms * 1e-3 / float(frame_interval)
+
+    def time_division(self, frame_interval: float) -> TimeDivision:
+        """The slots in time (:class:`risloc_rt.model.time_division.TimeDivision`), from the recording's first frame.
+
+        Parameters
+        ----------
+        frame_interval : float
+            The radar's frame period T_f [s].
+
+        Returns
+        -------
+        TimeDivision
+            Slot starts [s] after frame 0 (relative to the first slot when ``[schedule]`` places them).
+        """
+        tf = float(frame_interval)
+        sweep = self._slot_frames(tf) * tf
+        where = f"{self.source}: [schedule]"
+        if self.schedules[0].first_frame is None or not self.several:
+            return parse_time_division(self.division, ris_names=self.names, sweep_duration=sweep, where=where,
+                                       error=MeasuredFormatError)
+        table = dict(self.division or {})
+        ordered = sorted(range(len(self.names)), key=lambda i: self.schedules[i].first_frame)
+        starts = [self.schedules[i].first_frame * tf for i in ordered]
+        table.update(order=[self.names[i] for i in ordered], start_ms=[s * 1e3 for s in starts])
+        return parse_time_division(table, ris_names=self.names, sweep_duration=sweep, where=where,
+                                   error=MeasuredFormatError)
+
+    def first_frames(self, frame_interval: float | None = None) -> tuple[int, ...]:
+        """Each RIS's first recorded frame (file order): as given, or placed by ``[schedule]``.
+
+        Parameters
+        ----------
+        frame_interval : float, optional
+            The radar's frame period T_f [s]; needed when ``[schedule]`` places the slots (its
+            times are in milliseconds: slot k starts at ``first_frame + start_k / T_f``, a whole
+            frame) or the dwell is in milliseconds.
+
+        Returns
+        -------
+        tuple of int
+        """
+        given = [s.first_frame for s in self.schedules]
+        if all(f is not None for f in given):
+            if frame_interval is not None or self.schedules[0].frames_per_beam is not None:
+                _check_slots(self.names, given, self._slot_frames(frame_interval), self.source)
+            return tuple(int(f) for f in given)
+        if frame_interval is None:
+            raise MeasuredFormatError(f"{self.source}: [schedule] places the slots in milliseconds; the radar's frame "
+                                      "period (the configuration's frameCfg) is needed to find their frames")
+        td = self.time_division(frame_interval)
+        out = []
+        for name in self.names:
+            start = self.first_frame + td.starts[td.order.index(name)] / float(frame_interval)
+            if abs(start - round(start)) > 1e-6:
+                raise MeasuredFormatError(
+                    f"{self.source}: [schedule] starts RIS {name!r} at frame {start:.4g} (frame period "
+                    f"{frame_interval * 1e3:g} ms), not on a whole frame; give start_ms and gap_ms in whole frames, or "
+                    "each [[ris]] its first_frame")
+            out.append(int(round(start)))
+        return tuple(out)
+
+    def schedule(self, ris: int | str | None = None, *, frame_interval: float | None = None,
+                 where: str = "--ris") -> SweepSchedule:
+        """One RIS's :class:`SweepSchedule`, its ``first_frame`` that of its slot.
+
+        Parameters
+        ----------
+        ris : str, int or None
+            As :meth:`index`.
+        frame_interval : float, optional
+            As :meth:`first_frames` [s].
+        where : str
+            What gave ``ris``, for messages.
+
+        Returns
+        -------
+        SweepSchedule
+        """
+        i = self.index(ris, where=where)
+        if not self.several:
+            return self.schedules[0]
+        return replace(self.schedules[i], first_frame=self.first_frames(frame_interval)[i])
+
+
+def _check_slots(names: Any, firsts: Any, length: float, source: str) -> None:
+    """Refuse overlapping slots: each lasts ``length`` frames from its first frame."""
+    order = sorted(range(len(names)), key=lambda i: firsts[i])
+    for a, b in zip(order, order[1:]):
+        end = firsts[a] + length
+        if firsts[b] < end - 1e-9:
+            raise MeasuredFormatError(
+                f"{source}: ris[{b}].first_frame = {firsts[b]}: the slot of {names[b]!r} overlaps that of {names[a]!r} "
+                f"(frames {firsts[a]} to {math.ceil(end) - 1}, {length:g} frames); two RISs sweeping at once cannot be "
+                f"told apart: start {names[b]!r} at frame {math.ceil(end)} or later")
+
+
+def _multi_ris(doc: dict[str, Any], source: str) -> tuple[list[str], list[dict[str, Any]], list[int | None]]:
+    """The ``[[ris]]`` tables: names, RIS fields, given first frames (None: placed by ``[schedule]``)."""
+    tables = doc["ris"]
+    if not tables or not all(isinstance(t, dict) for t in tables):
+        raise MeasuredFormatError(f"{source}: ris must be [[ris]] tables, one per RIS, each with a name")
+    names: list[str] = []
+    fields: list[dict[str, Any]] = []
+    firsts: list[int | None] = []
+    for i, table in enumerate(tables):
+        prefix = f"ris[{i}]."
+        _check_keys(table, _MULTI_RIS, source, prefix)
+        name = table.get("name")
+        if not isinstance(name, str) or not name or safe_name(name) != name:
+            raise MeasuredFormatError(f"{source}: {prefix}name = {name!r} must be the RIS's name, a plain word such "
+                                      "as \"ris1\" (it names its capture file on import)")
+        if name in names:
+            raise MeasuredFormatError(f"{source}: {prefix}name = {name!r} is the name of ris[{names.index(name)}] too; "
+                                      "give each RIS its own name")
+        names.append(name)
+        fields.append(_ris_values(table, source, prefix))
+        first = table.get("first_frame")
+        if first == "auto":
+            raise MeasuredFormatError(f"{source}: {prefix}first_frame = \"auto\": with several RISs each slot's first "
+                                      "frame is given (the sweeps look alike to the aligner); give the frame index")
+        firsts.append(None if first is None else _int(first, source, prefix + "first_frame", minimum=0,
+                                                      fix="give the slot's first recorded frame (0-based)"))
+    return names, fields, firsts
+
+
+def _division_table(doc: dict[str, Any], names: list[str], firsts: list[int | None],
+                    source: str) -> dict[str, Any] | None:
+    """The ``[schedule]`` table, checked against the ``[[ris]]`` tables (its timing is checked on use)."""
+    table = _table(doc, "schedule", source, required=False)
+    given = [f is not None for f in firsts]
+    if any(given) and not all(given):
+        missing = names[given.index(False)]
+        raise MeasuredFormatError(f"{source}: some [[ris]] tables give first_frame and {missing!r} does not; give every "
+                                  "RIS its first_frame, or none (then [schedule] places the slots)")
+    if table is None:
+        if not all(given):
+            raise MeasuredFormatError(f"{source}: ris[0].first_frame is missing; give each [[ris]] its slot's first "
+                                      "frame, or add a [schedule] table (and a top-level first_frame) to place them")
+        return None
+    where = f"{source}: [schedule]"
+    order = table.get("order", names)
+    for name in order if isinstance(order, list) else ():
+        if name not in names:
+            raise MeasuredFormatError(f"{where}: order names RIS {name!r}, which has no [[ris]] table; add one (name, "
+                                      f"position, facing, loopback_delay_ns) or use one of {', '.join(names)}")
+    parse_time_division(table, ris_names=names, sweep_duration=1e-9, where=where, error=MeasuredFormatError)
+    left = [n for n in names if n not in order]
+    if left:
+        raise MeasuredFormatError(f"{where}: order leaves out RIS {left[0]!r}, which has a [[ris]] table; add it to "
+                                  "order (each RIS of the recording sweeps in one slot)")
+    if all(given):
+        placing = [k for k in _PLACING if k in table]
+        if placing:
+            raise MeasuredFormatError(f"{where}: {placing[0]} and each [[ris]] first_frame both place the slots; keep "
+                                      "one (with first_frame, [schedule] only says order, idle and parked_deg)")
+        by_frame = sorted(names, key=lambda n: firsts[names.index(n)])
+        if "order" in table and list(order) != by_frame:
+            raise MeasuredFormatError(f"{where}: order = {list(order)} but the first frames put the slots in the order "
+                                      f"{by_frame}; make them agree")
+    elif "first_frame" not in doc:
+        raise MeasuredFormatError(f"{source}: first_frame is missing; [schedule] places the slots from it: add the "
+                                  "first slot's first frame, e.g. first_frame = 0")
+    return dict(table)
+
+
+def parse_sweep_schedules(text: str, *, source: str = "<sweep schedule>") -> SweepSchedules:
+    """Parse a sweep schedule of one or several RISs (``docs/formats.md`` "Several RISs").
+
+    Parameters
+    ----------
+    text : str
+        The file's content (TOML): one ``[ris]`` table (:func:`parse_sweep_schedule`), or ``[[ris]]``
+        tables, each with ``name``, the ``[ris]`` keys and its slot's ``first_frame``, and an
+        optional ``[schedule]`` table (:mod:`risloc_rt.model.time_division`).
+    source : str
+        The name the messages give (the file's path).
+
+    Returns
+    -------
+    SweepSchedules
+        Angles [deg], positions [m], τ_RB [ns], frame counts, as in the file.
+
+    Raises
+    ------
+    MeasuredFormatError
+        As :func:`parse_sweep_schedule`; also a duplicate RIS name, overlapping slots, a
+        ``[schedule]`` naming a RIS without a ``[[ris]]`` table, ``"auto"`` or ``[sync]`` with several RISs.
+    """
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MeasuredFormatError(f"{source}: not valid TOML ({exc}); check quotes, brackets and '=' signs") from None
+    if not isinstance(doc.get("ris"), list):
+        return SweepSchedules.single(parse_sweep_schedule(text, source=source), source=source)
+    _check_keys(doc, _MULTI_TOP, source, "")
+    if "sync" in doc:
+        raise MeasuredFormatError(f"{source}: [sync] is for a one-RIS recording; with several [[ris]] give each slot's "
+                                  "first_frame (or a [schedule])")
+    if doc.get("first_frame") == "auto":
+        raise MeasuredFormatError(f"{source}: first_frame = \"auto\" is for a one-RIS recording; with several [[ris]] "
+                                  "give the slots' first frames")
+    names, ris_fields, firsts = _multi_ris(doc, source)
+    division = _division_table(doc, names, firsts, source)
+    frames = _frame_fields({**doc, "first_frame": doc.get("first_frame", 0)}, source)
+    top_first = frames["first_frame"] if "first_frame" in doc else None
+    sweep = _table(doc, "sweep", source, required=True)
+    _check_keys(sweep, _SWEEP, source, "sweep.")
+    angles, grid = _angles(sweep, source)
+    for i, ris in enumerate(ris_fields):
+        _check_ris_memory(len(angles), ris["ris_rows"], ris["ris_columns"], f"{source}: ris[{i}]")
+    shared = {**frames, **_sync_fields(doc, source), **_tolerance_fields(doc, source)}
+    truth = _truth_position(doc, source)
+    schedules = tuple(SweepSchedule(angles_deg=angles, grid=grid, truth_ue_position=truth,
+                                    **{**shared, "first_frame": first}, **ris)
+                      for ris, first in zip(ris_fields, firsts))
+    out = SweepSchedules(names=tuple(names), schedules=schedules, first_frame=top_first, division=division,
+                         source=source)
+    if all(f is not None for f in firsts) and schedules[0].frames_per_beam is not None:
+        out.first_frames()                                        # overlapping slots: refused now
+    return out
+
+
+def read_sweep_schedules(path: str | Path) -> SweepSchedules:
+    """Read a sweep schedule file of one or several RISs (:func:`parse_sweep_schedules`).
+
+    Parameters
+    ----------
+    path : path
+        The ``sweep.toml``.
+
+    Returns
+    -------
+    SweepSchedules
+    """
+    path = Path(path)
+    text = read_text_file(path, "sweep schedule",
+                          'give the .toml written with the recording (docs/formats.md, "Sweep schedule files")')
+    return parse_sweep_schedules(text, source=str(path))
+
+
+def format_sweep_schedules(schedules: SweepSchedules, *, comment: str | None = None) -> str:
+    """The TOML text of ``schedules``; ``parse_sweep_schedules(format_sweep_schedules(s)) == s``.
+
+    Parameters
+    ----------
+    schedules : SweepSchedules
+    comment : str, optional
+        Lines written first, each after ``#``.
+
+    Returns
+    -------
+    str
+    """
+    if not schedules.several:
+        return format_sweep_schedule(schedules.schedules[0], comment=comment)
+    doc = _as_document(schedules.schedules[0])
+    doc.pop("first_frame")
+    if schedules.first_frame is not None:
+        doc["first_frame"] = schedules.first_frame
+    lines = [f"# {line}" for line in (comment or "risloc sweep schedule, several RISs (docs/formats.md)").splitlines()]
+    for key in ("frames_per_beam", "beam_dwell_ms", "first_frame", "channel", "max_clock_drift"):
+        if key in doc:
+            lines.append(f"{key} = {_toml_value(doc[key])}")
+    tables = {"sweep": doc["sweep"], "schedule": schedules.division, "truth": doc.get("truth"),
+              "tolerance": doc.get("tolerance")}
+    for name, table in tables.items():
+        if table:
+            lines += ["", f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    for name, s in zip(schedules.names, schedules.schedules):
+        ris = {"name": name, **({} if s.first_frame is None else {"first_frame": s.first_frame}),
+               **_as_document(s)["ris"]}
+        lines += ["", "[[ris]]"] + [f"{k} = {_toml_value(v)}" for k, v in ris.items()]
+    return "\n".join(lines) + "\n"
+
+
+def write_sweep_schedules(schedules: SweepSchedules, path: str | Path, *, comment: str | None = None) -> Path:
+    """Write :func:`format_sweep_schedules` to ``path`` atomically.
+
+    Parameters
+    ----------
+    schedules : SweepSchedules
+    path : path
+        The ``.toml`` to write (replaced when it exists).
+    comment : str, optional
+        As :func:`format_sweep_schedules`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    return atomic_write_bytes(path, format_sweep_schedules(schedules, comment=comment).encode("utf-8"))
