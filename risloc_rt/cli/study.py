@@ -129,7 +129,8 @@ def _map(args: argparse.Namespace) -> int:
     try:
         settings = MapSettings(scene=args.hall, spacing=args.spacing, height=args.height, runs=args.runs,
                                seed=args.seed, estimator=args.estimator, depth=args.depth, samples=args.samples,
-                               tx_power_dbm=args.tx_power_dbm, margin=args.margin)
+                               tx_power_dbm=args.tx_power_dbm, margin=args.margin, ris=tuple(args.ris or ()),
+                               peb_bound=args.peb_bound)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     result = _on_cluster(args, lambda dask: run_map(settings, args.out, workers=args.workers, dask=dask,
@@ -187,8 +188,9 @@ def add_parser(sub) -> None:
     sw.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     sw.set_defaults(func=_sweep)
 
-    mp = verbs.add_parser("map", help="position RMSE, detection, PEB and flags over a hall's floor",
-                          description="radar positions on a floor grid of a hall, traced once, N noise runs each")
+    mp = verbs.add_parser("map", help="position RMSE, detection, PEB, serving RIS and coverage over a hall's floor",
+                          description="radar positions on a floor grid of a hall, traced once per RIS that sees "
+                                      "them, N noise runs each, several RISs' fixes fused; the coverage is printed")
     mp.add_argument("hall", nargs="?", default="paper_hall", help="scene name or folder (default paper_hall)")
     mp.add_argument("--spacing", type=float, default=1.0, help="grid spacing [m] (default 1.0)")
     mp.add_argument("--height", type=float, default=1.2, help="radar height above the floor [m] (default 1.2)")
@@ -197,6 +199,11 @@ def add_parser(sub) -> None:
     mp.add_argument("--seed", type=int, default=0)
     mp.add_argument("--estimator", choices=("paper", "refined"), default="refined")
     mp.add_argument("--tx-power-dbm", type=float, default=None, help="transmit power [dBm] (default Table I's 20)")
+    mp.add_argument("--ris", action="append", metavar="NAME",
+                    help="a RIS that sweeps (repeatable; a name or index of the spec's RISs; default every RIS: "
+                         "time division, one slot each)")
+    mp.add_argument("--peb-bound", type=float, default=0.05, metavar="M",
+                    help="coverage: the share of the floor with Pd >= 0.99 and PEB below M [m] (default 0.05)")
     mp.add_argument("--depth", type=int, default=3, help="ray-tracing depth (default 3)")
     mp.add_argument("--samples", type=int, default=100_000, help="rays per source (default 1e5)")
     mp.add_argument("--out", type=Path, required=True, metavar="DIR")

@@ -117,8 +117,10 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
     return save_figure(fig, path, tight=False, dpi=110)
 
 
-def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | Path) -> Path:
-    """Four heat maps over the hall outline: position RMSE, detection probability, PEB, dominant flag.
+def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | Path, *, unseen: Any = None,
+             coverage: dict[str, Any] | None = None) -> Path:
+    """Heat maps over the hall outline: position RMSE, detection probability, PEB, dominant flag; with several
+    RISs also the RIS that serves each cell.
 
     Parameters
     ----------
@@ -131,6 +133,10 @@ def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | 
         Its ``spacing`` [m] sizes the cells; the rest goes into the title.
     path : path-like
         The PNG to write (atomically).
+    unseen : float array [U, 3], optional
+        Floor cells no RIS sees [m]: drawn as grey crosses.
+    coverage : dict, optional
+        :func:`risloc_rt.studies.floor_map.coverage`: its share goes into the title.
 
     Returns
     -------
@@ -153,12 +159,25 @@ def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | 
               ("detection probability", [c["detection_probability"] for c in cells], "lin"),
               ("PEB (CRB) [m]", [c["peb"] for c in cells], "log"),
               ("dominant flag", [flags.index(c["dominant_flag"]) for c in cells], "cat")]
-    fig, axes = new_figure(figsize=(12, 8), nrows=2, ncols=2)
+    configs = spec.ris_configs()
+    names = [r.name for r in spec.ris]
+    several = len(configs) > 1
+    serving = names + ["none"]
+    if several:
+        panels.append(("served by (smallest own PEB, Pd >= 0.5)",
+                       [serving.index(c.get("served_by") or "none") for c in cells], "ris"))
+        labels = serving
+    fig, axes = new_figure(figsize=(18, 8) if several else (12, 8), nrows=2, ncols=3 if several else 2)
     fig.set_layout_engine("constrained")
-    ris = spec.ris_configs()[0]
+    if several:
+        axes.ravel()[-1].set_axis_off()
     for ax, (title, values, scale) in zip(axes.ravel(), panels):
         v = np.array(values, dtype=float)
-        norm = LogNorm() if scale == "log" and np.nanmax(v) > 0 else None
+        if scale == "ris":  # categories as the flags', "none" last
+            scale, flags_shown = "cat", labels
+        else:
+            flags_shown = flags
+        norm = LogNorm() if scale == "log" and np.nanmax(v[np.isfinite(v)], initial=0.0) > 0 else None
         cmap = "tab10" if scale == "cat" else ("viridis_r" if scale == "log" else "viridis")
         x0, y0 = xs.min(), ys.min()
         ix = np.rint((xs - x0) / s).astype(int)
@@ -172,7 +191,7 @@ def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | 
                            vmax=None if norm is not None else (9 if scale == "cat" else 1.0))
         if scale == "cat":
             handles = [Line2D([], [], marker="s", ls="", color=colormaps["tab10"](i / 9),
-                                  label=f) for i, f in enumerate(flags)]
+                                  label=f) for i, f in enumerate(flags_shown)]
             ax.legend(handles=handles, fontsize=7, loc="upper left")
         else:
             fig.colorbar(sc, ax=ax)
@@ -184,14 +203,22 @@ def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | 
                 ax.add_patch(Rectangle((ob.center[0] - ob.size[0] / 2, ob.center[1] - ob.size[1] / 2), ob.size[0],
                                        ob.size[1], angle=np.rad2deg(getattr(ob, "yaw", 0.0)), rotation_point="center",
                                        color="0.4"))
-        p = ris.pose.position
-        n = ris.pose.to_world(direction_from_angles(np.zeros(2)))  # boresight
-        ax.plot(p[0], p[1], "r^", ms=10)
-        ax.annotate("", xy=(p[0] + 2 * n[0], p[1] + 2 * n[1]), xytext=(p[0], p[1]), arrowprops={"color": "r"})
+        if unseen is not None and len(unseen):
+            u = np.asarray(unseen, dtype=float)
+            ax.plot(u[:, 0], u[:, 1], "x", color="0.6", ms=4)
+        for name, ris in zip(names, configs):
+            p = ris.pose.position
+            n = ris.pose.to_world(direction_from_angles(np.zeros(2)))  # boresight
+            ax.plot(p[0], p[1], "r^", ms=10)
+            ax.annotate("", xy=(p[0] + 2 * n[0], p[1] + 2 * n[1]), xytext=(p[0], p[1]), arrowprops={"color": "r"})
+            if several:
+                ax.annotate(name, xy=(p[0], p[1]), xytext=(4, 4), textcoords="offset points", color="r", fontsize=8)
         ax.set_title(title)
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
+    covered = (f"; coverage {100 * coverage['share']:.0f} % (Pd >= {coverage['detection_probability']:g}, "
+               f"PEB < {1e3 * coverage['peb_bound']:g} mm; x: floor no RIS sees)" if coverage else "")
     fig.suptitle(f"{settings.scene}: {len(cells)} cells, {settings.spacing:g} m grid at {settings.height:g} m, "
-                 f"{settings.runs} runs each, {settings.estimator} estimator (RIS: red)")
+                 f"{settings.runs} runs each, {settings.estimator} estimator (RIS: red){covered}")
     return save_figure(fig, path, tight=False, dpi=100)

@@ -1,14 +1,35 @@
-"""``risloc study map``: position RMSE, detection probability, PEB and the dominant flag over a hall's floor.
+"""``risloc study map``: position RMSE, detection probability, PEB, the serving RIS and the coverage over a hall's floor.
 
 Radar positions on a square grid over the hall's footprint at one height (``margin`` from the
-walls, outside objects, within the RIS's sweep fan); each cell is traced (``hall_paths`` with the
-trace cache: a rerun traces nothing), its noiseless cube synthesised once, and ``runs`` noise
-realizations localized (``kernel.run_once``, the noise of run r of cell c from
-``SeedSequence(seed, spawn_key=(c, r))``). The cells are the points of a study on the sweeps'
-engine (:func:`risloc_rt.studies.engine.execute` with :func:`prepare_cell` as the point preparer:
-worker processes or Dask, retried when a worker dies) and the runs are appended to ``runs.jsonl``
-as in a sweep, so a killed map continues and the numbers do not depend on the number of workers.
-Outputs: ``map.json`` (one entry per cell), ``map.parquet`` and ``map.png``
+walls, outside objects, at least 1 m from every RIS): the *floor cells*. A RIS *sees* a floor cell
+that lies in front of its panel within its ±45° sweep; the cells seen by at least one RIS are
+mapped, the others (``coverage["unseen"]`` of ``map.json``) count as floor that is not covered.
+
+**Several RISs: time division.** Each RIS sweeps in its own slot while the others are off
+(:func:`risloc_rt.hall.hall_scenario` with ``ris=k``, ``idle="off"``: the slot
+:func:`risloc_rt.hall.scenario.hall_slots` makes; their panels are echoes of the hall). A study *point* is a
+(cell, RIS) pair, in cell order and then the spec's RIS order, for each RIS that sees the cell: each
+is traced (``hall_paths`` with the trace cache: a rerun traces nothing), its noiseless cube
+synthesised once and ``runs`` noise realizations localized (``kernel.run_once``; the noise of run r
+of point p from ``SeedSequence(seed, spawn_key=(p, r))``). In a one-RIS scene the points are the
+cells, as before issue 22: the same rows for the same seed. The points run on the sweeps' engine
+(:func:`risloc_rt.studies.engine.execute` with :func:`prepare_cell` as the point preparer: worker
+processes or Dask, retried when a worker dies) and go to ``runs.jsonl`` as in a sweep, so a killed map
+continues and the numbers do not depend on the number of workers.
+
+**Per cell and run** (:func:`cell_run_position`): each detected RIS gives a ``dsp.RisFix`` (its
+distance and azimuth with their stated 1σ; the 1-D sweep sees no elevation); one fix is the
+position as ``dsp.self_localize`` gave it; two or more are fused: ``dsp.fuse_fixes`` decides which
+agree (its χ² test leaves out an inconsistent one, flag ``inconsistent-ris``), then the position of
+the fixes it used is re-solved with the radar's height known (the map's height: :func:`fuse_at_height`;
+RISs at one height leave the height unobservable, and a known height is what the single-RIS fix uses).
+**Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected),
+``rmse_position`` (over those runs), ``peb`` (the bound of the geometry: :func:`multi_ris_peb`, the
+summed Fisher information of the RISs that see the cell), ``served_by`` (the RIS with the smallest
+single-RIS PEB among those detected in at least half the runs; None when none is) and ``ris`` (each
+seeing RIS's own Pd, PEB, peak SNR and RMSE). **Coverage**: the share of the floor cells with
+``detection_probability >= 0.99`` and ``peb < peb_bound`` (:func:`coverage`).
+Outputs: ``map.json`` (one entry per mapped cell, and ``coverage``), ``map.parquet`` and ``map.png``
 (:func:`risloc_rt.studies.figures.plot_map`).
 """
 
@@ -36,11 +57,18 @@ from .figures import plot_map
 from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
 
-__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "grid_budget", "prepare_cell", "MAX_GRID_POINTS"]
+__all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "grid_budget", "prepare_cell",
+           "multi_ris_peb", "fuse_at_height", "cell_run_position", "coverage", "MAX_GRID_POINTS",
+           "COVERED_PD", "DEFAULT_PEB_BOUND"]
 
 #: More grid points than this (before the cells are chosen) are refused unless ``force_long``: each
 #: cell is a trace and ``runs`` runs (≈ 14 s of one core at 20 runs), so 10⁵ cells are weeks.
 MAX_GRID_POINTS = 100_000
+#: A floor cell is covered when its detection probability is at least this (n/n runs for n < 100)
+#: and its PEB is below the map's ``peb_bound``.
+COVERED_PD = 0.99
+#: The default PEB bound of the coverage [m] (``--peb-bound``; docs/studies.md, "Coverage").
+DEFAULT_PEB_BOUND = 0.05
 
 
 @dataclass(frozen=True)
@@ -68,6 +96,10 @@ class MapSettings:
         Transmit power [dBm] (None: Table I's 20 dBm).
     margin : float
         Least distance of a cell from walls and objects [m].
+    ris : tuple of str
+        The RISs that sweep (names in the spec; empty: every RIS of the scene).
+    peb_bound : float
+        The coverage's PEB bound [m] (a cell is covered with Pd >= :data:`COVERED_PD` and PEB below it).
     """
 
     scene: str = "paper_hall"
@@ -80,19 +112,32 @@ class MapSettings:
     samples: int = 100_000
     tx_power_dbm: float | None = None
     margin: float = 0.5
+    ris: tuple[str, ...] = ()
+    peb_bound: float = DEFAULT_PEB_BOUND
 
     def __post_init__(self) -> None:
         for name in ("spacing", "height"):
             positive(getattr(self, name), f"--{name}", "m", error=ValueError)
+        positive(self.peb_bound, "--peb-bound", "m", error=ValueError)
+        names = (self.ris,) if isinstance(self.ris, str) else tuple(self.ris)
+        if len(set(names)) != len(names):
+            raise ValueError(f"--ris names a RIS twice ({', '.join(names)}); give each RIS once")
+        object.__setattr__(self, "ris", tuple(str(n) for n in names))
         non_negative(self.margin, "--margin", "m", error=ValueError)
         integer(self.runs, "--runs", minimum=1, error=ValueError)
         one_of(self.estimator, "--estimator", ("paper", "refined"), error=ValueError)
 
     @property
     def key(self) -> str:
-        """sha256 of every setting but ``runs`` (more runs extend a map), 16 hex digits."""
+        """sha256 of every setting but ``runs`` (more runs extend a map) and ``peb_bound`` (read after the
+        runs), 16 hex digits; ``ris`` only when given (a map of every RIS keeps its key from before issue 22)."""
         d = asdict(self)
         d.pop("runs")
+        d.pop("peb_bound")
+        if not d["ris"]:
+            d.pop("ris")
+        else:
+            d["ris"] = list(d["ris"])
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -147,13 +192,104 @@ def grid_budget(settings: MapSettings, *, long_ok: bool = False) -> tuple[int, i
     return points, estimate
 
 
-def grid_cells(settings: MapSettings, *, long_ok: bool = False) -> tuple[Any, np.ndarray, np.ndarray]:
-    """The cells of a floor map: inside the footprint, away from walls and objects, within the sweep fan.
+@dataclass(frozen=True)
+class FloorGrid:
+    """The floor cells of a map and which RIS sees which (:func:`floor_grid`).
+
+    Attributes
+    ----------
+    spec : risloc_rt.authoring.spec.HallSpec
+        The hall's spec.
+    positions : ndarray, shape (P, 3)
+        Every grid point (x-major over the footprint's bounding box) at the map's height [m].
+    floor : ndarray of bool, shape (P,)
+        Floor cells: inside the footprint, ``margin`` from walls and objects, at least 1 m from every RIS.
+    sees : ndarray of bool, shape (P, R)
+        RIS k (of ``names``) sees point p: a floor cell in front of its panel within its ±45° sweep.
+    names : tuple of str
+        The RISs that sweep (``settings.ris``, or every RIS), in the spec's order.
+    indices : tuple of int
+        Their indices in the spec.
+    """
+
+    spec: Any
+    positions: np.ndarray
+    floor: np.ndarray
+    sees: np.ndarray
+    names: tuple[str, ...]
+    indices: tuple[int, ...]
+
+
+def floor_grid(settings: MapSettings, *, long_ok: bool = False) -> FloorGrid:
+    """The floor cells of a map and, for each RIS that sweeps, the cells it sees.
 
     Parameters
     ----------
     settings : MapSettings
-        The hall, ``spacing``, ``height`` and ``margin`` [m].
+        The hall, ``spacing``, ``height`` and ``margin`` [m], ``ris`` (names; empty: every RIS).
+    long_ok : bool
+        Allow more than :data:`MAX_GRID_POINTS` grid points (:func:`grid_budget`, checked first).
+
+    Returns
+    -------
+    FloorGrid
+
+    Raises
+    ------
+    ValueError
+        A name of ``settings.ris`` the spec does not have (one line naming the RISs it has), or the
+        scene has no RIS.
+    dsp.budget.BudgetError, StudyError
+        The grid is too large (:func:`grid_budget`).
+    """
+    from ..authoring.geometry import load_geometry
+    from ..authoring.polygon import boundary_distance, contains
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
+    from ..hall.scenario import ris_index
+
+    grid_budget(settings, long_ok=long_ok)
+    folder = scene_directory(settings.scene)
+    spec = load_spec(folder / "spec.toml")
+    configs = spec.ris_configs()
+    if not configs:
+        raise ValueError(f"scene {settings.scene!r} has no RIS; add a [[ris]] table to its spec")
+    indices = sorted({ris_index(spec, name, where="--ris") for name in settings.ris}) if settings.ris \
+        else list(range(len(configs)))
+    poly = np.array(spec.footprint, dtype=float)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    xs = np.arange(lo[0] + settings.spacing / 2, hi[0], settings.spacing)
+    ys = np.arange(lo[1] + settings.spacing / 2, hi[1], settings.spacing)
+    xy = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+    floor = contains(poly, xy) & (boundary_distance(poly, xy) >= settings.margin)
+    pts = np.column_stack([xy, np.full(len(xy), settings.height)])
+    geometry = load_geometry(folder / "scene.xml")
+    sees = np.zeros((len(xy), len(indices)), dtype=bool)
+    for i in np.flatnonzero(floor):
+        try:
+            geometry.check_point(pts[i], clearance=settings.margin)
+        except ValueError:
+            floor[i] = False
+            continue
+        if any(np.linalg.norm(pts[i] - ris.pose.position) < 1.0 for ris in configs):  # too near a panel
+            floor[i] = False
+            continue
+        for j, k in enumerate(indices):
+            ris = configs[k]
+            az, _ = ris.pose.angles_to(pts[i])
+            front = ris.pose.to_local(pts[i] - ris.pose.position)[2] > 0
+            sees[i, j] = bool(front and abs(az) <= np.deg2rad(45.0))
+    return FloorGrid(spec=spec, positions=pts, floor=floor, sees=sees,
+                     names=tuple(spec.ris[k].name for k in indices), indices=tuple(indices))
+
+
+def grid_cells(settings: MapSettings, *, long_ok: bool = False) -> tuple[Any, np.ndarray, np.ndarray]:
+    """The mapped cells: floor cells (inside the footprint, away from walls, objects and RISs) that some RIS sees.
+
+    Parameters
+    ----------
+    settings : MapSettings
+        The hall, ``spacing``, ``height`` and ``margin`` [m], ``ris``.
     long_ok : bool
         Allow more than :data:`MAX_GRID_POINTS` grid points (:func:`grid_budget`, checked first).
 
@@ -169,64 +305,38 @@ def grid_cells(settings: MapSettings, *, long_ok: bool = False) -> tuple[Any, np
     Raises
     ------
     ValueError
-        No grid point qualifies.
+        No grid point qualifies, or a RIS of ``settings.ris`` the spec does not have.
     dsp.budget.BudgetError, StudyError
         The grid is too large (:func:`grid_budget`).
     """
-    from ..authoring.geometry import load_geometry
-    from ..authoring.polygon import boundary_distance, contains
-    from ..authoring.scene_folder import scene_directory
-    from ..authoring.spec import load_spec
-
-    grid_budget(settings, long_ok=long_ok)
-    folder = scene_directory(settings.scene)
-    spec = load_spec(folder / "spec.toml")
-    poly = np.array(spec.footprint, dtype=float)
-    lo, hi = poly.min(axis=0), poly.max(axis=0)
-    xs = np.arange(lo[0] + settings.spacing / 2, hi[0], settings.spacing)
-    ys = np.arange(lo[1] + settings.spacing / 2, hi[1], settings.spacing)
-    xy = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
-    keep = contains(poly, xy) & (boundary_distance(poly, xy) >= settings.margin)
-    pts = np.column_stack([xy, np.full(len(xy), settings.height)])
-    geometry = load_geometry(folder / "scene.xml")
-    ris = spec.ris_configs()[0]
-    for i in np.flatnonzero(keep):
-        try:
-            geometry.check_point(pts[i], clearance=settings.margin)
-        except ValueError:
-            keep[i] = False
-            continue
-        if np.linalg.norm(pts[i] - ris.pose.position) < 1.0:  # too near the panel (and its own cell)
-            keep[i] = False
-            continue
-        az, _ = ris.pose.angles_to(pts[i])
-        front = ris.pose.to_local(pts[i] - ris.pose.position)[2] > 0
-        if not (front and abs(az) <= np.deg2rad(45.0)):
-            keep[i] = False
+    grid = floor_grid(settings, long_ok=long_ok)
+    keep = grid.floor & grid.sees.any(axis=1)
     if not keep.any():
         raise ValueError(f"no grid cell of {settings.scene!r} lies inside the hall, {settings.margin:g} m from its walls "
-                         "and objects and within the RIS's ±45° sweep; use a smaller --spacing or --margin")
-    return spec, pts[keep], keep
+                         "and objects and within a RIS's ±45° sweep; use a smaller --spacing or --margin")
+    return grid.spec, grid.positions[keep], keep
 
 
 def _cell_settings(settings: MapSettings) -> dict[str, Any]:
-    """What a cell's cube depends on (not ``runs``, ``seed`` or ``estimator``: those are per run)."""
+    """What a cell's cube depends on (not ``runs``, ``seed`` or ``estimator``: those are per run; not
+    ``ris`` or ``peb_bound``: a point names its RIS, the bound is read after the runs)."""
     d = asdict(settings)
-    for name in ("runs", "seed"):
+    for name in ("runs", "seed", "ris", "peb_bound"):
         d.pop(name)
     return d
 
 
 def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
-    """The floor map's point preparer: trace one cell (through the trace cache), synthesise its noiseless
-    cube once, and its bound.
+    """The floor map's point preparer: trace one cell in one RIS's slot (through the trace cache), synthesise
+    its noiseless cube once, and its bound.
 
     Parameters
     ----------
     params : dict
-        ``{"cell": index, "ue": [x, y, z] (radar position [m]), "settings": {...}}`` as
-        :class:`_MapPlan` makes them (plain data: a worker process or a Dask worker rebuilds the
-        cell from them).
+        ``{"cell": index, "ue": [x, y, z] (radar position [m]), "ris": k (the spec's index of the RIS that
+        sweeps; default 0), "settings": {...}}`` as :class:`_MapPlan` makes them (plain data: a worker
+        process or a Dask worker rebuilds the cell from them). The other RISs of the scene are off in
+        this slot (time division), their panels echoes of the hall.
 
     Returns
     -------
@@ -244,7 +354,7 @@ def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
     settings = MapSettings(**params["settings"])
     ue = np.asarray(params["ue"], dtype=float)
     radar = RadarConfig() if settings.tx_power_dbm is None else RadarConfig(tx_power_dbm=settings.tx_power_dbm)
-    hs = hall_scenario(settings.scene, ue_position=ue, radar=radar,
+    hs = hall_scenario(settings.scene, ue_position=ue, radar=radar, ris=int(params.get("ris", 0)), idle="off",
                        trace=TraceSettings(max_depth=settings.depth, samples_per_src=settings.samples))
     with warnings.catch_warnings(record=True) as caught:  # e.g. range aliasing: kept per cell, not printed
         warnings.simplefilter("always")
@@ -260,12 +370,170 @@ def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
                          pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start)
 
 
+def _num(value: Any) -> float:
+    """A run row's float (None, as the run log writes NaN, is NaN)."""
+    return float("nan") if value is None else float(value)
+
+
+def multi_ris_peb(bounds: Any, position: Any) -> float:
+    """The PEB of several RISs at one radar position with its height known: from the summed Fisher information.
+
+    Each RIS i measures the radar's distance dᵢ and azimuth azᵢ (its frame) with the 1σ of its
+    Cramér–Rao bound at that position (the fixed-phase ``distance`` [m] and ``angle`` [rad] of
+    :func:`risloc_rt.studies.kernel.point_bound`, which the map's cell preparer computes from the
+    RIS's own noiseless return; a 1-D sweep measures no elevation). With ``h(x, y)`` the
+    measurements at height z = ``position[2]`` (known), the information on (x, y) is
+    ``J = Σᵢ Hᵢᵀ diag(1/σ_d,ᵢ², 1/σ_az,ᵢ²) Hᵢ``, ``Hᵢ = ∂(dᵢ, azᵢ)/∂(x, y)`` (``dsp.fusion.central_jacobian``
+    of ``dsp.RisFix.residuals`` at the truth), and the PEB is ``sqrt(trace(J⁻¹))``. For one RIS at
+    the radar's height this is its own PEB, ``sqrt(σ_d² + d² σ_az²)`` (a test checks it against the
+    bound's ``position``).
+
+    Parameters
+    ----------
+    bounds : sequence of (dsp.RisPose, dict)
+        Each RIS's pose and its bounds (``distance`` [m], ``angle`` [rad]) at ``position``.
+    position : float array [3]
+        The true radar position [m], world frame.
+
+    Returns
+    -------
+    float
+        PEB [m] (inf when the RISs cannot determine the position, e.g. no bound given).
+    """
+    from dsp import RisFix
+    from dsp.fusion import central_jacobian
+
+    x = np.asarray(position, dtype=float)
+    fixes = []
+    for i, (pose, crb) in enumerate(bounds):
+        d = float(np.linalg.norm(x - pose.position))
+        if not (np.isfinite(crb["distance"]) and np.isfinite(crb["angle"]) and crb["distance"] > 0 and crb["angle"] > 0):
+            continue
+        fixes.append(RisFix(name=f"ris{i}", pose=pose, distance=d, std_distance=float(crb["distance"]),
+                            aod=np.asarray(pose.angles_to(x), dtype=float), std_aod=[float(crb["angle"]), np.nan]))
+    if not fixes:
+        return float("inf")
+    jac = central_jacobian(lambda q: np.concatenate([f.residuals(np.array([q[0], q[1], x[2]])) for f in fixes]), x[:2])
+    info = jac.T @ jac
+    if np.linalg.cond(info) > 1e12:
+        return float("inf")
+    return float(np.sqrt(np.trace(np.linalg.inv(info))))
+
+
+def fuse_at_height(fixes: Any, height: float, *, pfa: float = 1e-3) -> tuple[np.ndarray, Any]:
+    """Fuse RIS fixes into one position at a known radar height.
+
+    ``dsp.fuse_fixes`` decides which fixes agree (its χ² test leaves an inconsistent one out and
+    flags it); the fixes it used are then solved for (x, y) with z = ``height`` (weighted least
+    squares of their ``dsp.RisFix.residuals``, from the fused position): RISs at one height cannot
+    see the height, and the map's radar height is known, as the single-RIS fix assumes it.
+
+    Parameters
+    ----------
+    fixes : sequence of dsp.RisFix
+        One per detected RIS.
+    height : float
+        The radar's height z [m], world frame.
+    pfa : float
+        The χ² test's false-alarm probability (``dsp.fuse_fixes``).
+
+    Returns
+    -------
+    position : float array [3]
+        The fused position [m], z = ``height``.
+    fused : dsp.FusedFix
+        What ``dsp.fuse_fixes`` said (used, excluded, flags).
+    """
+    import scipy.optimize
+
+    from dsp import fuse_fixes
+
+    fused = fuse_fixes(fixes, pfa=pfa)
+    used = [f for f in fixes if f.name in fused.used]
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        return np.concatenate([f.residuals(np.array([q[0], q[1], height])) for f in used])
+
+    fit = scipy.optimize.least_squares(residuals, np.asarray(fused.position[:2], dtype=float), method="trf",
+                                       xtol=1e-12, ftol=1e-15, gtol=1e-15)
+    return np.array([fit.x[0], fit.x[1], float(height)]), fused
+
+
+def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, tuple[str, ...], tuple[str, ...]] | None:
+    """One run of one cell: the position error of what its RISs gave (one fix as it is, several fused).
+
+    Parameters
+    ----------
+    entries : sequence of (str, dsp.RisPose, dict)
+        Each RIS that sees the cell: its name, pose and this run's row
+        (:func:`risloc_rt.studies.kernel.run_once`: ``detected``, ``distance`` [m], ``aod_az`` [rad],
+        ``std_distance`` [m], ``std_aod_az`` [rad], ``x``, ``y``, ``z`` [m], ``position_error`` [m], ``flags``).
+    truth : float array [3]
+        The radar's true position [m].
+    height : float
+        Its known height [m] (:func:`fuse_at_height`).
+
+    Returns
+    -------
+    (float, tuple of str, tuple of str) or None
+        The position error [m], the RISs used and those left out as inconsistent; None when no RIS
+        detected the radar. One detection: that RIS's own ``position_error``; several: the error of
+        :func:`fuse_at_height` over the fixes with a stated 1σ.
+    """
+    from dsp import RisFix, angles_from_direction
+
+    found = [(name, pose, row) for name, pose, row in entries if row["detected"]]
+    if not found:
+        return None
+    fixes = []
+    for name, pose, row in found:
+        sd, sa = _num(row.get("std_distance")), _num(row.get("std_aod_az"))
+        if not (np.isfinite(sd) and sd > 0 and np.isfinite(sa) and sa > 0):
+            continue
+        rel = np.array([_num(row["x"]), _num(row["y"]), _num(row["z"])]) - pose.position
+        el = float(angles_from_direction(pose.to_local(rel / np.linalg.norm(rel)))[1])
+        fixes.append(RisFix(name=name, pose=pose, distance=_num(row["distance"]), std_distance=sd,
+                            aod=[_num(row["aod_az"]), el], std_aod=[sa, np.nan],
+                            flags=tuple(f for f in (row.get("flags") or "").split(",") if f)))
+    if len(fixes) < 2:  # one fix (or one with a stated 1σ): that RIS's own position
+        name, _, row = next(((n, p, r) for n, p, r in found if fixes and n == fixes[0].name), found[0])
+        return _num(row["position_error"]), (name,), ()
+    position, fused = fuse_at_height(fixes, height)
+    return (float(np.linalg.norm(position - np.asarray(truth, dtype=float))), tuple(fused.used),
+            tuple(n for n, _ in fused.excluded))
+
+
+def coverage(cells: list[dict[str, Any]], floor_cells: int, peb_bound: float) -> dict[str, Any]:
+    """The share of the floor a map covers: cells with Pd >= :data:`COVERED_PD` and PEB below ``peb_bound``.
+
+    Parameters
+    ----------
+    cells : list of dict
+        The mapped cells (``detection_probability``, ``peb`` [m]).
+    floor_cells : int
+        Every floor cell, mapped or not (a cell no RIS sees counts as not covered).
+    peb_bound : float
+        The PEB bound [m].
+
+    Returns
+    -------
+    dict
+        ``peb_bound`` [m], ``detection_probability`` (:data:`COVERED_PD`), ``floor_cells``,
+        ``mapped_cells``, ``covered`` (cells) and ``share`` (covered / floor cells).
+    """
+    covered = sum(1 for c in cells if c["detection_probability"] >= COVERED_PD and c["peb"] is not None
+                  and c["peb"] < peb_bound)
+    return {"peb_bound": float(peb_bound), "detection_probability": COVERED_PD, "floor_cells": int(floor_cells),
+            "mapped_cells": len(cells), "covered": covered, "share": covered / floor_cells if floor_cells else 0.0}
+
+
 @dataclass(frozen=True)
 class _MapPlan:
-    """A floor map as the study engine sees it: one point per cell, ``runs`` runs each."""
+    """A floor map as the study engine sees it: one point per (cell, RIS that sees it), ``runs`` runs each."""
 
     settings: MapSettings
     cells: tuple[tuple[float, float, float], ...]
+    pairs: tuple[tuple[int, int], ...]  # (cell, spec index of the RIS), point order
 
     @property
     def name(self) -> str:
@@ -285,7 +553,7 @@ class _MapPlan:
 
     def points(self) -> list[dict[str, Any]]:
         common = _cell_settings(self.settings)
-        return [{"cell": c, "ue": list(ue), "settings": common} for c, ue in enumerate(self.cells)]
+        return [{"cell": c, "ue": list(self.cells[c]), "ris": k, "settings": common} for c, k in self.pairs]
 
 
 @dataclass(frozen=True)
@@ -297,7 +565,10 @@ class MapResult:
     cells : list of dict
         One entry per cell (``map.json``): position ``x``, ``y``, ``z`` [m], ``runs``,
         ``detection_probability``, ``rmse_position`` [m] (None without a detection), ``peb`` [m],
-        ``peak_snr_db`` [dB], ``dominant_flag``, ``flags`` (counts), ``trace_warnings``.
+        ``peak_snr_db`` [dB], ``dominant_flag``, ``flags`` (counts), ``trace_warnings``, ``served_by``
+        (a RIS name or None) and ``ris`` (per RIS that sees the cell: its own ``detection_probability``,
+        ``peb`` [m], ``peak_snr_db`` [dB], ``rmse_position`` [m]); the module notes say how several
+        RISs are combined.
     folder : Path
     figure : Path
         ``map.png``.
@@ -313,6 +584,7 @@ class MapResult:
     figure: Path
     wall_seconds: float
     devices: list[dict[str, Any]] = field(default_factory=list)
+    coverage: dict[str, Any] = field(default_factory=dict)
 
     def describe(self) -> str:
         """One line for the terminal.
@@ -320,13 +592,17 @@ class MapResult:
         Returns
         -------
         str
-            Cells, detections, median and worst position RMSE [mm], wall time [s], the files.
+            Cells, detections, median and worst position RMSE [mm], the coverage, wall time [s], the files.
         """
         det = [c for c in self.cells if c["detection_probability"] > 0]
         rmse = [c["rmse_position"] for c in det if c["rmse_position"] is not None]
+        cov = self.coverage
+        covered = (f"; coverage {100 * cov['share']:.1f} % of the floor ({cov['covered']} of {cov['floor_cells']} "
+                   f"cells with Pd >= {cov['detection_probability']:g} and PEB < {1e3 * cov['peb_bound']:g} mm)"
+                   if cov else "")
         return (f"{len(self.cells)} cells, detected in {len(det)}; position RMSE median "
                 f"{1e3 * float(np.median(rmse)) if rmse else float('nan'):.1f} mm, worst "
-                f"{1e3 * max(rmse) if rmse else float('nan'):.1f} mm; {self.wall_seconds:.0f} s -> "
+                f"{1e3 * max(rmse) if rmse else float('nan'):.1f} mm{covered}; {self.wall_seconds:.0f} s -> "
                 f"{self.folder}/map.json, map.parquet, map.png")
 
 
@@ -401,8 +677,17 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
                       f"{str(kept)!r}", file=sys.stderr)
     elif folder.is_dir() and any(folder.iterdir()) and not force:
         raise StudyFolderError(f"{str(folder)!r} is not empty and holds no floor map; use a new --out folder")
-    spec, cells, _ = grid_cells(settings, long_ok=force_long)
-    plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells))
+    grid = floor_grid(settings, long_ok=force_long)
+    spec = grid.spec
+    mapped = np.flatnonzero(grid.floor & grid.sees.any(axis=1))
+    if not mapped.size:
+        raise ValueError(f"no grid cell of {settings.scene!r} lies inside the hall, {settings.margin:g} m from its walls "
+                         "and objects and within a RIS's ±45° sweep; use a smaller --spacing or --margin")
+    cells = grid.positions[mapped]
+    sees = grid.sees[mapped]
+    pairs = tuple((c, grid.indices[j]) for c in range(len(cells)) for j in range(len(grid.indices)) if sees[c, j])
+    unseen = grid.positions[grid.floor & ~grid.sees.any(axis=1)]
+    plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells), pairs)
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
                                              "noise_stream": stream}).encode(), sync=True)
@@ -411,22 +696,12 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     try:
         info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
                        device=device)
-        out_cells = []
-        for c, ue in enumerate(cells):
-            rows = [log.rows[(c, r)] for r in range(settings.runs)]
-            err = np.array([x["position_error"] for x in rows if x["detected"] and x["position_error"] is not None],
-                           float)
-            flags = Counter(f for x in rows for f in (x.get("flags") or "").split(",")
-                            if f and f != "elevation-assumed")
-            crb = info["crb"][c]
-            out_cells.append({
-                "x": float(ue[0]), "y": float(ue[1]), "z": float(ue[2]), "runs": len(rows),
-                "detection_probability": sum(bool(x["detected"]) for x in rows) / len(rows),
-                "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
-                "peb": crb["position"], "peak_snr_db": crb["peak_snr_db"],
-                "dominant_flag": flags.most_common(1)[0][0] if flags else "none", "flags": dict(flags),
-                "trace_warnings": info["warnings"].get(c, []),
-            })
+        # every point's bounds beside its runs: map.json can be remade from the folder alone
+        atomic_write_bytes(folder / "points.json", json.dumps({
+            "key": settings.key, "points": [{"cell": c, "ris": spec.ris[k].name, "crb": info["crb"][p],
+                                             "warnings": info["warnings"].get(p, [])}
+                                            for p, (c, k) in enumerate(pairs)]}).encode())
+        out_cells = _cells(settings, spec, cells, pairs, log, info)
     finally:
         log.close()
     wall = time.perf_counter() - start
@@ -434,15 +709,71 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     import pyarrow.parquet as pq
 
     buf_pq = io.BytesIO()
-    cols = {k: [json.dumps(c[k]) if k in ("flags", "trace_warnings") else c[k] for c in out_cells] for k in out_cells[0]}
+    cols = {k: [json.dumps(c[k]) if k in ("flags", "trace_warnings", "ris") else c[k] for c in out_cells]
+            for k in out_cells[0]}
+    cover = coverage(out_cells, int(grid.floor.sum()), settings.peb_bound)
     pq.write_table(pa.table(cols), buf_pq)
     # moved in together (risloc_rt._outputs); the folder is the map's (its manifest was checked)
     with output_folder(folder, force=True, flag="--out") as stage:
-        atomic_write_bytes(stage / "map.json", json.dumps({"settings": asdict(settings), "devices": info["devices"],
-                                                           "cells": out_cells},
-                                                          indent=1).encode() + b"\n")
+        atomic_write_bytes(stage / "map.json", json.dumps({
+            "settings": asdict(settings), "devices": info["devices"], "ris": list(grid.names),
+            "coverage": {**cover, "unseen": [[float(v) for v in ue] for ue in unseen]},
+            "cells": out_cells}, indent=1).encode() + b"\n")
         atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())
-        plot_map(spec, out_cells, settings, stage / "map.png")
+        plot_map(spec, out_cells, settings, stage / "map.png", unseen=unseen, coverage=cover)
     return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall,
-                     devices=info["devices"])
+                     devices=info["devices"], coverage=cover)
+
+
+def _cells(settings: MapSettings, spec: Any, cells: np.ndarray, pairs: tuple[tuple[int, int], ...], log: RunLog,
+           info: dict[str, Any]) -> list[dict[str, Any]]:
+    """The per-cell entries of ``map.json`` from the run log and the points' bounds (module notes)."""
+    configs = spec.ris_configs()
+    by_cell: dict[int, list[tuple[int, int]]] = {}
+    for p, (c, k) in enumerate(pairs):
+        by_cell.setdefault(c, []).append((p, k))
+    out_cells = []
+    for c, ue in enumerate(cells):
+        points = by_cell[c]
+        runs = {p: [log.rows[(p, r)] for r in range(settings.runs)] for p, _ in points}
+        flags = Counter(f for rows in runs.values() for x in rows for f in (x.get("flags") or "").split(",")
+                        if f and f != "elevation-assumed")
+        own: dict[str, dict[str, Any]] = {}
+        for p, k in points:
+            err = np.array([x["position_error"] for x in runs[p] if x["detected"] and x["position_error"] is not None],
+                           float)
+            crb = info["crb"][p]
+            own[spec.ris[k].name] = {
+                "detection_probability": sum(bool(x["detected"]) for x in runs[p]) / len(runs[p]),
+                "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
+                "peb": crb["position"], "peak_snr_db": crb["peak_snr_db"]}
+        if len(points) == 1:  # one RIS sees the cell: its own numbers (as before issue 22)
+            (p, k), = points
+            crb = info["crb"][p]
+            pd, rmse = own[spec.ris[k].name]["detection_probability"], own[spec.ris[k].name]["rmse_position"]
+            peb, snr = crb["position"], crb["peak_snr_db"]
+        else:
+            errors = []
+            for r in range(settings.runs):
+                entries = [(spec.ris[k].name, configs[k].pose, runs[p][r]) for p, k in points]
+                got = cell_run_position(entries, ue, settings.height)
+                if got is None:
+                    continue
+                errors.append(got[0])
+                if got[2]:
+                    flags["inconsistent-ris"] += 1
+            err = np.array([e for e in errors if np.isfinite(e)], float)
+            pd = len(errors) / settings.runs
+            rmse = float(np.sqrt(np.mean(err**2))) if err.size else None
+            peb = multi_ris_peb([(configs[k].pose, info["crb"][p]) for p, k in points], ue)
+            snr = max(info["crb"][p]["peak_snr_db"] for p, _ in points)
+        served = sorted((v["peb"], name) for name, v in own.items() if v["detection_probability"] >= 0.5)
+        warned = sorted({w for p, _ in points for w in info["warnings"].get(p, [])})
+        out_cells.append({
+            "x": float(ue[0]), "y": float(ue[1]), "z": float(ue[2]), "runs": settings.runs,
+            "detection_probability": pd, "rmse_position": rmse, "peb": peb, "peak_snr_db": snr,
+            "dominant_flag": flags.most_common(1)[0][0] if flags else "none", "flags": dict(flags),
+            "trace_warnings": warned, "served_by": served[0][1] if served else None, "ris": own,
+        })
+    return out_cells
 
