@@ -24,6 +24,13 @@ is not used (a grating twin, a path taken for the return) and is returned as rej
 no detection gives no measurement: the filter coasts (predicts only), and its covariance says how
 far it may have drifted.
 
+**A known height.** A sweep in azimuth only gives distance, azimuth and radial velocity: with the
+RISs at the radar's height the height is unobservable (its mirror image below the sweep plane gives
+the same numbers). A radar carried at a known height (a robot, a trolley: the one-RIS CLI's
+``--ue-height``) adds one pseudo-measurement to every update, ``z = h ± σ_h`` (``height=(h, σ_h)``
+of :func:`start_track` and :func:`update`); the filter then tracks the horizontal position and
+velocity, and its consistency is judged on those (:func:`nees` with ``axes=HORIZONTAL``).
+
 Why not filterpy or Stone Soup: the filter is 60 lines of NumPy around one measurement function
 that must wrap the azimuth and drop the angles a sweep cannot see; filterpy (last release 2018)
 would need the same function, Jacobian and residual handed to it, and Stone Soup brings a
@@ -34,14 +41,33 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import scipy.optimize
 import scipy.stats
 
 from .fusion import RisFix, central_jacobian
 from .validation import finite, positive
 
-__all__ = ["RisMeasurement", "TrackState", "TrackUpdate", "predict", "update", "start_track"]
+__all__ = ["RisMeasurement", "TrackState", "TrackUpdate", "predict", "update", "start_track", "nees", "HORIZONTAL",
+           "ALL_AXES"]
+
+#: State indices of the horizontal position and velocity (x, y, vx, vy).
+HORIZONTAL = (0, 1, 3, 4)
+#: Every state index (x, y, z, vx, vy, vz).
+ALL_AXES = (0, 1, 2, 3, 4, 5)
+
+
+def _height(height: Any) -> tuple[float, float] | None:
+    """``(h, σ_h)`` [m] checked, or None."""
+    if height is None:
+        return None
+    try:
+        h, sd = (float(x) for x in height)
+    except (TypeError, ValueError):
+        raise ValueError(f"height={height!r} must be (h, σ_h) [m], e.g. (1.2, 0.01)") from None
+    return finite(h, "height", "m"), positive(sd, "height σ", "m")
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,7 +163,7 @@ class TrackUpdate:
     ris: str = field(default="")
 
 
-def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0) -> TrackState:
+def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0, height: Any = None) -> TrackState:
     """A track from one measurement: its own position (elevation 0 where unseen, with a 1σ of its distance
     along the unseen direction), velocity 0 ± ``speed_std`` [m/s] per axis.
 
@@ -146,6 +172,9 @@ def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0) -> Track
     measurement : RisMeasurement
     speed_std : float
         1σ of the unknown starting velocity per axis [m/s].
+    height : (float, float), optional
+        A known height ``(h, σ_h)`` [m] (module notes): an unseen elevation is the one that puts the
+        radar at h, and z starts at h ± σ_h.
 
     Returns
     -------
@@ -153,8 +182,19 @@ def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0) -> Track
     """
     fix = measurement.fix
     speed_std = positive(speed_std, "speed_std", "m/s")
+    known = _height(height)
     sees_el = bool(np.isfinite(fix.std_aod[1]))
-    params = np.array([fix.distance, fix.aod[0], fix.aod[1] if sees_el else 0.0])
+    el0 = fix.aod[1] if sees_el else 0.0
+    if known is not None and not sees_el:  # the elevation that puts the radar at h (the nearest end if none does)
+        def above(el: float) -> float:
+            return float(fix.pose.point_at(np.array([fix.aod[0], el]), fix.distance)[2]) - known[0]
+
+        ends = (-0.5 * math.pi, 0.5 * math.pi)
+        if above(ends[0]) * above(ends[1]) < 0:
+            el0 = float(scipy.optimize.brentq(above, *ends, xtol=1e-12))
+        else:
+            el0 = min(ends, key=lambda e: abs(above(e)))
+    params = np.array([fix.distance, fix.aod[0], el0])
     # 1σ of distance, azimuth and elevation; an elevation the sweep cannot see: ±1 rad, a broad prior
     sigma = np.array([fix.std_distance, fix.std_aod[0] if np.isfinite(fix.std_aod[0]) else math.pi,
                       fix.std_aod[1] if sees_el else 1.0])
@@ -166,7 +206,12 @@ def start_track(measurement: RisMeasurement, *, speed_std: float = 1.0) -> Track
     big = np.zeros((6, 6))
     big[:3, :3] = jac @ np.diag(sigma**2) @ jac.T
     big[3:, 3:] = np.eye(3) * speed_std**2
-    return TrackState(time=measurement.time, mean=np.concatenate([place(params), np.zeros(3)]), covariance=big)
+    mean = np.concatenate([place(params), np.zeros(3)])
+    if known is not None:  # z is given: h ± σ_h, uncorrelated with the rest
+        mean[2] = known[0]
+        big[2, :] = big[:, 2] = 0.0
+        big[2, 2] = known[1] ** 2
+    return TrackState(time=measurement.time, mean=mean, covariance=big)
 
 
 def predict(state: TrackState, time: float, *, accel_density: float) -> TrackState:
@@ -199,9 +244,38 @@ def predict(state: TrackState, time: float, *, accel_density: float) -> TrackSta
     return TrackState(time=t, mean=f @ state.mean, covariance=0.5 * (cov + cov.T))
 
 
-def _linearised(measurement: RisMeasurement, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The innovation (z − h(x))/σ and ∂h/∂s/σ at x [n], [n, 6] (central differences, 1e-6 steps)."""
-    return measurement.normalised_residuals(x), -central_jacobian(measurement.normalised_residuals, x)
+def _linearised(measurement: RisMeasurement, x: np.ndarray,
+                height: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The innovation (z − h(x))/σ and ∂h/∂s/σ at x [n], [n, 6] (central differences, 1e-6 steps); a known
+    height appends (h − z)/σ_h."""
+    if height is None:
+        fun = measurement.normalised_residuals
+    else:
+        def fun(s: np.ndarray) -> np.ndarray:
+            return np.append(measurement.normalised_residuals(s), (height[0] - s[2]) / height[1])
+    return fun(x), -central_jacobian(fun, x)
+
+
+def nees(state: TrackState, truth: Any, *, axes: Any = ALL_AXES) -> float:
+    """The normalised estimation error squared (x − x̂)ᵀ P⁻¹ (x − x̂) over ``axes`` [unitless].
+
+    χ² with ``len(axes)`` degrees of freedom when the filter's covariance is honest.
+
+    Parameters
+    ----------
+    state : TrackState
+    truth : float array [6]
+        The true [x, y, z, vx, vy, vz] at ``state.time`` [m, m/s].
+    axes : sequence of int
+        The state indices judged (:data:`HORIZONTAL` when the height is given).
+
+    Returns
+    -------
+    float
+    """
+    idx = np.asarray(axes, dtype=int)
+    e = (np.asarray(truth, dtype=float) - state.mean)[idx]
+    return float(e @ np.linalg.solve(state.covariance[np.ix_(idx, idx)], e))
 
 
 #: Relinearisations of the iterated update at most.
@@ -209,7 +283,7 @@ _ITERATIONS = 10
 
 
 def update(state: TrackState, measurement: RisMeasurement, *, accel_density: float,
-           gate_pfa: float = 1e-3) -> TrackUpdate:
+           gate_pfa: float = 1e-3, height: Any = None) -> TrackUpdate:
     """Predict to the measurement's time and update on it (or reject it at the gate).
 
     Parameters
@@ -220,6 +294,9 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
         q [m²/s³] (:func:`predict`).
     gate_pfa : float
         Probability that a consistent measurement is rejected (χ² gate on the NIS).
+    height : (float, float), optional
+        A known height ``(h, σ_h)`` [m]: one more number in the update (module notes); it counts
+        in the NIS and its degrees of freedom.
 
     Returns
     -------
@@ -227,9 +304,10 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
     """
     if not 0 < gate_pfa < 1:
         raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
+    known = _height(height)
     prior = predict(state, measurement.time, accel_density=accel_density)
     x0, p0 = prior.mean, prior.covariance
-    r0, h0 = _linearised(measurement, x0)
+    r0, h0 = _linearised(measurement, x0, known)
     s_cov = h0 @ p0 @ h0.T + np.eye(r0.size)
     nis = float(r0 @ np.linalg.solve(s_cov, r0))
     dof = int(r0.size)
@@ -245,7 +323,7 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
         x_new = x0 + gain @ (r - h_jac @ (x0 - x))
         done = float(np.max(np.abs(x_new - x))) < 1e-9
         x = x_new
-        r, h_jac = _linearised(measurement, x)
+        r, h_jac = _linearised(measurement, x, known)
         if done:
             break
     s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)

@@ -1,7 +1,7 @@
 """The ``risloc`` command line: one module per verb, each a thin layer over the library.
 
 ``demo``, ``simulate``, ``locate``, ``trace``, ``scene`` (``build``, ``check``, ``show``), ``capture`` and
-``study`` (``sweep``, ``map``), ``speed``.
+``study`` (``sweep``, ``map``), ``speed``, ``track``.
 
 One error style (``docs/robustness.md``): every error is one line on stderr,
 ``risloc VERB: error: ...``, naming what is wrong and how to fix it. Exit status 2 for bad input
@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     argparse.ArgumentParser
         Every verb a sub-command; its errors are one line with exit status 2.
     """
-    from . import calibrate, capture, compare, demo, locate, scene, simulate, speed, study, trace
+    from . import calibrate, capture, compare, demo, locate, scene, simulate, speed, study, trace, track
 
     parser = _Parser(prog="risloc", description="RIS-enabled self-localization of an FMCW radar")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -64,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_parser(sub)
     study.add_parser(sub)
     speed.add_parser(sub)
+    track.add_parser(sub)
     return parser
 
 

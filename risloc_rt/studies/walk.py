@@ -1,0 +1,839 @@
+"""A tracked walk: a radar carried along timed waypoints through a traced hall, the RISs sweeping in turn.
+
+``risloc track`` (issue 22, ``docs/tracking.md``). The walk is a :class:`Trajectory` (waypoints
+``t, x, y, z`` [s, m] joined by straight segments, read by :func:`read_trajectory`). The RISs sweep
+in time division (:class:`risloc_rt.model.time_division.TimeDivision`; default every RIS of the
+scene in spec order, back to back), starting at the walk's first waypoint. For every slot whose
+sweep ends within the walk:
+
+1. the radar's position and velocity at the slot's reference time (the middle of its sweep,
+   :func:`risloc_rt.model.motion.sweep_reference_time`) give the slot's scenario
+   (:func:`risloc_rt.hall.scenario.hall_scenario` with ``ris=`` the slot's RIS, the others idle);
+2. it is traced at that position (cached per position, :class:`risloc_rt.hall.raytrace.TraceCache`),
+   simulated with the radar moving through the sweep (``motion="sweep"``: the traced paths advance
+   by their delay rates) with its own noise stream ``default_rng([seed, slot])``, and localized
+   (:func:`risloc_rt.io.report.process_capture`, the radar's height known when ``height`` says so);
+3. a detection becomes one RIS's measurement at the sweep's reference time: the distance moved
+   there by the measured radial velocity (``d + v̂ (t_ref − t_est)``, its variance
+   ``σ_d² + (Δt σ_v)²``), the azimuth (the traced paths hold the RIS angles of t_ref) and the
+   radial velocity, each with its 1σ; the tracker (:mod:`dsp.tracking`) updates on it as it
+   arrives, gates it (NIS), or coasts through a slot with no detection (the radar behind the
+   slot's RIS is not simulated: no return can reach it).
+
+A row per slot (:data:`COLUMNS`) holds the truth, the single fix with its σ and flags, the track
+with its σ, NEES, NIS and what the update did. The same seed gives the same rows.
+
+Whether a slot's RIS could see the radar (:attr:`WalkSlot.in_view`) is decided from the geometry
+alone: the radar in front of the RIS's plane, within its sweep's azimuth span, and no surface of
+the scene on the straight line between them (:meth:`risloc_rt.authoring.geometry.HallGeometry.first_hit`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+import warnings
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["Trajectory", "TrajectoryError", "read_trajectory", "WalkSlot", "WalkResult", "plan_walk", "run_walk",
+           "write_walk", "COLUMNS", "UPDATE_KINDS", "default_schedule", "nees_band", "load_schedule"]
+
+#: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
+#: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
+#: fix), ``coast`` (no measurement: predicted only), ``none`` (no track yet).
+UPDATE_KINDS = ("start", "used", "gated", "restart", "coast", "none")
+
+#: The columns of ``walk.parquet`` (one row per slot) and their units.
+COLUMNS = {
+    "sweep": "slot index from the walk's start", "time": "s, the sweep's reference time (middle)",
+    "ris": "the RIS that swept", "status": "fix | no-detection | behind (not simulated)",
+    "in_view": "the RIS could see the radar (geometry: in front, in its span, line of sight)",
+    "truth_x": "m", "truth_y": "m", "truth_z": "m", "truth_vx": "m/s", "truth_vy": "m/s", "truth_vz": "m/s",
+    "fix_x": "m", "fix_y": "m", "fix_z": "m", "fix_distance": "m, at the reference time",
+    "fix_std_distance": "m", "fix_az": "rad, RIS frame", "fix_std_az": "rad", "fix_velocity": "m/s, radial",
+    "fix_std_velocity": "m/s", "fix_error": "m, |fix - truth|", "fix_sigma": "m, 1σ of the fix's position (trace)",
+    "fix_flags": "the fix's flag codes, comma-separated", "track_x": "m", "track_y": "m", "track_z": "m",
+    "track_vx": "m/s", "track_vy": "m/s", "track_vz": "m/s", "track_std_x": "m", "track_std_y": "m",
+    "track_std_z": "m", "track_error": "m, |track - truth|", "track_sigma": "m, sqrt(trace of the position covariance)",
+    "nees": "normalised estimation error squared of the track", "nees_dof": "its degrees of freedom",
+    "nis": "normalised innovation squared of the measurement", "nis_dof": "its degrees of freedom",
+    "update": "what the tracker did (UPDATE_KINDS)", "seconds_trace": "s", "seconds_simulate": "s",
+    "seconds_dsp": "s",
+}
+
+
+class TrajectoryError(ValueError):
+    """A trajectory file or path that cannot be walked: one line naming the file, the line and the fix."""
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Timed waypoints joined by straight segments, walked at constant velocity between them.
+
+    Attributes
+    ----------
+    times : float array [W]
+        Strictly increasing [s], W ≥ 2.
+    points : float array [W, 3]
+        World positions [m].
+    lines : int array [W]
+        The file line of each waypoint (for messages; 0 when not read from a file).
+    source : str
+        Where it came from (the file), for messages.
+    """
+
+    times: np.ndarray
+    points: np.ndarray
+    lines: np.ndarray = field(default=None)  # type: ignore[assignment]
+    source: str = "trajectory"
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times, dtype=float).reshape(-1)
+        p = np.asarray(self.points, dtype=float)
+        if p.shape != (len(t), 3):
+            raise TrajectoryError(f"{self.source}: points has shape {list(p.shape)}; give one [x, y, z] [m] per time")
+        if len(t) < 2:
+            raise TrajectoryError(f"{self.source}: {len(t)} waypoint(s); a walk needs at least two (t,x,y,z lines)")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
+            raise TrajectoryError(f"{self.source}: times and points must be finite numbers")
+        lines = np.zeros(len(t), dtype=int) if self.lines is None else np.asarray(self.lines, dtype=int)
+        for k in range(1, len(t)):
+            if not t[k] > t[k - 1]:
+                where = f"line {lines[k]}" if lines[k] else f"waypoint {k}"
+                prev = f"line {lines[k - 1]}" if lines[k - 1] else f"waypoint {k - 1}"
+                verb = "repeats" if t[k] == t[k - 1] else "goes back from"
+                raise TrajectoryError(f"{self.source}: {where}: t = {t[k]:g} s {verb} t = {t[k - 1]:g} s of {prev}; "
+                                      "timestamps must increase from line to line")
+        for name, arr in (("times", t), ("points", p), ("lines", lines)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def duration(self) -> float:
+        """Last time minus first [s]."""
+        return float(self.times[-1] - self.times[0])
+
+    @property
+    def length(self) -> float:
+        """Path length [m]."""
+        return float(np.sum(np.linalg.norm(np.diff(self.points, axis=0), axis=1)))
+
+    def _segment(self, t: float) -> int:
+        k = int(np.searchsorted(self.times, t, side="right")) - 1
+        return min(max(k, 0), len(self.times) - 2)
+
+    def position(self, t: float) -> np.ndarray:
+        """Position at time ``t`` [s] (within the walk) [3] [m]."""
+        k = self._segment(t)
+        a = (t - self.times[k]) / (self.times[k + 1] - self.times[k])
+        return self.points[k] + a * (self.points[k + 1] - self.points[k])
+
+    def velocity(self, t: float) -> np.ndarray:
+        """Velocity of the segment walked at time ``t`` [s] [3] [m/s] (the next one at a waypoint)."""
+        k = self._segment(t)
+        return (self.points[k + 1] - self.points[k]) / (self.times[k + 1] - self.times[k])
+
+    def check_in(self, geometry: Any) -> None:
+        """Refuse waypoints outside the hall (or in an object, or in a wall) and segments through a surface.
+
+        Parameters
+        ----------
+        geometry : risloc_rt.authoring.geometry.HallGeometry
+            The scene's triangles.
+
+        Raises
+        ------
+        TrajectoryError
+            One line naming the waypoint's line (or the segment's two lines) and the surface.
+        """
+        for k, p in enumerate(self.points):
+            try:
+                geometry.check_point(p, what="radar")
+            except ValueError as exc:
+                raise TrajectoryError(f"{self.source}: {self._where(k)}: {exc}") from None
+        for k in range(len(self.points) - 1):
+            a, b = self.points[k], self.points[k + 1]
+            length = float(np.linalg.norm(b - a))
+            if length == 0:
+                continue
+            name, dist = geometry.first_hit(a, b - a)
+            if name is not None and dist < length:
+                hit = a + (b - a) * dist / length
+                raise TrajectoryError(
+                    f"{self.source}: the segment from {self._where(k)} {_fmt(a)} to {self._where(k + 1)} {_fmt(b)} m "
+                    f"passes through '{name}' at {_fmt(hit)} m; add a waypoint that walks around it")
+
+    def _where(self, k: int) -> str:
+        return f"line {self.lines[k]}" if self.lines[k] else f"waypoint {k}"
+
+
+def _fmt(p: np.ndarray) -> str:
+    return "[" + ", ".join(f"{x:.3f}" for x in np.asarray(p, dtype=float)) + "]"
+
+
+def read_trajectory(path: str | Path) -> Trajectory:
+    """A trajectory CSV: a header ``t,x,y,z`` then one waypoint per line [s, m, m, m].
+
+    Blank lines and lines starting with ``#`` are skipped. Every error names the file and line.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    TrajectoryError
+        A missing header, a line without four numbers, timestamps that repeat or go back, fewer
+        than two waypoints.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise TrajectoryError(f"{path}: not a text file; give a CSV with a header t,x,y,z and one waypoint "
+                              "per line [s, m]") from None
+    rows, lines, header = [], [], False
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        cells = [c.strip() for c in next(csv.reader([line]))]
+        if not header:
+            if [c.lower() for c in cells] != ["t", "x", "y", "z"]:
+                raise TrajectoryError(f"{path}: line {number}: the header must be 't,x,y,z' (time [s], position [m]), "
+                                      f"got {line[:60]!r}")
+            header = True
+            continue
+        if len(cells) != 4:
+            raise TrajectoryError(f"{path}: line {number}: {len(cells)} value(s) {line[:60]!r}; give four numbers "
+                                  "t,x,y,z [s, m]")
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            raise TrajectoryError(f"{path}: line {number}: {line[:60]!r} is not four numbers t,x,y,z [s, m]") from None
+        if not all(math.isfinite(v) for v in values):
+            raise TrajectoryError(f"{path}: line {number}: {line[:60]!r} must hold finite numbers")
+        rows.append(values)
+        lines.append(number)
+    if not header:
+        raise TrajectoryError(f"{path}: empty; give a header t,x,y,z and at least two waypoints [s, m]")
+    arr = np.array(rows, dtype=float).reshape(-1, 4)
+    return Trajectory(times=arr[:, 0], points=arr[:, 1:], lines=np.array(lines, dtype=int), source=str(path))
+
+
+def default_schedule(spec: Any, radar: Any, num_beams: int) -> Any:
+    """Every RIS of ``spec`` in spec order, back to back, idle off.
+
+    Parameters
+    ----------
+    spec : risloc_rt.authoring.spec.HallSpec
+        The scene's spec.
+    radar : dsp.RadarConfig
+        Its beam interval sets the sweep's duration [s].
+    num_beams : int
+        Beams per sweep M.
+
+    Returns
+    -------
+    risloc_rt.model.time_division.TimeDivision
+    """
+    from ..model.time_division import TimeDivision
+
+    return TimeDivision.consecutive([r.name for r in spec.ris], num_beams * radar.beam_interval)
+
+
+def load_schedule(path: str | Path | None, scene: str | Path, *, idle: str | None = None) -> Any:
+    """The time division of a walk: a TOML file's ``[schedule]`` table, or the default.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        A TOML file with a ``[schedule]`` table (:mod:`risloc_rt.model.time_division`); None: every
+        RIS of the scene in spec order, back to back.
+    scene : str or Path
+        The scene (its RIS names; the hall's radar and sweep set the sweep's duration).
+    idle : {"off", "parked"}, optional
+        Overrides the table's ``idle``.
+
+    Returns
+    -------
+    risloc_rt.model.time_division.TimeDivision
+
+    Raises
+    ------
+    ValueError
+        One line naming the file: not TOML, no ``[schedule]`` table, an unknown key or RIS,
+        overlapping slots.
+    """
+    import tomllib
+
+    from dsp import BeamSweep, RadarConfig
+
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
+    from ..model.time_division import TimeDivision, parse_time_division
+
+    spec = load_spec(scene_directory(scene) / "spec.toml")
+    names = [r.name for r in spec.ris]
+    duration = BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5])).num_beams * RadarConfig().beam_interval
+    table: Any = None
+    if path is not None:
+        path = Path(path)
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{path}: not a TOML file ({exc}); give a file with a [schedule] table, e.g. "
+                             f"[schedule] order = {names!r}") from None
+        if "schedule" not in doc:
+            raise ValueError(f"{path}: no [schedule] table; add one, e.g. [schedule] order = {names!r}")
+        table = doc["schedule"]
+    schedule = parse_time_division(table, ris_names=names, sweep_duration=duration,
+                                   where=f"{path} [schedule]" if path is not None else "[schedule]")
+    if idle is not None and idle != schedule.idle:
+        schedule = TimeDivision(order=schedule.order, sweep_duration=schedule.sweep_duration, starts=schedule.starts,
+                                cycle=schedule.cycle, idle=idle, parked_beam=schedule.parked_beam)
+    return schedule
+
+
+@dataclass(frozen=True)
+class WalkSlot:
+    """One slot of the walk: which RIS sweeps, when, and where the radar is.
+
+    Attributes
+    ----------
+    index : int
+        Slot index from the walk's start.
+    ris : str
+        The sweeping RIS.
+    start : float
+        The sweep's start [s] (the trajectory's clock).
+    time : float
+        Its reference time, the middle of the sweep [s].
+    position, velocity : float array [3]
+        The radar's at ``time`` [m], [m/s].
+    facing : bool
+        The radar is in front of the RIS's plane (else the slot is not simulated).
+    in_view : bool
+        Facing, within the sweep's azimuth span and in line of sight (no surface in between).
+    """
+
+    index: int
+    ris: str
+    start: float
+    time: float
+    position: np.ndarray
+    velocity: np.ndarray
+    facing: bool
+    in_view: bool
+
+
+def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, sweep: Any = None,
+              radar: Any = None) -> tuple[WalkSlot, ...]:
+    """The slots of a walk: every slot of the schedule whose sweep ends within the walk.
+
+    Parameters
+    ----------
+    scene : str or Path
+        A scene name or folder.
+    trajectory : Trajectory
+        Checked against the scene's geometry here (:meth:`Trajectory.check_in`).
+    schedule : risloc_rt.model.time_division.TimeDivision, optional
+        Default :func:`default_schedule`; its RIS names must be the scene's.
+    sweep : dsp.BeamSweep, optional
+        The sweep (default the hall's: −45° … 45° in 1.5° steps).
+    radar : dsp.RadarConfig, optional
+        Default Table I.
+
+    Returns
+    -------
+    tuple of WalkSlot
+    """
+    from dsp import BeamSweep, RadarConfig
+
+    from ..authoring.geometry import load_geometry
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
+    from ..hall.scenario import facing_radar, ris_index
+    from ..model.motion import sweep_reference_time
+
+    folder = scene_directory(scene)
+    spec = load_spec(folder / "spec.toml")
+    radar = radar or RadarConfig()
+    sweep = sweep or BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))
+    schedule = schedule or default_schedule(spec, radar, sweep.num_beams)
+    for name in schedule.order:
+        ris_index(spec, name, where="schedule order")
+    if abs(schedule.sweep_duration - sweep.num_beams * radar.beam_interval) > 1e-12:
+        raise ValueError(f"the schedule's sweep lasts {schedule.sweep_duration * 1e3:g} ms, the radar's "
+                         f"{sweep.num_beams} beams {sweep.num_beams * radar.beam_interval * 1e3:g} ms; give it "
+                         "the radar's sweep duration")
+    geometry = load_geometry(folder / "scene.xml")
+    trajectory.check_in(geometry)
+    configs = {r.name: c for r, c in zip(spec.ris, spec.ris_configs())}
+    span = (float(sweep.angles[:, 0].min()), float(sweep.angles[:, 0].max()))
+    t_mid = sweep_reference_time(radar, sweep.num_beams)
+    out = []
+    for k in schedule.slots_until(trajectory.duration):
+        start = float(trajectory.times[0] + schedule.slot_start(int(k)))
+        t = start + t_mid
+        name = schedule.ris_of(int(k))
+        pos, vel = trajectory.position(t), trajectory.velocity(t)
+        cfg = configs[name]
+        facing = facing_radar(cfg, pos)
+        in_view = False
+        if facing:
+            az = float(cfg.pose.angles_to(pos)[0])
+            gap = pos - cfg.pose.position
+            dist = float(np.linalg.norm(gap))
+            hit, at = geometry.first_hit(cfg.pose.position, gap)
+            in_view = span[0] - 1e-9 <= az <= span[1] + 1e-9 and (hit is None or at >= dist - 1e-6)
+        out.append(WalkSlot(index=int(k), ris=name, start=start, time=t, position=pos, velocity=vel, facing=facing,
+                            in_view=in_view))
+    if not out:
+        raise TrajectoryError(f"{trajectory.source}: the walk lasts {trajectory.duration:g} s, less than one sweep "
+                              f"({schedule.sweep_duration:g} s); give later timestamps")
+    return tuple(out)
+
+
+def nees_band(dof: int, count: int, level: float = 0.95) -> tuple[float, float]:
+    """The two-sided ``level`` band of the mean of ``count`` independent χ²(``dof``) values [unitless].
+
+    Parameters
+    ----------
+    dof : int
+        Degrees of freedom of each.
+    count : int
+        How many are averaged (1: the band of one value).
+    level : float
+        Probability inside the band.
+
+    Returns
+    -------
+    (float, float)
+    """
+    import scipy.stats
+
+    lo, hi = scipy.stats.chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * count) / count
+    return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class WalkResult:
+    """A tracked walk.
+
+    Attributes
+    ----------
+    rows : list of dict
+        One per slot, :data:`COLUMNS`.
+    summary : dict
+        What ``summary.json`` holds (fix share, RMSEs, NEES/NIS against their bands, seconds).
+    scene : Path
+        The scene folder.
+    trajectory : Trajectory
+    """
+
+    rows: list[dict[str, Any]]
+    summary: dict[str, Any]
+    scene: Path
+    trajectory: Trajectory
+
+
+def _measurement(name: str, pose: Any, loc: Any, slot: WalkSlot, t_mid: float) -> Any:
+    """One RIS's :class:`dsp.tracking.RisMeasurement` at the slot's reference time (module notes)."""
+    from dsp.fusion import RisFix
+    from dsp.tracking import RisMeasurement
+
+    dt = t_mid - float(loc.reference_time)  # the estimate's time → the sweep's middle (both from the sweep start)
+    distance = float(loc.distance) + float(loc.velocity) * dt
+    std_d = math.hypot(float(loc.std.distance), dt * float(loc.std.velocity))
+    fix = RisFix(name=name, pose=pose, distance=distance, std_distance=std_d,
+                 aod=np.array([float(loc.aod[0]), float(loc.aod[1])]),
+                 std_aod=np.array([float(loc.std.aod[0]), np.nan]), flags=tuple(loc.flag_codes))
+    return RisMeasurement(time=slot.time, fix=fix, velocity=float(loc.velocity), std_velocity=float(loc.std.velocity))
+
+
+def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, seed: int = 0,
+             tx_power_dbm: float | None = None, trace: Any = None, cache: Any = None, height: Any = "path",
+             height_std: float = 0.01, accel_density: float = 0.5, gate_pfa: float = 1e-3, restart_after: int = 3,
+             estimator: str = "refined", progress: Callable[[str], None] | None = None,
+             progress_every: int = 10) -> WalkResult:
+    """Walk the radar along ``trajectory`` through the traced hall, localize every sweep and track it.
+
+    Parameters
+    ----------
+    scene : str or Path
+        A scene name or folder (built, up to date).
+    trajectory : Trajectory
+        The walk [s, m].
+    schedule : risloc_rt.model.time_division.TimeDivision, optional
+        When each RIS sweeps (default :func:`default_schedule`); its ``idle`` and ``parked_beam`` say
+        what the others do meanwhile.
+    seed : int
+        Slot k's receiver noise is ``default_rng([seed, k])``: the same seed, the same rows.
+    tx_power_dbm : float, optional
+        Transmit power [dBm] (default Table I's 20).
+    trace : risloc_rt.hall.raytrace.tracer.TraceSettings, optional
+        Ray-tracer settings (default the hall's).
+    cache : risloc_rt.hall.raytrace.TraceCache, optional
+        Traces reused per position (None: every slot traced).
+    height : "path", float or None
+        The radar's known height [m]: ``"path"`` (default) the trajectory's z at each sweep (a radar
+        carried at a known height), a number, or None (unknown: the filter tracks all six states).
+        Known, it resolves the elevation in the localization (``ue_height``) and holds the track's z
+        (:mod:`dsp.tracking`, "A known height").
+    height_std : float
+        1σ of the known height [m].
+    accel_density : float
+        The tracker's white acceleration density q [m²/s³] per axis.
+    gate_pfa : float
+        Probability that a consistent measurement is gated out (χ² on the NIS).
+    restart_after : int
+        Consecutive gated measurements after which the track restarts from the next one.
+    estimator : {"refined", "paper"}
+        The single-sweep estimator.
+    progress : callable, optional
+        Receives one line every ``progress_every`` slots and at the end.
+    progress_every : int
+        Slots between progress lines.
+
+    Returns
+    -------
+    WalkResult
+    """
+    from dsp import tracking
+
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
+    from ..hall.pruning import AliasWarning
+    from ..hall.scenario import hall_paths, hall_scenario
+    from ..io.report import process_capture
+    from ..model.motion import sweep_reference_time
+    from ..model.simulate import simulate
+
+    folder = scene_directory(scene)
+    spec = load_spec(folder / "spec.toml")
+    poses = {r.name: c.pose for r, c in zip(spec.ris, spec.ris_configs())}
+    if restart_after < 1:
+        raise ValueError(f"restart_after={restart_after!r} must be >= 1 (gated measurements in a row)")
+    if isinstance(height, str) and height != "path":
+        raise ValueError(f"height={height!r} must be 'path', a number [m] or None")
+    slots = plan_walk(folder, trajectory, schedule=schedule)
+    probe = hall_scenario(folder, ris=slots[0].ris, ue_position=slots[0].position, trace=trace)
+    radar = probe.base.radar if tx_power_dbm is None else replace(probe.base.radar, tx_power_dbm=float(tx_power_dbm))
+    schedule = schedule or default_schedule(spec, radar, probe.base.sweep.num_beams)
+    t_mid = sweep_reference_time(radar, probe.base.sweep.num_beams)
+    axes = tracking.HORIZONTAL if height is not None else tracking.ALL_AXES
+    state, gated_run, rows = None, 0, []
+    begin = time.perf_counter()
+    for n, slot in enumerate(slots):
+        z = None if height is None else (float(slot.position[2]) if height == "path" else float(height))
+        known = None if z is None else (z, height_std)
+        row: dict[str, Any] = {"sweep": slot.index, "time": slot.time, "ris": slot.ris, "in_view": slot.in_view}
+        row.update(zip(("truth_x", "truth_y", "truth_z"), map(float, slot.position)))
+        row.update(zip(("truth_vx", "truth_vy", "truth_vz"), map(float, slot.velocity)))
+        meas, secs = None, {"seconds_trace": 0.0, "seconds_simulate": 0.0, "seconds_dsp": 0.0}
+        if not slot.facing:
+            row["status"] = "behind"
+        else:
+            hs = hall_scenario(folder, ris=slot.ris, ue_position=slot.position, ue_velocity=slot.velocity,
+                               idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace)
+            hs = replace(hs, base=replace(hs.base, radar=radar))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", AliasWarning)
+                t0 = time.perf_counter()
+                traced = hall_paths(hs, cache=cache)
+            t1 = time.perf_counter()
+            capture = simulate(hs.base, rng=np.random.default_rng([int(seed), slot.index]), paths=traced.paths,
+                               motion="sweep", seed=int(seed))
+            t2 = time.perf_counter()
+            loc, _ = process_capture(capture, estimator=estimator, ue_height=z)
+            secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
+            if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
+                meas = _measurement(slot.ris, poses[slot.ris], loc, slot, t_mid)
+                row["status"] = "fix"
+            else:
+                row["status"] = "no-detection"
+        row.update(secs)
+        if meas is not None:
+            fix = meas.fix
+            p_fix = fix.pose.point_at(fix.aod, fix.distance)
+            row.update(zip(("fix_x", "fix_y", "fix_z"), map(float, p_fix)))
+            row.update(fix_distance=fix.distance, fix_std_distance=fix.std_distance, fix_az=float(fix.aod[0]),
+                       fix_std_az=float(fix.std_aod[0]), fix_velocity=meas.velocity,
+                       fix_std_velocity=meas.std_velocity, fix_error=float(np.linalg.norm(p_fix - slot.position)),
+                       fix_sigma=float(np.linalg.norm(loc.std.position)), fix_flags=",".join(fix.flags))
+        else:
+            row.update({k: math.nan for k in ("fix_x", "fix_y", "fix_z", "fix_distance", "fix_std_distance", "fix_az",
+                                               "fix_std_az", "fix_velocity", "fix_std_velocity", "fix_error",
+                                               "fix_sigma")})
+            row["fix_flags"] = ""
+        nis, nis_dof = math.nan, 0
+        if state is None:
+            if meas is not None:
+                state, kind = tracking.start_track(meas, height=known), "start"
+            else:
+                kind = "none"
+        elif meas is None:
+            state, kind = tracking.predict(state, slot.time, accel_density=accel_density), "coast"
+        else:
+            up = tracking.update(state, meas, accel_density=accel_density, gate_pfa=gate_pfa, height=known)
+            nis, nis_dof = up.nis, up.dof
+            if up.accepted:
+                state, kind, gated_run = up.state, "used", 0
+            else:
+                gated_run += 1
+                if gated_run >= restart_after:
+                    state, kind, gated_run = tracking.start_track(meas, height=known), "restart", 0
+                else:
+                    state, kind = up.state, "gated"
+        row.update(update=kind, nis=nis, nis_dof=nis_dof)
+        if state is not None:
+            truth = np.concatenate([slot.position, slot.velocity])
+            row.update(zip(("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz"), map(float, state.mean)))
+            row.update(zip(("track_std_x", "track_std_y", "track_std_z"), map(float, state.position_std)))
+            row.update(track_error=float(np.linalg.norm(state.mean[:3] - slot.position)),
+                       track_sigma=float(np.sqrt(np.trace(state.covariance[:3, :3]))),
+                       nees=tracking.nees(state, truth, axes=axes), nees_dof=len(axes))
+        else:
+            row.update({k: math.nan for k in ("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz",
+                                               "track_std_x", "track_std_y", "track_std_z", "track_error",
+                                               "track_sigma", "nees")})
+            row["nees_dof"] = 0
+        rows.append({k: row[k] for k in COLUMNS})
+        if progress is not None and ((n + 1) % max(int(progress_every), 1) == 0 or n + 1 == len(slots)):
+            fixes = sum(r["status"] == "fix" for r in rows)
+            progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
+                     f"{time.perf_counter() - begin:.0f} s")
+    summary = _summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
+                       height=height, height_std=height_std, accel_density=accel_density, gate_pfa=gate_pfa,
+                       wall=time.perf_counter() - begin)
+    return WalkResult(rows=rows, summary=summary, scene=folder, trajectory=trajectory)
+
+
+def _rms(x: np.ndarray) -> float | None:
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+
+def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
+             radar: Any, height: Any, height_std: float, accel_density: float, gate_pfa: float,
+             wall: float) -> dict[str, Any]:
+    """``summary.json``: the walk's figures (units in the keys' names or docs/tracking.md)."""
+    col = {k: np.array([r[k] for r in rows]) for k in ("fix_error", "track_error", "nees", "nis", "nees_dof",
+                                                       "nis_dof")}
+    status = [r["status"] for r in rows]
+    kinds = [r["update"] for r in rows]
+    view = np.array([r["in_view"] for r in rows], dtype=bool)
+    fix = np.array([s == "fix" for s in status])
+    tracked = np.isfinite(col["nees"])
+    nees_dof = int(col["nees_dof"][tracked][0]) if tracked.any() else 0
+    n_nees = int(tracked.sum())
+    used = np.isfinite(col["nis"])
+    nis_dof = int(np.sum(col["nis_dof"][used]))
+    band = nees_band(nees_dof, n_nees) if n_nees else (math.nan, math.nan)
+    single = nees_band(nees_dof, 1) if n_nees else (math.nan, math.nan)
+    inside = float(np.mean((col["nees"][tracked] >= single[0]) & (col["nees"][tracked] <= single[1]))) if n_nees else None
+    nis_band = nees_band(1, nis_dof) if nis_dof else (math.nan, math.nan)
+    fix_err = col["fix_error"][fix]
+    return {
+        "scene": scene.name, "trajectory": trajectory.source, "seed": int(seed), "length_m": trajectory.length,
+        "duration_s": trajectory.duration, "sweeps": len(rows), "schedule": schedule.to_dict(),
+        "tx_power_dbm": float(radar.tx_power_dbm),
+        "height": height if height is None or isinstance(height, str) else float(height), "height_std_m": height_std,
+        "accel_density_m2_s3": accel_density, "gate_pfa": gate_pfa,
+        "sweeps_per_ris": {name: sum(r["ris"] == name for r in rows) for name in schedule.order},
+        "sweeps_in_view": int(view.sum()), "fixes": int(fix.sum()), "fixes_in_view": int((fix & view).sum()),
+        "fixes_out_of_view": int((fix & ~view).sum()),
+        "fix_share_in_view": float((fix & view).sum() / view.sum()) if view.any() else None,
+        "behind": status.count("behind"), "no_detection": status.count("no-detection"),
+        "updates": {k: kinds.count(k) for k in UPDATE_KINDS},
+        "fix_rmse_m": _rms(fix_err), "fix_median_error_m": float(np.median(fix_err)) if fix_err.size else None,
+        "track_rmse_m": _rms(col["track_error"]),
+        "track_max_error_m": float(np.nanmax(col["track_error"])) if tracked.any() else None,
+        "nees_dof": nees_dof, "nees_mean": float(np.mean(col["nees"][tracked])) if n_nees else None,
+        "nees_band_95": list(band), "nees_mean_in_band": bool(band[0] <= np.mean(col["nees"][tracked]) <= band[1])
+        if n_nees else False, "nees_share_in_single_band_95": inside, "nees_single_band_95": list(single),
+        "nis_sum": float(np.sum(col["nis"][used])), "nis_dof": nis_dof,
+        "nis_mean_per_dof": float(np.sum(col["nis"][used]) / nis_dof) if nis_dof else None,
+        "nis_band_95_per_dof": list(nis_band),
+        "seconds": {"trace": float(sum(r["seconds_trace"] for r in rows)),
+                    "simulate": float(sum(r["seconds_simulate"] for r in rows)),
+                    "dsp": float(sum(r["seconds_dsp"] for r in rows)), "total": float(wall)},
+    }
+
+
+def write_walk(result: WalkResult, folder: str | Path) -> list[Path]:
+    """Write ``walk.parquet``, ``summary.json``, ``plan.png``, ``error.png`` and ``consistency.png`` into ``folder``.
+
+    Parameters
+    ----------
+    result : WalkResult
+        The walk.
+    folder : str or Path
+        An existing folder (the CLI's staging folder of ``risloc_rt._outputs.output_folder``).
+
+    Returns
+    -------
+    list of Path
+        The files written (atomically, :mod:`risloc_rt._files`).
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from .._files import atomic_write_bytes
+
+    folder = Path(folder)
+    buf = io.BytesIO()
+    pq.write_table(pa.table({k: [r[k] for r in result.rows] for k in COLUMNS}), buf)
+    out = [folder / "walk.parquet", folder / "summary.json"]
+    atomic_write_bytes(out[0], buf.getvalue())
+    atomic_write_bytes(out[1], json.dumps(result.summary, indent=1).encode() + b"\n")
+    out += [plot_plan(result, folder / "plan.png"), plot_error(result, folder / "error.png"),
+            plot_consistency(result, folder / "consistency.png")]
+    return out
+
+
+def _column(result: WalkResult, key: str) -> np.ndarray:
+    return np.array([r[key] for r in result.rows], dtype=float)
+
+
+def plot_plan(result: WalkResult, path: str | Path) -> Path:
+    """Plan view: the hall's walls and objects, the RISs, the true path, the fixes by RIS and the track.
+
+    Parameters
+    ----------
+    result : WalkResult
+        The walk.
+    path : str or Path
+        The PNG to write.
+
+    Returns
+    -------
+    Path
+    """
+    from matplotlib.patches import Polygon
+
+    from ..authoring.spec import load_spec
+    from ..plotting import new_figure, save_figure
+
+    spec = load_spec(result.scene / "spec.toml")
+    fig = new_figure(figsize=(8.0, 7.0))
+    ax = fig.add_subplot(1, 1, 1)
+    fp = spec.footprint_array
+    ax.add_patch(Polygon(fp, closed=True, facecolor="#f4f4f4", edgecolor="#333333", lw=1.5, zorder=1))
+    for obj in spec.objects:
+        if hasattr(obj, "corners_xy"):
+            ax.add_patch(Polygon(obj.corners_xy(), closed=True, facecolor="#c8a165", edgecolor="#333333", lw=0.6,
+                                 zorder=2))
+    colours = ["#7b2cbf", "#1f77b4", "#2ca02c", "#ff7f0e", "#8c564b"]
+    for i, (r, cfg) in enumerate(zip(spec.ris, spec.ris_configs())):
+        p, n = cfg.pose.position, cfg.pose.normal
+        c = colours[i % len(colours)]
+        ax.plot([p[0]], [p[1]], marker="s", color=c, ms=8, zorder=5)
+        ax.annotate(r.name, p[:2], xytext=(6, 6), textcoords="offset points", color=c, fontsize=8)
+        ax.arrow(p[0], p[1], 1.2 * n[0], 1.2 * n[1], color=c, width=0.05, zorder=5)
+    pts = result.trajectory.points
+    ax.plot(pts[:, 0], pts[:, 1], color="#333333", lw=1.0, ls="--", label="true path", zorder=3)
+    ris = np.array([r["ris"] for r in result.rows])
+    for i, r in enumerate(spec.ris):
+        sel = ris == r.name
+        x, y = _column(result, "fix_x")[sel], _column(result, "fix_y")[sel]
+        if np.isfinite(x).any():
+            ax.plot(x, y, ls="none", marker=".", ms=4, color=colours[i % len(colours)], label=f"fixes ({r.name})",
+                    zorder=4)
+    ax.plot(_column(result, "track_x"), _column(result, "track_y"), color="#d62728", lw=1.2, label="track", zorder=4)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    s = result.summary
+    ax.set_title(f"{s['scene']}: {s['sweeps']} sweeps, fixes {s['fixes']}, track RMSE "
+                 f"{(s['track_rmse_m'] or math.nan) * 100:.1f} cm", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    return save_figure(fig, path)
+
+
+def plot_error(result: WalkResult, path: str | Path) -> Path:
+    """Position error against time: the single fixes (by RIS), the track, and the track's 1σ.
+
+    Parameters
+    ----------
+    result : WalkResult
+        The walk.
+    path : str or Path
+        The PNG to write.
+
+    Returns
+    -------
+    Path
+    """
+    from ..plotting import new_figure, save_figure
+
+    fig = new_figure(figsize=(8.0, 4.0))
+    ax = fig.add_subplot(1, 1, 1)
+    t = _column(result, "time")
+    ris = np.array([r["ris"] for r in result.rows])
+    for name in sorted(set(ris)):
+        sel = ris == name
+        ax.semilogy(t[sel], _column(result, "fix_error")[sel], ls="none", marker=".", ms=4, label=f"fix ({name})")
+    ax.semilogy(t, _column(result, "track_error"), color="#d62728", lw=1.2, label="track")
+    ax.semilogy(t, _column(result, "track_sigma"), color="#d62728", lw=0.8, ls=":", label="track 1σ (sqrt trace)")
+    coast = np.array([r["update"] in ("coast", "gated") for r in result.rows])
+    for tc in t[coast]:
+        ax.axvline(tc, color="#cccccc", lw=0.5, zorder=0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("position error [m]")
+    ax.set_title("error against time (grey: coasted or gated sweeps)", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    return save_figure(fig, path)
+
+
+def plot_consistency(result: WalkResult, path: str | Path) -> Path:
+    """NEES and NIS per sweep against their 95 % χ² bands (per sweep, and of the walk's mean).
+
+    Parameters
+    ----------
+    result : WalkResult
+        The walk.
+    path : str or Path
+        The PNG to write.
+
+    Returns
+    -------
+    Path
+    """
+    from ..plotting import new_figure, save_figure
+
+    fig = new_figure(figsize=(8.0, 6.0))
+    t = _column(result, "time")
+    s = result.summary
+    for i, (key, dof_key, name) in enumerate((("nees", "nees_dof", "NEES"), ("nis", "nis_dof", "NIS"))):
+        ax = fig.add_subplot(2, 1, i + 1)
+        v, dof = _column(result, key), _column(result, dof_key)
+        ok = np.isfinite(v) & (dof > 0)
+        ax.semilogy(t[ok], v[ok] / dof[ok], ls="none", marker=".", ms=4, label=f"{name} / dof")
+        if ok.any():
+            d = int(np.median(dof[ok]))
+            lo, hi = nees_band(d, 1)
+            ax.axhspan(lo / d, hi / d, color="#2ca02c", alpha=0.12, label=f"95 % band of one χ²({d}) / {d}")
+            mean = float(np.sum(v[ok]) / np.sum(dof[ok]))
+            mlo, mhi = nees_band(int(np.sum(dof[ok])), 1)
+            ax.axhline(mean, color="#d62728", lw=1.0, label=f"walk mean {mean:.2f}")
+            ax.axhspan(mlo / np.sum(dof[ok]), mhi / np.sum(dof[ok]), color="#d62728", alpha=0.15,
+                       label="95 % band of the mean")
+        ax.set_ylabel(f"{name} per dof")
+        ax.legend(fontsize=7, loc="best")
+    ax.set_xlabel("time [s]")
+    fig.suptitle(f"filter consistency: NEES over {s['nees_dof']} states, NIS per measurement", fontsize=9)
+    return save_figure(fig, path)

@@ -1,0 +1,108 @@
+"""A tracked walk (risloc_rt.studies.walk): the path, the slots, and a short walk through the traced L-shaped hall."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from risloc_rt.hall.raytrace.tracer import TraceSettings
+from risloc_rt.studies.walk import (COLUMNS, Trajectory, TrajectoryError, plan_walk, read_trajectory, run_walk,
+                                    write_walk, nees_band)
+
+CHEAP = TraceSettings(max_depth=1, samples_per_src=10_000)
+
+
+def test_the_path_is_walked_at_constant_velocity_between_waypoints(tmp_path):
+    path = tmp_path / "w.csv"
+    path.write_text("# a walk\nt, x, y, z\n\n0,14,6,1.2\n9,5,6,1.2\n23,5,20,1.2\n")
+    tr = read_trajectory(path)
+    assert tr.lines.tolist() == [4, 5, 6] and tr.duration == 23 and tr.length == pytest.approx(23.0, abs=1e-12)
+    np.testing.assert_allclose(tr.position(4.5), [9.5, 6, 1.2], atol=1e-12)
+    np.testing.assert_allclose(tr.velocity(4.5), [-1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(tr.velocity(9.0), [0, 1, 0], atol=1e-12)  # at a waypoint: the next segment
+    np.testing.assert_allclose(tr.position(16.0), [5, 13, 1.2], atol=1e-12)
+
+
+def test_the_slots_follow_the_schedule_and_the_geometry_says_who_sees_the_radar():
+    """Back to back ris0, ris1 (61 beams x 6.4 ms = 0.3904 s each); the radar near the long arm's
+    east end is seen by ris0 (24° off its broadside) and by ris1 through the short arm's mouth
+    (31°); at [11, 20] (the short arm, east) ris0's line of sight passes beside the inner corner but
+    the radar is 49.5° off its broadside, outside its ±45° sweep."""
+    tr = Trajectory(times=[0.0, 2.0], points=[[14, 6, 1.2], [12, 6, 1.2]])
+    slots = plan_walk("l_hall_2ris", tr)
+    assert [s.ris for s in slots] == ["ris0", "ris1", "ris0", "ris1", "ris0"]  # the 6th would end at 2.34 s
+    sweep = 61 * 6.4e-3
+    for s in slots:
+        assert s.start == pytest.approx(s.index * sweep, abs=1e-12)
+        assert s.time - s.start == pytest.approx(0.5 * sweep - 0.5 * 6.4e-3 + 0.5 * (6.4e-3), abs=4e-3)
+        np.testing.assert_allclose(s.position, [14 - s.time, 6, 1.2], atol=1e-12)
+        assert s.facing and s.in_view
+    far = plan_walk("l_hall_2ris", Trajectory(times=[0.0, 0.5], points=[[11, 20, 1.2], [11, 19.5, 1.2]]))
+    assert far[0].ris == "ris0" and far[0].facing and not far[0].in_view
+
+
+@pytest.fixture(scope="module")
+def quiet_walk():
+    """2.8 s west along the long arm from [14, 6, 1.2] at 1 m/s, at -10 dBm: ris0 (4 m away, 24.5 dB
+    post-integration SNR) is detected every time, ris1 (17 m, 1.9 dB) never: its slots coast."""
+    tr = Trajectory(times=[0.0, 2.8], points=[[14, 6, 1.2], [11.2, 6, 1.2]])
+    return tr, run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP)
+
+
+@pytest.mark.slow
+def test_same_seed_same_rows(quiet_walk):
+    tr, first = quiet_walk
+    again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP)
+    assert len(first.rows) == len(again.rows) == 7
+    for a, b in zip(first.rows, again.rows):
+        for key in COLUMNS:
+            if key.startswith("seconds_"):
+                continue
+            assert (a[key] == b[key]) or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key])), key
+
+
+@pytest.mark.slow
+def test_it_coasts_through_the_undetected_ris_and_its_sigma_says_how_far(quiet_walk):
+    _, walk = quiet_walk
+    rows = walk.rows
+    assert [r["status"] for r in rows] == ["fix", "no-detection"] * 3 + ["fix"]
+    assert [r["update"] for r in rows] == ["start", "coast", "used", "coast", "used", "coast", "used"]
+    for before, coast, after in zip(rows[0::2], rows[1::2], rows[2::2]):
+        # coasting widens the track (prediction only) and the next fix narrows it again
+        assert coast["track_sigma"] > before["track_sigma"] and after["track_sigma"] < coast["track_sigma"]
+        assert math.isnan(coast["nis"]) and coast["nis_dof"] == 0
+    # the prediction over a coasted slot stays within its stated covariance: NEES of each row
+    # (x, y, vx, vy) within the 99.9 % band of one χ²(4)
+    lo, hi = nees_band(4, 1, level=0.999)
+    for r in rows[2:]:
+        assert r["nees_dof"] == 4 and r["nees"] <= hi, r
+
+
+@pytest.mark.slow
+def test_the_track_error_is_within_its_covariance_and_the_outputs_are_written(quiet_walk, tmp_path):
+    """NEES over the walk's tracked rows after the start: their mean within the 99 % band of a mean of
+    χ²(4) (the rows are correlated, so the band is loose, not a proof); every fix in the sweep's
+    reference-time frame within a few cm of the truth."""
+    _, walk = quiet_walk
+    s = walk.summary
+    nees = np.array([r["nees"] for r in walk.rows[1:]])
+    lo, hi = nees_band(4, len(nees), level=0.99)
+    assert np.mean(nees) <= hi, nees
+    assert s["fixes_in_view"] == 4 and s["sweeps_in_view"] == 7 and s["fix_share_in_view"] == pytest.approx(4 / 7)
+    assert s["track_rmse_m"] < 0.02 and s["fix_rmse_m"] < 0.02
+    files = write_walk(walk, tmp_path)
+    assert sorted(p.name for p in files) == sorted(["walk.parquet", "summary.json", "plan.png", "error.png",
+                                                    "consistency.png"])
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(tmp_path / "walk.parquet")
+    assert table.num_rows == 7 and table.column_names == list(COLUMNS)
+
+
+def test_a_trajectory_is_refused_before_anything_is_traced():
+    with pytest.raises(TrajectoryError, match="waypoint 1: t = 0 s repeats"):
+        Trajectory(times=[0.0, 0.0], points=[[14, 6, 1.2], [12, 6, 1.2]])
+    with pytest.raises(TrajectoryError, match=r"passes through 'wall_2' at \[15.714, 12.000, 1.200\]"):
+        plan_walk("l_hall_2ris", Trajectory(times=[0.0, 10.0], points=[[20, 6, 1.2], [10, 20, 1.2]]))
