@@ -171,7 +171,7 @@ def _import_all(args: argparse.Namespace, schedules) -> int:
 
     from .._outputs import output_folder, safe_name
     from ..io.capture_file import save_capture
-    from ..measured import import_capture
+    from ..measured import import_captures
 
     folder = Path(args.output)
     names = [f"{safe_name(n)}.npz" for n in schedules.names]
@@ -181,7 +181,7 @@ def _import_all(args: argparse.Namespace, schedules) -> int:
                        "to import one RIS into a file")
     options = _import_options(args)
     with output_folder(folder, force=args.force, flag="-o", expect=tuple(names)) as stage:
-        captures = [import_capture(args.raw, args.config, schedules, ris=n, **options) for n in schedules.names]
+        captures = list(import_captures(args.raw, args.config, schedules, **options).values())
         for name, capture in zip(names, captures):
             save_capture(capture, stage / name)
     for name, capture in zip(names, captures):

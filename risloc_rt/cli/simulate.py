@@ -139,9 +139,11 @@ def _simulate(args: argparse.Namespace, target: Path, backend=None) -> str:
         if args.schedule is not None:
             raise CliError("--schedule places the slots of several RISs in one recording: give it with --format "
                            "dca1000 and without --ris, on a scene with several RISs")
-        hs = _hall(args, cal, 0 if args.ris is None else _ris_choice(args.scene, args.ris), args.idle or "off")
-        if hs.idle:
-            _check_facing(hs)
+        index = 0 if args.ris is None else _ris_choice(args.scene, args.ris)
+        if len(names) > 1 and not _facing(args)[index]:
+            raise CliError(f"--ris {names[index]}: the radar stands behind {names[index]}'s panel, so its sweep cannot "
+                           "reach the radar; choose another --ris or move the radar (--ue, --radar-index)")
+        hs = _hall(args, cal, index, args.idle or "off")
         scenario, paths, extra = _traced(args, hs)
     if args.format == "dca1000":
         from ..measured.emulate.experiment import dca1000_radar
@@ -238,25 +240,33 @@ def _hall(args: argparse.Namespace, cal, ris: int | str, idle: str, parked_beam=
     return hs
 
 
-def _check_facing(hs) -> None:
-    """Refuse (one line) a slot whose sweeping RIS has the radar behind its panel: no return to simulate.
+def _facing(args: argparse.Namespace) -> list[bool]:
+    """Whether the radar (``--ue`` or the spec's ``--radar-index`` position) is in front of each RIS of ``--scene``.
 
     Parameters
     ----------
-    hs : HallScenario
-        The slot.
+    args : argparse.Namespace
+        ``--scene``, ``--ue`` [m], ``--radar-index``.
 
     Returns
     -------
-    None
+    list of bool
+        One per RIS, spec order (:func:`risloc_rt.hall.scenario.facing_radar`).
     """
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
     from ..hall.scenario import facing_radar
 
-    if not facing_radar(hs.base.ris, hs.base.ue_position):
-        az = np.rad2deg(hs.base.ris.pose.angles_to(hs.base.ue_position)[0])
-        raise CliError(f"--ris {hs.ris_name}: the radar at {np.round(hs.base.ue_position, 3).tolist()} m stands behind "
-                       f"{hs.ris_name}'s panel (azimuth {az:+.1f} deg in its frame), so its sweep cannot reach the "
-                       "radar; choose another --ris or move the radar (--ue, --radar-index)")
+    spec = load_spec(scene_directory(args.scene) / "spec.toml")
+    positions = spec.radar_positions()
+    if args.ue is not None:
+        ue = vector(args.ue, "--ue")
+    elif 0 <= args.radar_index < len(positions):
+        ue = positions[args.radar_index]
+    else:
+        raise CliError(f"--radar-index {args.radar_index} is out of range: the scene has {len(positions)} radar "
+                       "position(s)")
+    return [facing_radar(cfg, ue) for cfg in spec.ris_configs()]
 
 
 def _traced(args: argparse.Namespace, hs) -> tuple[Scenario, object, dict]:
@@ -352,7 +362,10 @@ def _time_division(args: argparse.Namespace, names: list[str], cal, folder: Path
     from ..measured.emulate.experiment import dca1000_radar
     from ..measured.emulate.time_division import emulate_time_division, idle_frame, slot_first_frames
 
-    first = _hall(args, cal, 0, args.idle or "off")
+    faces = dict(zip(names, _facing(args)))
+    if not any(faces.values()):
+        raise CliError("the radar stands behind every RIS of the scene: no slot has a return; move it (--ue)")
+    first = _hall(args, cal, names.index(next(n for n in names if faces[n])), args.idle or "off")
     if np.any(first.base.ue_velocity != 0):
         raise CliError("a moving radar in a time-division recording is not modelled (one truth for every slot); "
                        "give --ue-velocity 0,0,0, or simulate one RIS with --ris")
@@ -361,12 +374,13 @@ def _time_division(args: argparse.Namespace, names: list[str], cal, folder: Path
     firsts = slot_first_frames(td, radar.frame_interval)
     captures, configs, idle = [], [], None
     for k, name in enumerate(td.order):
-        hs = _hall(args, cal, name, td.idle, td.parked_beam)
-        configs.append(hs.base.ris)
-        if not _faces(hs):
+        if not faces[name]:
             print(f"note: the radar stands behind {name}'s panel: its slot holds no return")
+            configs.append(_spec_ris(args, name))
             captures.append(None)
             continue
+        hs = _hall(args, cal, name, td.idle, td.parked_beam)
+        configs.append(hs.base.ris)
         scenario, paths, extra = _traced(args, hs)
         scenario = replace(scenario, radar=radar)
         if cal is not None:
@@ -377,8 +391,6 @@ def _time_division(args: argparse.Namespace, names: list[str], cal, folder: Path
         captures.append(simulate(scenario, rng=np.random.default_rng([args.seed, k]), noise=not args.no_noise,
                                  seed=args.seed, paths=paths, provenance_extra=extra, motion="frozen",
                                  backend=backend))
-    if idle is None:
-        raise CliError("the radar stands behind every RIS of the scene: no slot has a return; move it (--ue)")
     rec = emulate_time_division(list(td.order), configs, captures, folder, idle=idle,
                                 rng=np.random.default_rng([args.seed, 1]), first_frames=firsts,
                                 division={k: v for k, v in td.to_dict().items() if k in ("order", "idle",
@@ -391,21 +403,25 @@ def _time_division(args: argparse.Namespace, names: list[str], cal, folder: Path
             f"{np.round(t.ue_position, 4).tolist()} m")
 
 
-def _faces(hs) -> bool:
-    """Whether the slot's sweeping RIS has the radar in front of its panel.
+def _spec_ris(args: argparse.Namespace, name: str):
+    """The spec's RIS ``name`` of ``--scene`` (pose, hardware), for the schedule of a slot that is not simulated.
 
     Parameters
     ----------
-    hs : HallScenario
-        The slot.
+    args : argparse.Namespace
+        ``--scene``.
+    name : str
+        The RIS's name in the spec.
 
     Returns
     -------
-    bool
+    RisConfig
     """
-    from ..hall.scenario import facing_radar
+    from ..authoring.scene_folder import scene_directory
+    from ..authoring.spec import load_spec
 
-    return facing_radar(hs.base.ris, hs.base.ue_position)
+    spec = load_spec(scene_directory(args.scene) / "spec.toml")
+    return spec.ris_configs()[[r.name for r in spec.ris].index(name)]
 
 
 def _adc_options(args: argparse.Namespace, radar) -> dict:

@@ -188,12 +188,18 @@ def _alignment(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, firs
 
 def _check_schedule(info: CaptureInfo, radar: RadarConfig, sched: SweepSchedule, first_frame: int,
                     chans: tuple[int, ...], *, frames_per_block: int, gate_range: float,
-                    assemble: str) -> ScheduleCheck:
-    """A given first frame checked against the recording (:func:`.alignment.check_first_frame`; reads it twice)."""
+                    assemble: str, series_cache: dict[Any, Any] | None = None) -> ScheduleCheck:
+    """A given first frame checked against the recording (:func:`.alignment.check_first_frame`; reads it twice);
+    ``series_cache`` keeps the RIS power per frame for the next RIS of the same recording."""
     def blocks():
         return (b.cube[:, :, list(chans), :] for b in iter_frames(info, frames_per_block=frames_per_block))
 
-    series = ris_power_series(blocks, radar, min_range=gate_range)
+    key = (tuple(str(f) for f in info.files), chans, float(gate_range), frames_per_block)
+    series = None if series_cache is None else series_cache.get(key)
+    if series is None:
+        series = ris_power_series(blocks, radar, min_range=gate_range)
+        if series_cache is not None:
+            series_cache[key] = series
     return check_first_frame(series, sched.program(radar.frame_interval), int(first_frame),
                              fractions=chirp_fractions(radar.num_chirps, radar.chirp_interval, radar.frame_interval),
                              frame_width=radar.frame_duration / radar.frame_interval,
@@ -331,6 +337,7 @@ def import_captures(raw: str | Path | Sequence[str | Path], config: str | Path |
     several = schedule if isinstance(schedule, SweepSchedules) else read_sweep_schedules(schedule)
     if not several.several:
         return {"": import_capture(raw, config, several.schedules[0], **options)}
+    options.setdefault("series_cache", {})                 # the recording's RIS power per frame, computed once
     return {name: import_capture(raw, config, several, ris=name, **options) for name in several.names}
 
 
@@ -340,7 +347,8 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
                    form: str = "auto", frames_per_block: int = 8, first_frame: int | str | None = None,
                    leakage: str = DEFAULT_LEAKAGE, gate_range: float = DEFAULT_GATE_RANGE,
                    channels: Sequence[int] | None = None, min_confidence: float = 0.5,
-                   assemble: str = DEFAULT_ASSEMBLE, check_schedule: bool = True) -> Capture:
+                   assemble: str = DEFAULT_ASSEMBLE, check_schedule: bool = True,
+                   series_cache: dict[Any, Any] | None = None) -> Capture:
     """Import a recorded RIS sweep as a :class:`~risloc_rt.model.capture.Capture`.
 
     Parameters
@@ -381,6 +389,9 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
         frame holding most of it (:func:`.alignment.select_chirps`).
     check_schedule : bool
         Check a given first frame against the recording (reads it twice more).
+    series_cache : dict, optional
+        Shared by the imports of one recording's RISs (:func:`import_captures`): the check's RIS
+        power per frame is computed once for all of them.
 
     Returns
     -------
@@ -431,7 +442,7 @@ def import_capture(raw: str | Path | Sequence[str | Path], config: str | Path | 
     checked = None
     if check_schedule and first_frame != "auto":
         checked = _check_schedule(info, radar, sched, int(first_frame), chans, frames_per_block=frames_per_block,
-                                  gate_range=gate_range, assemble=assemble)
+                                  gate_range=gate_range, assemble=assemble, series_cache=series_cache)
     beams = _read_beams(info, align, off, chans, cfg, frames_per_block=frames_per_block)
     cube, weights = _combined_cube(beams, radar, leakage, gate_range, len(off))
     sweep = BeamSweep(np.deg2rad(np.asarray(sched.angles_deg, float)))
