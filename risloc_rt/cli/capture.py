@@ -205,7 +205,7 @@ def _import(args: argparse.Namespace) -> int:
         The exit status: 0 when the capture file is written (a first frame the recording
         contradicts is a one-line ``warning:`` on stderr and the capture's ``schedule-mismatch``
         flag); bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2). A schedule of
-        several RISs without ``--ris``: ``-o`` is a folder that gets ``<RIS name>.npz`` per RIS.
+        ``[[ris]]`` tables without ``--ris``: ``-o`` is a folder that gets ``<RIS name>.npz`` per RIS.
     """
     from pathlib import Path
 
@@ -213,7 +213,7 @@ def _import(args: argparse.Namespace) -> int:
     from ..measured import import_capture, read_sweep_schedules
 
     schedules = read_sweep_schedules(args.sweep)
-    if schedules.several and args.ris is None and len(schedules.names) > 1:
+    if schedules.several and args.ris is None:
         return _import_all(args, schedules)
     schedules.index(args.ris)                                 # a RIS the recording does not have: one line
     target = check_output_file(npz_target(args.output), force=args.force, flag="-o")

@@ -97,6 +97,22 @@ def test_npz_of_one_ris_with_the_others_parked(tmp_path, monkeypatch, capsys):
     assert cap.provenance["idle_ris"] == [{"name": "ris0", "parked_beam": [0.0, 0.0]}]
 
 
+def test_a_slot_whose_ris_faces_away_holds_no_return(tmp_path, monkeypatch, capsys):
+    """The radar at [24, 9, 1.2] stands behind ris0 (it faces -x from x = 19.38) and 10.1 m in front of ris1."""
+    monkeypatch.setenv("RISLOC_CACHE_DIR", str(tmp_path / "cache"))
+    folder = tmp_path / "dca"
+    assert main(["simulate", "--scene", SCENE, "--ue", "24,9,1.2", "--format", "dca1000", "--idle", "parked",
+                 "-o", str(folder), *TRACE]) == 0
+    out = capsys.readouterr().out
+    assert "note: the radar stands behind ris0's panel: its slot holds no return" in out
+    assert "(ris1 sweeping)" in out and "(ris0 sweeping)" not in out
+    schedules = read_sweep_schedules(folder / "sweep.toml")
+    assert schedules.names == ("ris0", "ris1") and schedules.first_frames() == (0, 61)
+    assert schedules.division["idle"] == "parked"
+    np.testing.assert_allclose(schedules.schedule("ris0").ris_position, RIS["ris0"])
+    assert (folder / "adc_data_Raw_0.bin").stat().st_size == 122 * 128 * 600 * 4      # frames x chirps x samples x I/Q
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--scene", SCENE, "--ris", "ris7"], "--ris='ris7': the scene 'paper_hall_2ris' has no such RIS; it has ris0, ris1"),
     (["--scene", SCENE, "--ris", "2"], "has no such RIS; it has ris0, ris1"),
