@@ -163,20 +163,25 @@ def plot_map(spec: Any, cells: list[dict[str, Any]], settings: Any, path: str | 
     names = [r.name for r in spec.ris]
     several = len(configs) > 1
     serving = names + ["none"]
+    labels: dict[str, list[str]] = {"dominant flag": flags}
     if several:
-        panels.append(("served by (smallest own PEB, Pd >= 0.5)",
-                       [serving.index(c.get("served_by") or "none") for c in cells], "ris"))
-        labels = serving
+        title = "served by (smallest own PEB, Pd >= 0.5)"
+        panels.append((title, [serving.index(c.get("served_by") or "none") for c in cells], "cat"))
+        labels[title] = serving
+        if coverage:
+            title = (f"covered (Pd >= {coverage['detection_probability']:g}, PEB < "
+                     f"{1e3 * coverage['peb_bound']:g} mm)")
+            panels.append((title, [int(c["detection_probability"] >= coverage["detection_probability"]
+                                       and c["peb"] is not None and c["peb"] < coverage["peb_bound"]) for c in cells],
+                           "cat"))
+            labels[title] = ["not covered", "covered"]
     fig, axes = new_figure(figsize=(18, 8) if several else (12, 8), nrows=2, ncols=3 if several else 2)
     fig.set_layout_engine("constrained")
-    if several:
-        axes.ravel()[-1].set_axis_off()
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_axis_off()
     for ax, (title, values, scale) in zip(axes.ravel(), panels):
         v = np.array(values, dtype=float)
-        if scale == "ris":  # categories as the flags', "none" last
-            scale, flags_shown = "cat", labels
-        else:
-            flags_shown = flags
+        flags_shown = labels.get(title, [])
         norm = LogNorm() if scale == "log" and np.nanmax(v[np.isfinite(v)], initial=0.0) > 0 else None
         cmap = "tab10" if scale == "cat" else ("viridis_r" if scale == "log" else "viridis")
         x0, y0 = xs.min(), ys.min()

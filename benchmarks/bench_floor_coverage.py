@@ -1,0 +1,60 @@
+"""Floor coverage of one RIS against several (issue 22): ``risloc study map`` on each hall, coverage beside time.
+
+For each scene: the map (``risloc_rt.studies.floor_map.run_map``; a folder that holds the map
+already is reopened and only its missing runs are computed), then one table row: the floor cells,
+the cells some RIS sees, the coverage (Pd >= 0.99 and PEB below the bound), the share with
+Pd >= 0.99 alone, the cells each RIS serves, the position RMSE (median, 90 %, worst) and the wall
+time of the runs computed now. Run it with ``nice`` on a shared machine::
+
+    nice -n 10 .venv/bin/python benchmarks/bench_floor_coverage.py paper_hall paper_hall_2ris \\
+        --spacing 1 --runs 5 --workers 2 --out runs
+
+Results: docs/benchmarks.md, "Floor coverage with several RISs".
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+
+def main() -> None:
+    from risloc_rt.studies.floor_map import COVERED_PD, DEFAULT_PEB_BOUND, MapSettings, run_map
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenes", nargs="+")
+    ap.add_argument("--spacing", type=float, default=1.0)
+    ap.add_argument("--height", type=float, default=1.2)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--tx-power-dbm", type=float, default=None)
+    ap.add_argument("--peb-bound", type=float, default=DEFAULT_PEB_BOUND)
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--out", type=Path, required=True, help="a folder per scene is made in it (or reopened)")
+    args = ap.parse_args()
+    rows = []
+    for scene in args.scenes:
+        settings = MapSettings(scene=scene, spacing=args.spacing, height=args.height, runs=args.runs, seed=args.seed,
+                               tx_power_dbm=args.tx_power_dbm, peb_bound=args.peb_bound)
+        res = run_map(settings, args.out / f"cov-{scene}-{args.spacing:g}m", workers=args.workers, quiet=True)
+        cov = res.coverage
+        pd_ok = sum(c["detection_probability"] >= COVERED_PD for c in res.cells)
+        rmse = np.array([c["rmse_position"] for c in res.cells if c["rmse_position"] is not None])
+        served = Counter(c["served_by"] or "none" for c in res.cells)
+        rows.append((scene, cov["floor_cells"], cov["mapped_cells"], 100 * cov["share"],
+                     100 * pd_ok / cov["floor_cells"], ", ".join(f"{k} {v}" for k, v in sorted(served.items())),
+                     1e3 * np.median(rmse), 1e3 * np.quantile(rmse, 0.9), 1e3 * rmse.max(), res.wall_seconds))
+    print(f"{args.spacing:g} m grid at {args.height:g} m, {args.runs} runs per cell and RIS, seed {args.seed}, "
+          f"PEB bound {1e3 * args.peb_bound:g} mm")
+    print("| scene | floor cells | seen | coverage | Pd >= 0.99 | served by | RMSE median / 90 % / worst [mm] | wall [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in rows:
+        print(f"| `{r[0]}` | {r[1]} | {r[2]} | {r[3]:.1f} % | {r[4]:.1f} % | {r[5]} | {r[6]:.1f} / {r[7]:.1f} / "
+              f"{r[8]:.0f} | {r[9]:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
