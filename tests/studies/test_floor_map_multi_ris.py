@@ -179,6 +179,9 @@ def test_a_two_ris_map_fuses_serves_and_counts_its_coverage(tiny_hall_2ris, tmp_
     assert res.coverage == {k: v for k, v in cov.items() if k != "unseen"}
     assert f"coverage {100 * cov['share']:.1f} %" in res.describe()
     assert (tmp_path / "m" / "map.png").stat().st_size > 10_000
+    # two workers: the same points, noise streams and fused cells (the rows depend on (point, run) only)
+    two = run_map(settings, tmp_path / "two", workers=2, quiet=True)
+    assert two.cells == res.cells and two.coverage == res.coverage
 
 
 # --- bad input: one line ----------------------------------------------------------------------------
