@@ -719,7 +719,19 @@ class SweepSchedules:
 
     @classmethod
     def single(cls, schedule: SweepSchedule, *, source: str = "<sweep schedule>") -> "SweepSchedules":
-        """The one-RIS form of ``schedule`` (name ``""``)."""
+        """The one-RIS form of ``schedule`` (name ``""``).
+
+        Parameters
+        ----------
+        schedule : SweepSchedule
+            The one RIS's schedule.
+        source : str
+            The file, for messages.
+
+        Returns
+        -------
+        SweepSchedules
+        """
         return cls(names=("",), schedules=(schedule,), first_frame=schedule.first_frame, several=False,
                    source=source)
 
