@@ -114,7 +114,8 @@ def test_a_slot_whose_ris_faces_away_holds_no_return(tmp_path, monkeypatch, caps
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--scene", SCENE, "--ris", "ris7"], "--ris='ris7': the scene 'paper_hall_2ris' has no such RIS; it has ris0, ris1"),
+    (["--scene", SCENE, "--ris", "ris7"],
+     "--ris='ris7': the scene 'paper_hall_2ris' has no such RIS; it has ris0, ris1"),
     (["--scene", SCENE, "--ris", "2"], "has no such RIS; it has ris0, ris1"),
     (["--ris", "ris1"], "--ris chooses among the RISs of a hall; give --scene NAME with it"),
     (["--idle", "parked"], "--idle chooses among the RISs of a hall"),
@@ -124,6 +125,8 @@ def test_a_slot_whose_ris_faces_away_holds_no_return(tmp_path, monkeypatch, caps
     (["--scene", SCENE, "--format", "dca1000", "--schedule", "UNKNOWN"], "order names RIS 'ris9'"),
     (["--scene", SCENE, "--format", "dca1000", "--schedule", "SCHEDULE", "--idle", "parked"],
      "--idle and --schedule both"),
+    (["--scene", SCENE, "--format", "dca1000", "--ue-velocity", "0.5,0,0"],
+     "a moving radar in a time-division recording is not modelled"),
 ])
 def test_bad_several_ris_input_is_one_line(tmp_path, capsys, argv, message):
     files = {"SCHEDULE": '[schedule]\norder = ["ris0", "ris1"]\n',

@@ -17,7 +17,8 @@ import scipy.stats
 from dsp import ProcessingConfig, RadarConfig
 from dsp.fusion import RisFix, fuse_fixes
 from risloc_rt.io.report import process_capture
-from risloc_rt.measured import (MeasuredFormatError, dca1000_radar, emulate_time_division, format_sweep_schedules,
+from risloc_rt.measured import (MeasuredFormatError, dca1000_radar, emulate_time_division, format_sweep_schedule,
+                                format_sweep_schedules,
                                 import_capture, import_captures, parse_sweep_schedule, parse_sweep_schedules)
 from risloc_rt.measured.emulate.experiment import full_scale
 from risloc_rt.model.builder import analytic_scenario
@@ -92,6 +93,12 @@ def test_one_ris_by_name_and_unknown_ris(recording):
         import_capture(rec.raw_path, rec.config_path, rec.schedule_path, ris="east", first_frame="auto")
     with pytest.raises(MeasuredFormatError, match="use --leakage gate"):
         import_capture(rec.raw_path, rec.config_path, rec.schedule_path, ris="east", leakage="background")
+    single = rec.folder / "one.toml"                            # the one-RIS form: its RIS has no name
+    single.write_text(format_sweep_schedule(rec.schedules.schedule("east")))
+    with pytest.raises(MeasuredFormatError, match=r"^--ris east: .*one.toml describes one RIS in a \[ris\] table"):
+        import_capture(rec.raw_path, rec.config_path, single, ris="east")
+    cap = import_capture(rec.raw_path, rec.config_path, single, check_schedule=False)
+    np.testing.assert_array_equal(cap.frame_index[[0, -1]], [FIRST[1], FIRST[1] + 60])
 
 
 # ---------------------------------------------------------------------------------------------- the file format

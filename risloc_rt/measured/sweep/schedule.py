@@ -908,8 +908,8 @@ def _division_table(doc: dict[str, Any], names: list[str], firsts: list[int | No
     given = [f is not None for f in firsts]
     if any(given) and not all(given):
         missing = names[given.index(False)]
-        raise MeasuredFormatError(f"{source}: some [[ris]] tables give first_frame and {missing!r} does not; give every "
-                                  "RIS its first_frame, or none (then [schedule] places the slots)")
+        raise MeasuredFormatError(f"{source}: some [[ris]] tables give first_frame and {missing!r} does not; give "
+                                  "every RIS its first_frame, or none (then [schedule] places the slots)")
     if table is None:
         if not all(given):
             raise MeasuredFormatError(f"{source}: ris[0].first_frame is missing; give each [[ris]] its slot's first "
