@@ -388,7 +388,7 @@ def _time_division(args: argparse.Namespace, names: list[str], cal, folder: Path
 
             paths = calibrated_paths(scenario, paths, cal)
         idle = idle_frame(scenario, paths) if idle is None else idle
-        captures.append(simulate(scenario, rng=np.random.default_rng([args.seed, k]), noise=not args.no_noise,
+        captures.append(simulate(scenario, rng=np.random.default_rng([args.seed, 2, k]), noise=not args.no_noise,
                                  seed=args.seed, paths=paths, provenance_extra=extra, motion="frozen",
                                  backend=backend))
     rec = emulate_time_division(list(td.order), configs, captures, folder, idle=idle,

@@ -125,13 +125,16 @@ def test_a_slot_whose_ris_faces_away_holds_no_return(tmp_path, monkeypatch, caps
     (["--scene", SCENE, "--format", "dca1000", "--schedule", "UNKNOWN"], "order names RIS 'ris9'"),
     (["--scene", SCENE, "--format", "dca1000", "--schedule", "SCHEDULE", "--idle", "parked"],
      "--idle and --schedule both"),
+    (["--scene", SCENE, "--format", "dca1000", "--schedule", "FRACTION"],
+     "[schedule]: the slot of 'ris1' starts at 556.56 ms = 62.12 frames of 8.96 ms; a recording's slots start on whole"),
     (["--scene", SCENE, "--format", "dca1000", "--ue-velocity", "0.5,0,0"],
      "a moving radar in a time-division recording is not modelled"),
 ])
 def test_bad_several_ris_input_is_one_line(tmp_path, capsys, argv, message):
     files = {"SCHEDULE": '[schedule]\norder = ["ris0", "ris1"]\n',
              "OVERLAP": '[schedule]\norder = ["ris0", "ris1"]\nstart_ms = [0.0, 100.0]\n',
-             "UNKNOWN": '[schedule]\norder = ["ris0", "ris9"]\n'}
+             "UNKNOWN": '[schedule]\norder = ["ris0", "ris9"]\n',
+             "FRACTION": '[schedule]\ngap_ms = 10.0\n'}
     for name, text in files.items():
         (tmp_path / f"{name}.toml").write_text(text)
     argv = [str(tmp_path / f"{a}.toml") if a in files else a for a in argv]
