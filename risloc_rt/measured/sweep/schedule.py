@@ -921,7 +921,13 @@ def _division_table(doc: dict[str, Any], names: list[str], firsts: list[int | No
         if name not in names:
             raise MeasuredFormatError(f"{where}: order names RIS {name!r}, which has no [[ris]] table; add one (name, "
                                       f"position, facing, loopback_delay_ns) or use one of {', '.join(names)}")
-    parse_time_division(table, ris_names=names, sweep_duration=1e-9, where=where, error=MeasuredFormatError)
+    try:                                   # keys, names, idle, parked_deg now; the slots' timing once T_f is known
+        parse_time_division(table, ris_names=names, sweep_duration=1e-9, where=where, error=MeasuredFormatError)
+    except MeasuredFormatError as exc:
+        if "overlap" not in str(exc) and "cycle" not in str(exc):
+            raise
+        raise MeasuredFormatError(f"{where}: start_ms = {table.get('start_ms')!r} and cycle_ms must increase, one "
+                                  "start per RIS of order, the cycle after the last") from None
     left = [n for n in names if n not in order]
     if left:
         raise MeasuredFormatError(f"{where}: order leaves out RIS {left[0]!r}, which has a [[ris]] table; add it to "
