@@ -55,7 +55,18 @@ def fuse_cases(cases: list[CaseResult]) -> FusedFix | None:
 
 
 def common_truth(cases: list[CaseResult]) -> np.ndarray | None:
-    """The radar's true position [3] [m] when every capture has a truth and they agree within 1 mm, else None."""
+    """The radar's true position when every capture has a truth and they agree within 1 mm.
+
+    Parameters
+    ----------
+    cases : list of CaseResult
+        The located captures.
+
+    Returns
+    -------
+    float array [3] or None
+        The position [m]; None without a truth, or when the truths differ (the radar moved).
+    """
     truths = [c.truth for c in cases]
     if not truths or any(t is None for t in truths):
         return None

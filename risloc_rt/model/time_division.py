@@ -152,11 +152,33 @@ class TimeDivision:
         return cycle * self.cycle + self.starts[slot]
 
     def ris_of(self, index: int) -> str:
-        """The RIS that sweeps in the ``index``-th slot (counting on across cycles)."""
+        """The RIS that sweeps in the ``index``-th slot (counting on across cycles).
+
+        Parameters
+        ----------
+        index : int
+            0, 1, ...
+
+        Returns
+        -------
+        str
+            Its name.
+        """
         return self.order[int(index) % self.num_slots]
 
     def slots_until(self, end: float) -> np.ndarray:
-        """Indices of every slot whose sweep ends by ``end`` [s] (from the schedule's start) [S]."""
+        """Indices of every slot whose sweep ends by ``end`` (from the schedule's start).
+
+        Parameters
+        ----------
+        end : float
+            The time [s].
+
+        Returns
+        -------
+        int array [S]
+            0, 1, ..., S − 1 (empty when no sweep has ended).
+        """
         if not math.isfinite(end) or end < self.sweep_duration:
             return np.zeros(0, dtype=int)
         out, k = [], 0
@@ -166,7 +188,14 @@ class TimeDivision:
         return np.array(out, dtype=int)
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``[schedule]`` table of this schedule (ms and degrees, as in the file)."""
+        """The ``[schedule]`` table of this schedule (ms and degrees, as in the file).
+
+        Returns
+        -------
+        dict
+            ``order``, ``idle``, ``parked_deg``, ``start_ms``, ``cycle_ms``: :func:`parse_time_division`
+            reads it back to an equal schedule.
+        """
         return {"order": list(self.order), "idle": self.idle,
                 "parked_deg": [float(np.rad2deg(x)) for x in self.parked_beam],
                 "start_ms": [s * 1e3 for s in self.starts], "cycle_ms": self.cycle * 1e3}

@@ -77,7 +77,13 @@ class BudgetTerm:
     bound: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON: every attribute (None where not applicable)."""
+        """Plain JSON: every attribute (None where not applicable).
+
+        Returns
+        -------
+        dict
+            ``name``, ``quantity``, ``value``, ``unit``, ``source``, ``correction``, ``bound``.
+        """
         return {"name": self.name, "quantity": self.quantity, "value": self.value, "unit": self.unit,
                 "source": self.source, "correction": self.correction, "bound": self.bound}
 
@@ -119,7 +125,13 @@ class UncertaintyBudget:
     uncalibrated_bias: float | None
 
     def to_list(self) -> list[dict[str, Any]]:
-        """The terms as plain JSON (``result.json``: ``estimate.uncertainty_budget``)."""
+        """The terms as plain JSON (``result.json``: ``estimate.uncertainty_budget``).
+
+        Returns
+        -------
+        list of dict
+            :meth:`BudgetTerm.to_dict` of each term.
+        """
         return [t.to_dict() for t in self.terms]
 
 

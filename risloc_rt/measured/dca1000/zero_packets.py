@@ -69,7 +69,12 @@ class ZeroScan:
         return self.zeros_outside / self.words_outside if self.words_outside else float("nan")
 
     def note(self) -> str | None:
-        """One line for a capture's notes when all-zero packets were seen but not reported, else None."""
+        """One line for a capture's notes when all-zero packets were seen but not reported, else None.
+
+        Returns
+        -------
+        str or None
+        """
         if not self.zero_packets or self.noise_evidence:
             return None
         return (f"{self.zero_packets} whole {self.payload_size}-byte packets of exact zeros on the packet grid, but "
