@@ -23,7 +23,11 @@ position as ``dsp.self_localize`` gave it; two or more are fused: ``dsp.fuse_fix
 agree (its χ² test leaves out an inconsistent one, flag ``inconsistent-ris``), then the position of
 the fixes it used is re-solved with the radar's height known (the map's height: :func:`fuse_at_height`;
 RISs at one height leave the height unobservable, and a known height is what the single-RIS fix uses).
-**Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected),
+**Folded returns**: a radar beyond a RIS's unambiguous range sees its return folded to d - R_max,
+a wrong fix the DSP does not flag; the map applies ``risloc locate``'s link-budget check to every
+detected run (:func:`folded_return`) and a fix it flags ``aliased`` gives no position (the run counts
+the flag). **Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected
+and not folded),
 ``rmse_position`` (over those runs), ``peb`` (the bound of the geometry: :func:`multi_ris_peb`, the
 summed Fisher information of the RISs that see the cell), ``served_by`` (the RIS with the smallest
 single-RIS PEB among those detected in at least half the runs; None when none is) and ``ris`` (each
@@ -58,7 +62,7 @@ from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "grid_budget", "prepare_cell",
-           "multi_ris_peb", "fuse_at_height", "cell_run_position", "coverage", "MAX_GRID_POINTS",
+           "multi_ris_peb", "fuse_at_height", "cell_run_position", "folded_return", "coverage", "MAX_GRID_POINTS",
            "COVERED_PD", "DEFAULT_PEB_BOUND"]
 
 #: More grid points than this (before the cells are chosen) are refused unless ``force_long``: each
@@ -467,7 +471,9 @@ def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, t
     entries : sequence of (str, dsp.RisPose, dict)
         Each RIS that sees the cell: its name, pose and this run's row
         (:func:`risloc_rt.studies.kernel.run_once`: ``detected``, ``distance`` [m], ``aod_az`` [rad],
-        ``std_distance`` [m], ``std_aod_az`` [rad], ``x``, ``y``, ``z`` [m], ``position_error`` [m], ``flags``).
+        ``std_distance`` [m], ``std_aod_az`` [rad], ``x``, ``y``, ``z`` [m], ``position_error`` [m], ``flags``;
+        ``folded``: True when the link-budget check found the return folded, :func:`folded_return`:
+        such a fix counts as no detection).
     truth : float array [3]
         The radar's true position [m].
     height : float
@@ -477,12 +483,12 @@ def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, t
     -------
     (float, tuple of str, tuple of str) or None
         The position error [m], the RISs used and those left out as inconsistent; None when no RIS
-        detected the radar. One detection: that RIS's own ``position_error``; several: the error of
+        detected the radar (or every detection was folded). One detection: that RIS's own ``position_error``; several: the error of
         :func:`fuse_at_height` over the fixes with a stated 1σ.
     """
     from dsp import RisFix, angles_from_direction
 
-    found = [(name, pose, row) for name, pose, row in entries if row["detected"]]
+    found = [(name, pose, row) for name, pose, row in entries if _usable(row)]
     if not found:
         return None
     fixes = []
@@ -501,6 +507,57 @@ def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, t
     position, fused = fuse_at_height(fixes, height)
     return (float(np.linalg.norm(position - np.asarray(truth, dtype=float))), tuple(fused.used),
             tuple(n for n, _ in fused.excluded))
+
+
+def _usable(row: dict[str, Any]) -> bool:
+    """A run row that gives a position: detected, and its return not found folded (:func:`folded_return`)."""
+    return bool(row["detected"]) and not row.get("folded", False)
+
+
+def folded_return(row: dict[str, Any], scenario: Any, pose: Any, peak_snr_db: float) -> Any:
+    """The link-budget check for range aliasing of ``risloc locate`` on one run of a map point.
+
+    A radar beyond a RIS's unambiguous range (21.8 m less τ_RB·c/2 at Table I) sees that RIS's
+    return folded to ``d - R_max`` and localizes it there without a flag of the DSP's own;
+    ``risloc_rt.io.report.process_capture`` checks the power
+    (:func:`risloc_rt.model.power_check.range_alias_flag`: more than 10 dB below the link budget at
+    d̂ and closer to it at d̂ + k·R_max raises ``aliased``). The map's runs go through
+    ``dsp.self_localize`` alone, so the map applies the same check here, with the point's true
+    post-integration SNR (its bound's ``peak_snr_db``, from the noiseless cube: what the estimate's
+    fitted SNR estimates, within a fraction of a dB at a detectable SNR against the 10 dB margin) in
+    place of the run's fitted one, and the run's own d̂ and azimuth.
+
+    Parameters
+    ----------
+    row : dict
+        A detected run row (``distance`` [m], ``aod_az`` [rad], ``x``, ``y``, ``z`` [m]).
+    scenario : risloc_rt.model.Scenario
+        The point's scenario (radar, RIS, sweep: ``hall_scenario(...).base``).
+    pose : dsp.RisPose
+        The RIS's pose.
+    peak_snr_db : float
+        The point's true post-integration SNR at the pattern peak [dB].
+
+    Returns
+    -------
+    dsp.Flag or None
+        The ``aliased`` flag when the power points to a folded return.
+    """
+    from types import SimpleNamespace
+
+    from dsp import angles_from_direction
+
+    from ..model.power_check import range_alias_flag
+
+    if not row["detected"] or not np.isfinite(_num(row.get("distance"))) or not np.isfinite(peak_snr_db):
+        return None
+    rel = np.array([_num(row["x"]), _num(row["y"]), _num(row["z"])]) - pose.position
+    el = float(angles_from_direction(pose.to_local(rel / np.linalg.norm(rel)))[1])
+    loc = SimpleNamespace(detection=True, detected=True, distance=_num(row["distance"]),
+                          aod=np.array([_num(row["aod_az"]), el]), std=SimpleNamespace(peak_snr_db=float(peak_snr_db)))
+    capture = SimpleNamespace(radar=scenario.radar, ris=scenario.ris, sweep=scenario.sweep,
+                              provenance={"source": "simulation"})
+    return range_alias_flag(loc, capture)
 
 
 def coverage(cells: list[dict[str, Any]], floor_cells: int, peb_bound: float) -> dict[str, Any]:
@@ -728,7 +785,12 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
 def _cells(settings: MapSettings, spec: Any, cells: np.ndarray, pairs: tuple[tuple[int, int], ...], log: RunLog,
            info: dict[str, Any]) -> list[dict[str, Any]]:
     """The per-cell entries of ``map.json`` from the run log and the points' bounds (module notes)."""
+    from dsp import RadarConfig
+
+    from ..hall import hall_scenario
+
     configs = spec.ris_configs()
+    radar = RadarConfig() if settings.tx_power_dbm is None else RadarConfig(tx_power_dbm=settings.tx_power_dbm)
     by_cell: dict[int, list[tuple[int, int]]] = {}
     for p, (c, k) in enumerate(pairs):
         by_cell.setdefault(c, []).append((p, k))
@@ -736,15 +798,27 @@ def _cells(settings: MapSettings, spec: Any, cells: np.ndarray, pairs: tuple[tup
     for c, ue in enumerate(cells):
         points = by_cell[c]
         runs = {p: [log.rows[(p, r)] for r in range(settings.runs)] for p, _ in points}
+        for p, k in points:  # the link-budget alias check of risloc locate (folded_return)
+            if not any(x["detected"] for x in runs[p]):
+                continue
+            base = hall_scenario(settings.scene, ris=k, ue_position=ue, radar=radar).base
+            marked = []
+            for x in runs[p]:
+                flag = folded_return(x, base, configs[k].pose, info["crb"][p]["peak_snr_db"])
+                if flag is not None:
+                    codes = [f for f in (x.get("flags") or "").split(",") if f]
+                    x = {**x, "folded": True, "flags": ",".join(codes + ["aliased"] * ("aliased" not in codes))}
+                marked.append(x)
+            runs[p] = marked
         flags = Counter(f for rows in runs.values() for x in rows for f in (x.get("flags") or "").split(",")
                         if f and f != "elevation-assumed")
         own: dict[str, dict[str, Any]] = {}
         for p, k in points:
-            err = np.array([x["position_error"] for x in runs[p] if x["detected"] and x["position_error"] is not None],
+            err = np.array([x["position_error"] for x in runs[p] if _usable(x) and x["position_error"] is not None],
                            float)
             crb = info["crb"][p]
             own[spec.ris[k].name] = {
-                "detection_probability": sum(bool(x["detected"]) for x in runs[p]) / len(runs[p]),
+                "detection_probability": sum(_usable(x) for x in runs[p]) / len(runs[p]),
                 "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
                 "peb": crb["position"], "peak_snr_db": crb["peak_snr_db"]}
         if len(points) == 1:  # one RIS sees the cell: its own numbers (as before issue 22)

@@ -200,3 +200,30 @@ def test_map_bad_ris_or_bound_is_one_line_exit_2(capsys, tmp_path, args, match):
     err = capsys.readouterr().err
     assert status == 2 and match in err and err.count("\n") == 1, err
     assert not (tmp_path / "m").exists()
+
+
+def test_a_return_from_beyond_the_unambiguous_range_is_found_folded_by_its_power():
+    """The loop-back falls as d⁻⁴: a radar 26 m from the RIS, seen at 26 - R_max, arrives far weaker than the
+    link budget predicts at the folded distance (risloc locate's check, applied to the map's runs)."""
+    from risloc_rt.hall import hall_scenario
+    from risloc_rt.model.power_check import expected_loopback_snr_db
+    from risloc_rt.studies.floor_map import folded_return
+
+    base = hall_scenario("paper_hall", ue_position=[6.0, 9.0, 1.2]).base
+    pose = base.ris.pose
+    span = base.radar.max_range
+    aod = np.array([0.2, 0.0])
+    folded = 26.0 - span  # 4.2 m: where the DSP puts a radar 26 m away
+    x = pose.point_at(aod, folded)
+    row = {"detected": True, "distance": folded, "aod_az": aod[0], "x": x[0], "y": x[1], "z": x[2]}
+    capture = type("C", (), {"radar": base.radar, "ris": base.ris, "sweep": base.sweep})
+    energy = float(np.sum(base.ris.beam_pattern().for_wavelength(base.radar.wavelength)
+                          .amplitude(aod, base.sweep.angles) ** 2))
+
+    def peak(d):  # the post-integration peak SNR of a return from distance d [dB]
+        return expected_loopback_snr_db(capture, d, aod) - 10 * np.log10(energy)
+
+    assert peak(folded) - peak(26.0) > 20  # (26 / 4.2)⁴: 32 dB
+    flag = folded_return(row, base, pose, peak(26.0))
+    assert flag is not None and flag.code == "aliased" and "1·R_max" in flag.message
+    assert folded_return(row, base, pose, peak(folded)) is None  # the power it should have there: a true fix
