@@ -751,8 +751,14 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     log = RunLog(folder / "runs.jsonl").open()
     start = time.perf_counter()
     try:
-        info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,
-                       device=device)
+        saved = _saved_points(folder / "points.json", settings, spec, pairs)
+        if saved is not None and all((p, r) in log.rows for p in range(len(pairs)) for r in range(settings.runs)):
+            # every run is in the log and every point's bounds in points.json: nothing to prepare again
+            info = {"crb": {p: x["crb"] for p, x in enumerate(saved)},
+                    "warnings": {p: x["warnings"] for p, x in enumerate(saved)}, "devices": []}
+        else:
+            info = execute(plan, log, prepare=prepare_cell, workers=workers, dask=dask, quiet=quiet,
+                           long_ok=force_long, device=device)
         # every point's bounds beside its runs: map.json can be remade from the folder alone
         atomic_write_bytes(folder / "points.json", json.dumps({
             "key": settings.key, "points": [{"cell": c, "ris": spec.ris[k].name, "crb": info["crb"][p],
@@ -780,6 +786,21 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         plot_map(spec, out_cells, settings, stage / "map.png", unseen=unseen, coverage=cover)
     return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall,
                      devices=info["devices"], coverage=cover)
+
+
+def _saved_points(path: Path, settings: MapSettings, spec: Any, pairs: tuple[tuple[int, int], ...]) -> list | None:
+    """The points' bounds a finished sitting left in ``points.json``, when they are this map's (same key, same
+    (cell, RIS) points); None otherwise."""
+    try:
+        saved = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    points = saved.get("points") if isinstance(saved, dict) else None
+    if saved.get("key") != settings.key or not isinstance(points, list) or len(points) != len(pairs):
+        return None
+    if any(x.get("cell") != c or x.get("ris") != spec.ris[k].name for x, (c, k) in zip(points, pairs)):
+        return None
+    return points
 
 
 def _cells(settings: MapSettings, spec: Any, cells: np.ndarray, pairs: tuple[tuple[int, int], ...], log: RunLog,
