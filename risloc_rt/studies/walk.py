@@ -43,12 +43,14 @@ from typing import Any, Callable
 import numpy as np
 
 __all__ = ["Trajectory", "TrajectoryError", "read_trajectory", "WalkSlot", "WalkResult", "plan_walk", "run_walk",
-           "write_walk", "COLUMNS", "UPDATE_KINDS", "default_schedule", "nees_band", "load_schedule"]
+           "write_walk", "COLUMNS", "UPDATE_KINDS", "default_schedule", "nees_band", "load_schedule", "MOVING_FLOORS",
+           "SKIP_FLAGS"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
 #: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
-#: fix), ``coast`` (no measurement: predicted only), ``none`` (no track yet).
-UPDATE_KINDS = ("start", "used", "gated", "restart", "coast", "none")
+#: fix), ``flagged`` (the fix carries a :data:`SKIP_FLAGS` code: predicted only), ``coast`` (no
+#: detection, or the radar behind the RIS: predicted only), ``none`` (no track yet).
+UPDATE_KINDS = ("start", "used", "gated", "restart", "flagged", "coast", "none")
 
 #: The columns of ``walk.parquet`` (one row per slot) and their units.
 COLUMNS = {
@@ -57,16 +59,27 @@ COLUMNS = {
     "in_view": "the RIS could see the radar (geometry: in front, in its span, line of sight)",
     "truth_x": "m", "truth_y": "m", "truth_z": "m", "truth_vx": "m/s", "truth_vy": "m/s", "truth_vz": "m/s",
     "fix_x": "m", "fix_y": "m", "fix_z": "m", "fix_distance": "m, at the reference time",
-    "fix_std_distance": "m", "fix_az": "rad, RIS frame", "fix_std_az": "rad", "fix_velocity": "m/s, radial",
-    "fix_std_velocity": "m/s", "fix_error": "m, |fix - truth|", "fix_sigma": "m, 1σ of the fix's position (trace)",
+    "fix_std_distance": "m, the 1σ the tracker used (the fix's own and the floor)", "fix_az": "rad, RIS frame",
+    "fix_std_az": "rad, as fix_std_distance", "fix_velocity": "m/s, radial", "fix_std_velocity": "m/s, as fix_std_distance",
+    "fix_error": "m, |fix - truth|", "fix_sigma": "m, the fix's own 1σ of position (norm of the per-axis 1σ)",
     "fix_flags": "the fix's flag codes, comma-separated", "track_x": "m", "track_y": "m", "track_z": "m",
     "track_vx": "m/s", "track_vy": "m/s", "track_vz": "m/s", "track_std_x": "m", "track_std_y": "m",
     "track_std_z": "m", "track_error": "m, |track - truth|", "track_sigma": "m, sqrt(trace of the position covariance)",
     "nees": "normalised estimation error squared of the track", "nees_dof": "its degrees of freedom",
     "nis": "normalised innovation squared of the measurement", "nis_dof": "its degrees of freedom",
     "update": "what the tracker did (UPDATE_KINDS)", "seconds_trace": "s", "seconds_simulate": "s",
-    "seconds_dsp": "s",
+    "seconds_dsp": "s", "elapsed": "s, wall time from the walk's start to the end of this sweep's work",
 }
+
+
+#: What the single fixes' 1σ (their Cramér–Rao bounds at the measured SNR) leave out for a radar on the
+#: move, added in quadrature before the tracker sees them: distance [m], azimuth [rad], radial velocity
+#: [m/s] (``docs/tracking.md``, "The fixes' σ on the move").
+MOVING_FLOORS = (5e-3, math.radians(0.1), 5e-3)
+
+#: Fixes carrying one of these flag codes are not given to the tracker (the row says ``flagged``):
+#: ``beam-edge``, an AoD at the edge of the swept span, extrapolated beyond the beams that saw it.
+SKIP_FLAGS = ("beam-edge",)
 
 
 class TrajectoryError(ValueError):
@@ -340,7 +353,7 @@ class WalkSlot:
 
 
 def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, sweep: Any = None,
-              radar: Any = None) -> tuple[WalkSlot, ...]:
+              radar: Any = None, max_sweeps: int | None = None) -> tuple[WalkSlot, ...]:
     """The slots of a walk: every slot of the schedule whose sweep ends within the walk.
 
     Parameters
@@ -355,6 +368,8 @@ def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None
         The sweep (default the hall's: −45° … 45° in 1.5° steps).
     radar : dsp.RadarConfig, optional
         Default Table I.
+    max_sweeps : int, optional
+        Only the first ``max_sweeps`` slots.
 
     Returns
     -------
@@ -385,7 +400,9 @@ def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None
     span = (float(sweep.angles[:, 0].min()), float(sweep.angles[:, 0].max()))
     t_mid = sweep_reference_time(radar, sweep.num_beams)
     out = []
-    for k in schedule.slots_until(trajectory.duration):
+    if max_sweeps is not None and not (isinstance(max_sweeps, int) and max_sweeps >= 1):
+        raise ValueError(f"max_sweeps={max_sweeps!r} must be a whole number >= 1")
+    for k in schedule.slots_until(trajectory.duration)[:max_sweeps]:
         start = float(trajectory.times[0] + schedule.slot_start(int(k)))
         t = start + t_mid
         name = schedule.ris_of(int(k))
@@ -450,25 +467,28 @@ class WalkResult:
     trajectory: Trajectory
 
 
-def _measurement(name: str, pose: Any, loc: Any, slot: WalkSlot, t_mid: float) -> Any:
-    """One RIS's :class:`dsp.tracking.RisMeasurement` at the slot's reference time (module notes)."""
+def _measurement(name: str, pose: Any, loc: Any, slot: WalkSlot, t_mid: float, floors: tuple[float, float, float]) -> Any:
+    """One RIS's :class:`dsp.tracking.RisMeasurement` at the slot's reference time (module notes); ``floors``
+    (distance [m], azimuth [rad], velocity [m/s]) are added in quadrature to the fix's 1σ."""
     from dsp.fusion import RisFix
     from dsp.tracking import RisMeasurement
 
     dt = t_mid - float(loc.reference_time)  # the estimate's time → the sweep's middle (both from the sweep start)
     distance = float(loc.distance) + float(loc.velocity) * dt
-    std_d = math.hypot(float(loc.std.distance), dt * float(loc.std.velocity))
+    std_d = math.sqrt(float(loc.std.distance) ** 2 + (dt * float(loc.std.velocity)) ** 2 + floors[0] ** 2)
     fix = RisFix(name=name, pose=pose, distance=distance, std_distance=std_d,
                  aod=np.array([float(loc.aod[0]), float(loc.aod[1])]),
-                 std_aod=np.array([float(loc.std.aod[0]), np.nan]), flags=tuple(loc.flag_codes))
-    return RisMeasurement(time=slot.time, fix=fix, velocity=float(loc.velocity), std_velocity=float(loc.std.velocity))
+                 std_aod=np.array([math.hypot(float(loc.std.aod[0]), floors[1]), np.nan]), flags=tuple(loc.flag_codes))
+    return RisMeasurement(time=slot.time, fix=fix, velocity=float(loc.velocity),
+                          std_velocity=math.hypot(float(loc.std.velocity), floors[2]))
 
 
 def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, seed: int = 0,
              tx_power_dbm: float | None = None, trace: Any = None, cache: Any = None, height: Any = "path",
              height_std: float = 0.01, accel_density: float = 0.5, gate_pfa: float = 1e-3, restart_after: int = 3,
              estimator: str = "refined", progress: Callable[[str], None] | None = None,
-             progress_every: int = 10) -> WalkResult:
+             progress_every: int = 10, max_sweeps: int | None = None, floors: Any = MOVING_FLOORS,
+             sweep: Any = None) -> WalkResult:
     """Walk the radar along ``trajectory`` through the traced hall, localize every sweep and track it.
 
     Parameters
@@ -507,12 +527,19 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
         Receives one line every ``progress_every`` slots and at the end.
     progress_every : int
         Slots between progress lines.
+    max_sweeps : int, optional
+        Only the first ``max_sweeps`` slots (:func:`plan_walk`).
+    floors : (float, float, float)
+        1σ added in quadrature to every fix's distance [m], azimuth [rad] and radial velocity [m/s]
+        before the tracker sees it (default :data:`MOVING_FLOORS`; ``(0, 0, 0)``: the fixes' own 1σ).
+    sweep : dsp.BeamSweep, optional
+        The RISs' sweep (default the hall's, −45° … 45° in 1.5° steps); its beams set the slot's length.
 
     Returns
     -------
     WalkResult
     """
-    from dsp import tracking
+    from dsp import BeamSweep, RadarConfig, tracking
 
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
@@ -522,21 +549,24 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
     from ..model.motion import sweep_reference_time
     from ..model.simulate import simulate
 
+    begin = time.perf_counter()
     folder = scene_directory(scene)
     spec = load_spec(folder / "spec.toml")
     poses = {r.name: c.pose for r, c in zip(spec.ris, spec.ris_configs())}
+    floors = tuple(float(f) for f in floors)
+    if len(floors) != 3 or not all(math.isfinite(f) and f >= 0 for f in floors):
+        raise ValueError(f"floors={floors!r} must be three numbers >= 0: distance [m], azimuth [rad], velocity [m/s]")
     if restart_after < 1:
         raise ValueError(f"restart_after={restart_after!r} must be >= 1 (gated measurements in a row)")
     if isinstance(height, str) and height != "path":
         raise ValueError(f"height={height!r} must be 'path', a number [m] or None")
-    slots = plan_walk(folder, trajectory, schedule=schedule)
-    probe = hall_scenario(folder, ris=slots[0].ris, ue_position=slots[0].position, trace=trace)
-    radar = probe.base.radar if tx_power_dbm is None else replace(probe.base.radar, tx_power_dbm=float(tx_power_dbm))
-    schedule = schedule or default_schedule(spec, radar, probe.base.sweep.num_beams)
-    t_mid = sweep_reference_time(radar, probe.base.sweep.num_beams)
+    sweep = sweep or BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))  # the hall's (hall_scenario)
+    radar = RadarConfig() if tx_power_dbm is None else replace(RadarConfig(), tx_power_dbm=float(tx_power_dbm))
+    slots = plan_walk(folder, trajectory, schedule=schedule, max_sweeps=max_sweeps, sweep=sweep, radar=radar)
+    schedule = schedule or default_schedule(spec, radar, sweep.num_beams)
+    t_mid = sweep_reference_time(radar, sweep.num_beams)
     axes = tracking.HORIZONTAL if height is not None else tracking.ALL_AXES
     state, gated_run, rows = None, 0, []
-    begin = time.perf_counter()
     for n, slot in enumerate(slots):
         z = None if height is None else (float(slot.position[2]) if height == "path" else float(height))
         known = None if z is None else (z, height_std)
@@ -548,8 +578,8 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
             row["status"] = "behind"
         else:
             hs = hall_scenario(folder, ris=slot.ris, ue_position=slot.position, ue_velocity=slot.velocity,
-                               idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace)
-            hs = replace(hs, base=replace(hs.base, radar=radar))
+                               idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace, sweep=sweep,
+                               radar=radar)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", AliasWarning)
                 t0 = time.perf_counter()
@@ -561,7 +591,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
             loc, _ = process_capture(capture, estimator=estimator, ue_height=z)
             secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
             if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
-                meas = _measurement(slot.ris, poses[slot.ris], loc, slot, t_mid)
+                meas = _measurement(slot.ris, poses[slot.ris], loc, slot, t_mid, floors)
                 row["status"] = "fix"
             else:
                 row["status"] = "no-detection"
@@ -580,7 +610,11 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                                                "fix_sigma")})
             row["fix_flags"] = ""
         nis, nis_dof = math.nan, 0
-        if state is None:
+        flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
+        if flagged:
+            state, kind = (None, "none") if state is None else (
+                tracking.predict(state, slot.time, accel_density=accel_density), "flagged")
+        elif state is None:
             if meas is not None:
                 state, kind = tracking.start_track(meas, height=known), "start"
             else:
@@ -611,6 +645,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                                                "track_std_x", "track_std_y", "track_std_z", "track_error",
                                                "track_sigma", "nees")})
             row["nees_dof"] = 0
+        row["elapsed"] = time.perf_counter() - begin
         rows.append({k: row[k] for k in COLUMNS})
         if progress is not None and ((n + 1) % max(int(progress_every), 1) == 0 or n + 1 == len(slots)):
             fixes = sum(r["status"] == "fix" for r in rows)
@@ -627,6 +662,17 @@ def _rms(x: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(x**2))) if x.size else None
 
 
+def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 2.0) -> float | None:
+    """The largest track error [m] within ``window`` [s] of an inner waypoint (a turn of the path)."""
+    t = np.array([r["time"] for r in rows])
+    err = np.array([r["track_error"] for r in rows])
+    near = np.zeros(len(rows), dtype=bool)
+    for tw in trajectory.times[1:-1]:
+        near |= np.abs(t - tw) <= window
+    sel = near & np.isfinite(err)
+    return float(err[sel].max()) if sel.any() else None
+
+
 def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
              radar: Any, height: Any, height_std: float, accel_density: float, gate_pfa: float,
              wall: float) -> dict[str, Any]:
@@ -640,7 +686,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
     tracked = np.isfinite(col["nees"])
     nees_dof = int(col["nees_dof"][tracked][0]) if tracked.any() else 0
     n_nees = int(tracked.sum())
-    used = np.isfinite(col["nis"])
+    used = np.isfinite(col["nis"]) & np.array([k == "used" for k in kinds])  # the NIS of the updates made
     nis_dof = int(np.sum(col["nis_dof"][used]))
     band = nees_band(nees_dof, n_nees) if n_nees else (math.nan, math.nan)
     single = nees_band(nees_dof, 1) if n_nees else (math.nan, math.nan)
@@ -662,6 +708,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "fix_rmse_m": _rms(fix_err), "fix_median_error_m": float(np.median(fix_err)) if fix_err.size else None,
         "track_rmse_m": _rms(col["track_error"]),
         "track_max_error_m": float(np.nanmax(col["track_error"])) if tracked.any() else None,
+        "corner_max_error_m": _corner_error(rows, trajectory),
         "nees_dof": nees_dof, "nees_mean": float(np.mean(col["nees"][tracked])) if n_nees else None,
         "nees_band_95": list(band), "nees_mean_in_band": bool(band[0] <= np.mean(col["nees"][tracked]) <= band[1])
         if n_nees else False, "nees_share_in_single_band_95": inside, "nees_single_band_95": list(single),

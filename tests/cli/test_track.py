@@ -64,3 +64,29 @@ def test_a_scene_without_the_schedules_ris(tmp_path, capsys):
                  "--schedule", str(tmp_path / "s.toml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'ris1'" in err[0] and "it has ris0" in err[0], err
+
+
+@pytest.mark.slow
+def test_a_short_walk_writes_every_output_and_reports_progress(tmp_path, capsys):
+    """Two sweeps (ris0 then ris1) of 0.39 s along the long arm, cheap trace: exit 0, the five files
+    in --out (and the ledger), one progress line per sweep on stderr, the summary line on stdout."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    (tmp_path / "walk.csv").write_text("t,x,y,z\n0,14,6,1.2\n0.8,13.2,6,1.2\n")
+    out = tmp_path / "out"
+    assert main(["track", "l_hall_2ris", "--trajectory", str(tmp_path / "walk.csv"), "--out", str(out),
+                 "--depth", "1", "--samples", "10000", "--no-cache", "--progress-every", "1", "--seed", "5"]) == 0
+    captured = capsys.readouterr()
+    assert "2 sweeps: fixes on 2/2 in view (100.0 %)" in captured.out and f"wrote {out}" in captured.out
+    assert [line.split(" (")[0] for line in captured.err.splitlines() if line.startswith("sweep ")] == \
+        ["sweep 1/2", "sweep 2/2"]
+    for name in ("walk.parquet", "summary.json", "plan.png", "error.png", "consistency.png"):
+        assert (out / name).stat().st_size > 200, name
+    table = pq.read_table(out / "walk.parquet")
+    assert table.column("ris").to_pylist() == ["ris0", "ris1"]
+    assert table.column("update").to_pylist() == ["start", "used"]
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["seed"] == 5 and doc["sweeps"] == 2 and doc["schedule"]["order"] == ["ris0", "ris1"]
+    assert (out / ".risloc-outputs.json").is_file()  # the ledger: a rerun may replace them, a user's file not

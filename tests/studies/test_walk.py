@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from dsp import BeamSweep
 from risloc_rt.hall.raytrace.tracer import TraceSettings
 from risloc_rt.studies.walk import (COLUMNS, Trajectory, TrajectoryError, plan_walk, read_trajectory, run_walk,
                                     write_walk, nees_band)
@@ -43,22 +44,28 @@ def test_the_slots_follow_the_schedule_and_the_geometry_says_who_sees_the_radar(
     assert far[0].ris == "ris0" and far[0].facing and not far[0].in_view
 
 
+#: A cheap sweep for the walks here: ±45° in 3° steps, 31 beams (0.198 s a sweep; the hall's has 61).
+COARSE = BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 3.0]))
+
+
 @pytest.fixture(scope="module")
 def quiet_walk():
-    """2.8 s west along the long arm from [14, 6, 1.2] at 1 m/s, at -10 dBm: ris0 (4 m away, 24.5 dB
-    post-integration SNR) is detected every time, ris1 (17 m, 1.9 dB) never: its slots coast."""
-    tr = Trajectory(times=[0.0, 2.8], points=[[14, 6, 1.2], [11.2, 6, 1.2]])
-    return tr, run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP)
+    """1 s west along the long arm from [14, 6, 1.2] at 1 m/s, 5 sweeps of 31 beams, at -10 dBm: ris0
+    (4.4 m away, ~21 dB post-integration SNR) is detected every time, ris1 (17.6 m, ~-1 dB) never:
+    its slots coast."""
+    tr = Trajectory(times=[0.0, 1.0], points=[[14, 6, 1.2], [13, 6, 1.2]])
+    return tr, run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE)
 
 
 @pytest.mark.slow
 def test_same_seed_same_rows(quiet_walk):
+    """Slot k's noise is default_rng([seed, k]): the first three sweeps again give the same rows, bit for bit."""
     tr, first = quiet_walk
-    again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP)
-    assert len(first.rows) == len(again.rows) == 7
+    again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE, max_sweeps=3)
+    assert len(first.rows) == 5 and len(again.rows) == 3
     for a, b in zip(first.rows, again.rows):
         for key in COLUMNS:
-            if key.startswith("seconds_"):
+            if key.startswith("seconds_") or key == "elapsed":
                 continue
             assert (a[key] == b[key]) or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key])), key
 
@@ -67,38 +74,39 @@ def test_same_seed_same_rows(quiet_walk):
 def test_it_coasts_through_the_undetected_ris_and_its_sigma_says_how_far(quiet_walk):
     _, walk = quiet_walk
     rows = walk.rows
-    assert [r["status"] for r in rows] == ["fix", "no-detection"] * 3 + ["fix"]
-    assert [r["update"] for r in rows] == ["start", "coast", "used", "coast", "used", "coast", "used"]
+    assert [r["status"] for r in rows] == ["fix", "no-detection", "fix", "no-detection", "fix"]
+    assert [r["update"] for r in rows] == ["start", "coast", "used", "coast", "used"]
     for before, coast, after in zip(rows[0::2], rows[1::2], rows[2::2]):
         # coasting widens the track (prediction only) and the next fix narrows it again
         assert coast["track_sigma"] > before["track_sigma"] and after["track_sigma"] < coast["track_sigma"]
-        assert math.isnan(coast["nis"]) and coast["nis_dof"] == 0
-    # the prediction over a coasted slot stays within its stated covariance: NEES of each row
-    # (x, y, vx, vy) within the 99.9 % band of one χ²(4)
-    lo, hi = nees_band(4, 1, level=0.999)
-    for r in rows[2:]:
+        assert math.isnan(coast["nis"]) and coast["nis_dof"] == 0 and math.isnan(coast["fix_error"])
+    # each row's track error within its stated covariance: NEES (x, y, vx, vy) within the 99.9 % band of χ²(4)
+    _, hi = nees_band(4, 1, level=0.999)
+    for r in rows:
         assert r["nees_dof"] == 4 and r["nees"] <= hi, r
 
 
 @pytest.mark.slow
 def test_the_track_error_is_within_its_covariance_and_the_outputs_are_written(quiet_walk, tmp_path):
-    """NEES over the walk's tracked rows after the start: their mean within the 99 % band of a mean of
-    χ²(4) (the rows are correlated, so the band is loose, not a proof); every fix in the sweep's
-    reference-time frame within a few cm of the truth."""
+    """The track's stated covariance does not understate its error: the mean NEES of the walk's rows
+    below the 99 % upper end of a mean of χ²(4) (the floors of MOVING_FLOORS make it conservative on
+    a clean straight walk: NEES below the band's lower end is expected here); the fixes within 2 cm
+    of the truth at the sweep's middle, the track after three fixes within 2 cm too."""
     _, walk = quiet_walk
     s = walk.summary
-    nees = np.array([r["nees"] for r in walk.rows[1:]])
-    lo, hi = nees_band(4, len(nees), level=0.99)
+    nees = np.array([r["nees"] for r in walk.rows])
+    _, hi = nees_band(4, len(nees), level=0.99)
     assert np.mean(nees) <= hi, nees
-    assert s["fixes_in_view"] == 4 and s["sweeps_in_view"] == 7 and s["fix_share_in_view"] == pytest.approx(4 / 7)
-    assert s["track_rmse_m"] < 0.02 and s["fix_rmse_m"] < 0.02
+    assert s["fixes_in_view"] == 3 and s["sweeps_in_view"] == 5 and s["fix_share_in_view"] == pytest.approx(3 / 5)
+    assert s["fix_rmse_m"] < 0.02 and walk.rows[-1]["track_error"] < 0.02
     files = write_walk(walk, tmp_path)
     assert sorted(p.name for p in files) == sorted(["walk.parquet", "summary.json", "plan.png", "error.png",
                                                     "consistency.png"])
     import pyarrow.parquet as pq
 
     table = pq.read_table(tmp_path / "walk.parquet")
-    assert table.num_rows == 7 and table.column_names == list(COLUMNS)
+    assert table.num_rows == 5 and table.column_names == list(COLUMNS)
+    assert table.column("ris").to_pylist() == ["ris0", "ris1"] * 2 + ["ris0"]
 
 
 def test_a_trajectory_is_refused_before_anything_is_traced():

@@ -1,0 +1,88 @@
+"""A tracked walk through the L-shaped hall with one RIS per arm (issue 22): speed and error in one run.
+
+Goal (a): scenes/l_hall_2ris, the 40 m walk of ``benchmarks/l_hall_walk.csv`` at 1 m/s (west along
+the long arm, north up the short arm, east, back south through the mouth: four turns at the
+corner's two arms), Table I radar at 20 dBm, the two RISs in time division (back to back, the
+idle one off): the share of the sweeps with the sweeping RIS in view that give a fix, the track's
+RMSE against the median single-sweep error, the largest error near the turns, restarts, and the
+mean NEES against its 95 % χ² band. Goal (b): the first 60 sweeps of the same walk, from an empty
+trace cache (a fresh folder) and again from the warm one.
+
+Order: (1) the 60-sweep walk, cold cache; (2) the same 60 sweeps again, warm; (3) the whole
+40 m walk on that cache (its first 60 sweeps warm, the rest traced). Timings are wall seconds on
+whatever this machine is doing; say so when it is shared.
+
+    .venv/bin/python benchmarks/bench_walk.py [--seed 0] [--out DIR] [--skip-cold]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", help="also write the 40 m walk's outputs (walk.parquet, PNGs) into this folder")
+    parser.add_argument("--skip-cold", action="store_true", help="skip the cold-cache run (1)")
+    args = parser.parse_args()
+
+    from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.studies.walk import read_trajectory, run_walk, write_walk
+
+    walk = read_trajectory(HERE / "l_hall_walk.csv")
+    report: dict = {"machine": f"{platform.node()} {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs",
+                    "load_average_start": os.getloadavg()}
+    say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    with tempfile.TemporaryDirectory(prefix="bench-walk-cache-") as folder:
+        cache = TraceCache(Path(folder))
+        if not args.skip_cold:
+            start = time.perf_counter()
+            cold = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say)
+            report["sweeps60_cold_s"] = time.perf_counter() - start
+            report["sweeps60_cold_parts_s"] = cold.summary["seconds"]
+        start = time.perf_counter()
+        warm = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say)
+        report["sweeps60_warm_s"] = time.perf_counter() - start
+        report["sweeps60_warm_parts_s"] = warm.summary["seconds"]
+        start = time.perf_counter()
+        full = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, progress=say)
+        report["walk40_s"] = time.perf_counter() - start
+    report["load_average_end"] = os.getloadavg()
+    s = full.summary
+    keys = ("sweeps", "sweeps_in_view", "fixes", "fixes_in_view", "fix_share_in_view", "fixes_out_of_view",
+            "fix_rmse_m", "fix_median_error_m", "track_rmse_m", "track_max_error_m", "corner_max_error_m", "updates",
+            "nees_dof", "nees_mean", "nees_band_95", "nees_mean_in_band", "nees_share_in_single_band_95",
+            "nis_mean_per_dof", "nis_band_95_per_dof", "seconds")
+    report["walk40"] = {k: s[k] for k in keys}
+    goals = {
+        "fix on >= 95 % of sweeps in view": bool(s["fix_share_in_view"] is not None and s["fix_share_in_view"] >= 0.95),
+        "track never restarted (not lost)": s["updates"]["restart"] == 0,
+        "track RMSE <= 2 cm": bool(s["track_rmse_m"] is not None and s["track_rmse_m"] <= 0.02),
+        "track RMSE < median single-sweep error": bool(s["track_rmse_m"] is not None and
+                                                       s["track_rmse_m"] < s["fix_median_error_m"]),
+        "mean NEES inside its 95 % band": bool(s["nees_mean_in_band"]),
+        "60 sweeps cold <= 300 s": report.get("sweeps60_cold_s", float("inf")) <= 300,
+        "60 sweeps warm <= 30 s": report["sweeps60_warm_s"] <= 30,
+    }
+    report["goals"] = goals
+    if args.out:
+        from risloc_rt._outputs import output_folder
+
+        with output_folder(args.out, force=False, flag="--out") as stage:
+            write_walk(full, stage)
+    print(json.dumps(report, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
