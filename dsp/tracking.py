@@ -31,10 +31,18 @@ the same numbers). A radar carried at a known height (a robot, a trolley: the on
 of :func:`start_track` and :func:`update`); the filter then tracks the horizontal position and
 velocity, and its consistency is judged on those (:func:`nees` with ``axes=HORIZONTAL``).
 
-Why not filterpy or Stone Soup: the filter is 60 lines of NumPy around one measurement function
-that must wrap the azimuth and drop the angles a sweep cannot see; filterpy (last release 2018)
-would need the same function, Jacobian and residual handed to it, and Stone Soup brings a
-framework of its own types for what is here one function per step.
+Why not filterpy or Stone Soup (``docs/tracking.md``, "Why our own filter"): the filter here is
+about a hundred lines of NumPy around one measurement function that must wrap the azimuth, drop
+the angles a sweep cannot see and append the known height. filterpy's ``ExtendedKalmanFilter``
+(last release 2018) has no iterated update, which this problem needs (a first fix metres wide
+against millimetre measurements), so the relinearisation loop would be ours anyway. Stone Soup
+has what is needed — a constant-velocity transition model with this Q and an
+``IteratedKalmanUpdater`` of the same equations — but it is a framework (its own state,
+hypothesis and model types, and ruamel.yaml, pymap3d, utm, rtree among its dependencies) that
+``dsp/`` may not import (numpy and scipy only, ``docs/architecture.md``); wrapping our
+measurement function in its model types would give the same filter. Ours is not a better filter
+than Stone Soup's; it is the same filter without the framework, tested by the same NEES/NIS
+consistency checks a library filter would need.
 """
 
 from __future__ import annotations

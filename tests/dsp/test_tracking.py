@@ -141,3 +141,44 @@ def test_bad_input_is_one_line():
     with pytest.raises(ValueError, match=r"gate_pfa=.* must lie in \(0, 1\)"):
         update(state, meas[2], accel_density=Q, gate_pfa=0.0)
     assert isinstance(state, TrackState)
+
+
+def test_a_known_height_holds_z_and_the_horizontal_track_is_consistent():
+    """Both RISs at 1.2 m, 1-D sweeps, the radar walking at a known 1.2 m (height=(1.2, 0.01)): z stays
+    within 3σ_h of 1.2 m with a 1σ near σ_h, and the NEES of (x, y, vx, vy) at the last update over 60
+    walks is χ²(4): its mean within the 99.9 % band; the height pseudo-measurement counts in the dof."""
+    from dsp.tracking import HORIZONTAL, nees
+
+    rng = np.random.default_rng(7)
+    global POSES
+    saved = POSES
+    POSES = {"ris-a": RisPose.facing(np.array([0.0, 4.0, 1.2]), np.array([6.0, 4.0, 1.2])),
+             "ris-b": RisPose.facing(np.array([12.0, 0.0, 1.2]), np.array([6.0, 4.0, 1.2]))}
+    q = 0.05
+    values = []
+    try:
+        for _ in range(60):
+            s = np.array([3.0, 2.0, 1.2, 0.8, 0.5, 0.0])
+            f = np.eye(6)
+            f[:3, 3:] = np.eye(3) * STEP
+            qm = np.block([[np.eye(3) * STEP**3 / 3, np.eye(3) * STEP**2 / 2], [np.eye(3) * STEP**2 / 2, np.eye(3) * STEP]])
+            qm[2, :] = qm[:, 2] = qm[5, :] = qm[:, 5] = 0.0  # the height does not wander
+            truth = [s]
+            for _ in range(11):
+                truth.append(f @ truth[-1] + rng.multivariate_normal(np.zeros(6), q * qm))
+            meas = [_measure(["ris-a", "ris-b"][k % 2], k * STEP, truth[k], rng, sees_el=False) for k in range(12)]
+            state = start_track(meas[0], speed_std=1.5, height=(1.2, 0.01))
+            assert state.mean[2] == 1.2 and state.position_std[2] == pytest.approx(0.01)
+            for m in meas[1:]:
+                u = update(state, m, accel_density=q, gate_pfa=1e-6, height=(1.2, 0.01))
+                assert u.accepted and u.dof == 4  # distance, azimuth, radial velocity, height
+                state = u.state
+            assert abs(state.mean[2] - 1.2) < 0.03 and state.position_std[2] < 0.012
+            values.append(nees(state, truth[-1], axes=HORIZONTAL))
+    finally:
+        POSES = saved
+    n = len(values)
+    lo, hi = scipy.stats.chi2.ppf([5e-4, 1 - 5e-4], 4 * n) / n
+    assert lo <= np.mean(values) <= hi, np.mean(values)
+    with pytest.raises(ValueError, match="height"):
+        update(state, meas[-1], accel_density=q, height=(1.2,))
