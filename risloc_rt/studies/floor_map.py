@@ -484,7 +484,7 @@ def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, t
     (float, tuple of str, tuple of str) or None
         The position error [m], the RISs used and those left out as inconsistent; None when no RIS
         detected the radar (or every detection was folded). One detection: that RIS's own ``position_error``; several: the error of
-        :func:`fuse_at_height` over the fixes with a stated 1σ.
+        :func:`fuse_at_height` over the fixes with a stated 1σ and a positive distance.
     """
     from dsp import RisFix, angles_from_direction
 
@@ -493,15 +493,15 @@ def cell_run_position(entries: Any, truth: Any, height: float) -> tuple[float, t
         return None
     fixes = []
     for name, pose, row in found:
-        sd, sa = _num(row.get("std_distance")), _num(row.get("std_aod_az"))
-        if not (np.isfinite(sd) and sd > 0 and np.isfinite(sa) and sa > 0):
-            continue
+        sd, sa, d = _num(row.get("std_distance")), _num(row.get("std_aod_az")), _num(row.get("distance"))
+        if not (np.isfinite(sd) and sd > 0 and np.isfinite(sa) and sa > 0 and np.isfinite(d) and d > 0):
+            continue  # no stated 1σ, or a distance at or below zero (a return before the loop-back delay)
         rel = np.array([_num(row["x"]), _num(row["y"]), _num(row["z"])]) - pose.position
         el = float(angles_from_direction(pose.to_local(rel / np.linalg.norm(rel)))[1])
         fixes.append(RisFix(name=name, pose=pose, distance=_num(row["distance"]), std_distance=sd,
                             aod=[_num(row["aod_az"]), el], std_aod=[sa, np.nan],
                             flags=tuple(f for f in (row.get("flags") or "").split(",") if f)))
-    if len(fixes) < 2:  # one fix (or one with a stated 1σ): that RIS's own position
+    if len(fixes) < 2:  # one fix (or one that can be fused): that RIS's own position
         name, _, row = next(((n, p, r) for n, p, r in found if fixes and n == fixes[0].name), found[0])
         return _num(row["position_error"]), (name,), ()
     position, fused = fuse_at_height(fixes, height)

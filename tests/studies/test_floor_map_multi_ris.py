@@ -227,3 +227,16 @@ def test_a_return_from_beyond_the_unambiguous_range_is_found_folded_by_its_power
     flag = folded_return(row, base, pose, peak(26.0))
     assert flag is not None and flag.code == "aliased" and "1·R_max" in flag.message
     assert folded_return(row, base, pose, peak(folded)) is None  # the power it should have there: a true fix
+
+
+def test_a_fix_before_the_loop_back_delay_is_not_fused():
+    """A return folded to just below zero distance (seen in paper_hall_2ris beyond ris1's range) cannot be a
+    RisFix: the other RIS's fix is the position."""
+    from risloc_rt.studies.floor_map import cell_run_position
+
+    x = np.array([6.0, 5.0, 1.2])
+    a, b = RisPose.facing([0.0, 5.0, 1.2], x), RisPose.facing([6.0, 0.0, 1.2], x)
+    good = {"detected": True, "distance": 6.0, "aod_az": 0.0, "std_distance": 1e-3, "std_aod_az": 1e-3,
+            "x": 6.0, "y": 5.0, "z": 1.2, "position_error": 2e-3, "flags": ""}
+    before = {**good, "distance": -0.25, "x": 6.0, "y": -0.25, "position_error": 5.25}
+    assert cell_run_position([("a", a, good), ("b", b, before)], x, 1.2) == (2e-3, ("a",), ())
