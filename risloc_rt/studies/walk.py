@@ -143,13 +143,35 @@ class Trajectory:
         return min(max(k, 0), len(self.times) - 2)
 
     def position(self, t: float) -> np.ndarray:
-        """Position at time ``t`` [s] (within the walk) [3] [m]."""
+        """The radar's position at a time of the walk.
+
+        Parameters
+        ----------
+        t : float
+            Time [s], within ``times[0]`` … ``times[-1]``.
+
+        Returns
+        -------
+        float array [3]
+            World position [m].
+        """
         k = self._segment(t)
         a = (t - self.times[k]) / (self.times[k + 1] - self.times[k])
         return self.points[k] + a * (self.points[k + 1] - self.points[k])
 
     def velocity(self, t: float) -> np.ndarray:
-        """Velocity of the segment walked at time ``t`` [s] [3] [m/s] (the next one at a waypoint)."""
+        """The velocity of the segment walked at a time of the walk (at a waypoint: the next segment's).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        float array [3]
+            World velocity [m/s].
+        """
         k = self._segment(t)
         return (self.points[k + 1] - self.points[k]) / (self.times[k + 1] - self.times[k])
 
