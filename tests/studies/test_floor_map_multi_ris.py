@@ -99,7 +99,7 @@ def test_a_run_with_one_detection_is_that_riss_own_fix_and_none_without():
     hit = {"detected": True, "distance": 6.001, "aod_az": 0.0, "std_distance": 1e-3, "std_aod_az": 1e-3,
            "x": 6.001, "y": 5.0, "z": 1.2, "position_error": 1e-3, "flags": "elevation-assumed"}
     assert cell_run_position([("a", a, miss), ("b", b, miss)], x, 1.2) is None
-    assert cell_run_position([("a", a, hit), ("b", b, miss)], x, 1.2) == (1e-3, ("a",), ())
+    assert cell_run_position([("a", a, hit), ("b", b, miss)], x, 1.2) == (1e-3, ("a",), (), ())
 
 
 # --- a one-RIS map as before ----------------------------------------------------------------------
@@ -176,6 +176,9 @@ def test_a_two_ris_map_fuses_serves_and_counts_its_coverage(tiny_hall_2ris, tmp_
     covered = sum(1 for c in cells if c["detection_probability"] >= COVERED_PD and c["peb"] < 1e-4)
     assert 0 < covered < len(cells)  # the 0.1 mm bound splits this hall
     assert cov["covered"] == covered and cov["share"] == pytest.approx(covered / cov["floor_cells"])
+    accurate = sum(1 for c in cells if c["detection_probability"] >= COVERED_PD and c["peb"] < 1e-4
+                   and c["rmse_position"] < 1e-4)
+    assert cov["accurate"] == accurate and cov["share_accurate"] == pytest.approx(accurate / cov["floor_cells"])
     assert res.coverage == {k: v for k, v in cov.items() if k != "unseen"}
     assert f"coverage {100 * cov['share']:.1f} %" in res.describe()
     assert (tmp_path / "m" / "map.png").stat().st_size > 10_000
@@ -239,4 +242,4 @@ def test_a_fix_before_the_loop_back_delay_is_not_fused():
     good = {"detected": True, "distance": 6.0, "aod_az": 0.0, "std_distance": 1e-3, "std_aod_az": 1e-3,
             "x": 6.0, "y": 5.0, "z": 1.2, "position_error": 2e-3, "flags": ""}
     before = {**good, "distance": -0.25, "x": 6.0, "y": -0.25, "position_error": 5.25}
-    assert cell_run_position([("a", a, good), ("b", b, before)], x, 1.2) == (2e-3, ("a",), ())
+    assert cell_run_position([("a", a, good), ("b", b, before)], x, 1.2) == (2e-3, ("a",), (), ())
