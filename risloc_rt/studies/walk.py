@@ -728,6 +728,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "behind": status.count("behind"), "no_detection": status.count("no-detection"),
         "updates": {k: kinds.count(k) for k in UPDATE_KINDS},
         "fix_rmse_m": _rms(fix_err), "fix_median_error_m": float(np.median(fix_err)) if fix_err.size else None,
+        "fix_rmse_in_view_m": _rms(col["fix_error"][fix & view]),
         "track_rmse_m": _rms(col["track_error"]),
         "track_max_error_m": float(np.nanmax(col["track_error"])) if tracked.any() else None,
         "corner_max_error_m": _corner_error(rows, trajectory),
@@ -887,10 +888,17 @@ def plot_consistency(result: WalkResult, path: str | Path) -> Path:
     fig = new_figure(figsize=(8.0, 6.0))
     t = _column(result, "time")
     s = result.summary
+    kinds = np.array([r["update"] for r in result.rows])
     for i, (key, dof_key, name) in enumerate((("nees", "nees_dof", "NEES"), ("nis", "nis_dof", "NIS"))):
         ax = fig.add_subplot(2, 1, i + 1)
         v, dof = _column(result, key), _column(result, dof_key)
         ok = np.isfinite(v) & (dof > 0)
+        if key == "nis":  # the updates made; a gated measurement's NIS is drawn apart (it is why it was gated)
+            gated = ok & np.isin(kinds, ("gated", "restart"))
+            ok &= kinds == "used"
+            if gated.any():
+                ax.semilogy(t[gated], v[gated] / dof[gated], ls="none", marker="x", ms=5, color="#d62728",
+                            label="gated (not used)")
         ax.semilogy(t[ok], v[ok] / dof[ok], ls="none", marker=".", ms=4, label=f"{name} / dof")
         if ok.any():
             d = int(np.median(dof[ok]))
