@@ -90,3 +90,20 @@ def test_a_short_walk_writes_every_output_and_reports_progress(tmp_path, capsys)
     doc = json.loads((out / "summary.json").read_text())
     assert doc["seed"] == 5 and doc["sweeps"] == 2 and doc["schedule"]["order"] == ["ris0", "ris1"]
     assert (out / ".risloc-outputs.json").is_file()  # the ledger: a rerun may replace them, a user's file not
+
+
+def test_ctrl_c_during_the_walk_is_exit_130_and_leaves_no_output(tmp_path, capsys, monkeypatch):
+    """Ctrl-C while sweeps are being simulated (here: at the walk's start): one line, exit 130, and --out
+    is not created (the outputs are staged and moved in whole, risloc_rt._outputs)."""
+    import risloc_rt.studies.walk as walk
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(walk, "run_walk", interrupted)
+    (tmp_path / "walk.csv").write_text(GOOD)
+    out = tmp_path / "out"
+    assert main(["track", "l_hall_2ris", "--trajectory", str(tmp_path / "walk.csv"), "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("risloc track: interrupted") and "Traceback" not in "\n".join(err)
+    assert not out.exists()
