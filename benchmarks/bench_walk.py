@@ -58,6 +58,11 @@ def main() -> int:
         report["sweeps60_warm_s"] = time.perf_counter() - start
         report["sweeps60_warm_cpu_s"] = time.process_time() - cpu
         report["sweeps60_warm_parts_s"] = warm.summary["seconds"]
+        if not args.skip_cold:  # the same seed gives the same rows, whether the traces were made or read back
+            timing = ("seconds_trace", "seconds_simulate", "seconds_dsp", "elapsed")
+            report["sweeps60_same_rows_cold_warm"] = all(
+                all(a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]) for k in a if k not in timing)
+                for a, b in zip(cold.rows, warm.rows))
         start, cpu = time.perf_counter(), time.process_time()
         full = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, progress=say)
         report["walk40_s"] = time.perf_counter() - start
