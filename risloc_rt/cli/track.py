@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 from .._outputs import output_folder
-from .common import CliError, add_force_flag, add_trace_flags, trace_cache, trace_settings
+from .common import (CliError, add_device_flag, add_force_flag, add_trace_flags, device_backend, trace_cache,
+                     trace_settings)
 
 __all__ = ["add_parser", "OUTPUTS"]
 
@@ -46,6 +47,7 @@ def _run(args: argparse.Namespace) -> int:
     """
     from ..studies.walk import load_schedule, plan_walk, read_trajectory, run_walk, write_walk
 
+    backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
     if args.progress_every < 1:
         raise CliError(f"--progress-every {args.progress_every} must be >= 1 (sweeps between progress lines)")
     if args.accel_density is not None and not args.accel_density > 0:
@@ -65,7 +67,7 @@ def _run(args: argparse.Namespace) -> int:
         result = run_walk(args.scene, trajectory, schedule=schedule, seed=args.seed, tx_power_dbm=args.tx_power_dbm,
                           trace=settings, cache=cache, height=height, estimator=args.estimator,
                           progress=lambda line: print(line, file=sys.stderr, flush=True),
-                          progress_every=args.progress_every, **extra)
+                          progress_every=args.progress_every, backend=backend, **extra)
         write_walk(result, stage)
     s = result.summary
     share = "n/a" if s["fix_share_in_view"] is None else f"{100 * s['fix_share_in_view']:.1f} %"
@@ -114,4 +116,5 @@ def add_parser(sub) -> None:
     p.add_argument("--progress-every", type=int, default=10, metavar="N",
                    help="a progress line on stderr every N sweeps (default: 10)")
     add_trace_flags(p)
+    add_device_flag(p)
     p.set_defaults(func=_run)

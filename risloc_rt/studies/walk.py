@@ -510,7 +510,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
              height_std: float = 0.01, accel_density: float = 0.5, gate_pfa: float = 1e-3, restart_after: int = 3,
              estimator: str = "refined", progress: Callable[[str], None] | None = None,
              progress_every: int = 10, max_sweeps: int | None = None, floors: Any = MOVING_FLOORS,
-             sweep: Any = None) -> WalkResult:
+             sweep: Any = None, backend: Any = None) -> WalkResult:
     """Walk the radar along ``trajectory`` through the traced hall, localize every sweep and track it.
 
     Parameters
@@ -556,6 +556,8 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
         before the tracker sees it (default :data:`MOVING_FLOORS`; ``(0, 0, 0)``: the fixes' own 1σ).
     sweep : dsp.BeamSweep, optional
         The RISs' sweep (default the hall's, −45° … 45° in 1.5° steps); its beams set the slot's length.
+    backend : dsp.ArrayBackend, optional
+        Where the receiver noise and the DSP's whole-cube work run (``--device``); default NumPy.
 
     Returns
     -------
@@ -608,9 +610,9 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                 traced = hall_paths(hs, cache=cache)
             t1 = time.perf_counter()
             capture = simulate(hs.base, rng=np.random.default_rng([int(seed), slot.index]), paths=traced.paths,
-                               motion="sweep", seed=int(seed))
+                               motion="sweep", seed=int(seed), backend=backend)
             t2 = time.perf_counter()
-            loc, _ = process_capture(capture, estimator=estimator, ue_height=z)
+            loc, _ = process_capture(capture, estimator=estimator, ue_height=z, backend=backend)
             secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
             if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
                 meas = _measurement(slot.ris, poses[slot.ris], loc, slot, t_mid, floors)
