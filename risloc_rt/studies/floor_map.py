@@ -26,7 +26,7 @@ RISs at one height leave the height unobservable, and a known height is what the
 **Folded returns**: a radar beyond a RIS's unambiguous range sees its return folded to d - R_max,
 a wrong fix the DSP does not flag; the map applies ``risloc locate``'s link-budget check to every
 detected run (:func:`folded_return`) and a fix it flags ``aliased`` gives no position (the run counts
-the flag). **Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected
+the flag); nor does a fix at or below zero distance (a return folded to just before the loop-back delay). **Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected
 and not folded),
 ``rmse_position`` (over those runs), ``peb`` (the bound of the geometry: :func:`multi_ris_peb`, the
 summed Fisher information of the RISs that see the cell), ``served_by`` (the RIS with the smallest
@@ -513,8 +513,9 @@ def cell_run_position(entries: Any, truth: Any,
 
 
 def _usable(row: dict[str, Any]) -> bool:
-    """A run row that gives a position: detected, and its return not found folded (:func:`folded_return`)."""
-    return bool(row["detected"]) and not row.get("folded", False)
+    """A run row that gives a position: detected, its return not found folded (:func:`folded_return`) and its
+    distance above zero (a return folded to just before the loop-back delay is no fix either)."""
+    return bool(row["detected"]) and not row.get("folded", False) and _num(row.get("distance")) > 0
 
 
 def folded_return(row: dict[str, Any], scenario: Any, pose: Any, peak_snr_db: float) -> Any:

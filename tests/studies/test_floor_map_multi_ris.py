@@ -243,3 +243,4 @@ def test_a_fix_before_the_loop_back_delay_is_not_fused():
             "x": 6.0, "y": 5.0, "z": 1.2, "position_error": 2e-3, "flags": ""}
     before = {**good, "distance": -0.25, "x": 6.0, "y": -0.25, "position_error": 5.25}
     assert cell_run_position([("a", a, good), ("b", b, before)], x, 1.2) == (2e-3, ("a",), (), ())
+    assert cell_run_position([("b", b, before)], x, 1.2) is None  # alone it is no position either
