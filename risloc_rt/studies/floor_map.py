@@ -26,13 +26,15 @@ RISs at one height leave the height unobservable, and a known height is what the
 **Folded returns**: a radar beyond a RIS's unambiguous range sees its return folded to d - R_max,
 a wrong fix the DSP does not flag; the map applies ``risloc locate``'s link-budget check to every
 detected run (:func:`folded_return`) and a fix it flags ``aliased`` gives no position (the run counts
-the flag); nor does a fix at or below zero distance (a return folded to just before the loop-back delay). **Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected
-and not folded),
-``rmse_position`` (over those runs), ``peb`` (the bound of the geometry: :func:`multi_ris_peb`, the
-summed Fisher information of the RISs that see the cell), ``served_by`` (the RIS with the smallest
-single-RIS PEB among those detected in at least half the runs; None when none is) and ``ris`` (each
-seeing RIS's own Pd, PEB, peak SNR and RMSE). **Coverage**: the share of the floor cells with
-``detection_probability >= 0.99`` and ``peb < peb_bound`` (:func:`coverage`).
+the flag); nor does a fix at or below zero distance (a return folded to just before the loop-back
+delay). **Per cell**: ``detection_probability`` (runs with a position: at least one RIS detected and
+not folded), ``rmse_position`` (over those runs), ``peb`` (the bound of the geometry:
+:func:`multi_ris_peb`, the summed Fisher information of the RISs that see the cell), ``served_by``
+(the RIS with the smallest single-RIS PEB among those detected in at least half the runs; None when
+none is) and ``ris`` (each seeing RIS's own Pd, PEB, peak SNR and RMSE). **Coverage**: the share of
+the floor cells with ``detection_probability >= 0.99`` and ``peb < peb_bound`` (:func:`coverage`;
+also the share whose RMSE is under the bound too). ``points.json`` keeps every point's bounds, so a
+finished map reopened (e.g. with another ``peb_bound``) prepares nothing again.
 Outputs: ``map.json`` (one entry per mapped cell, and ``coverage``), ``map.parquet`` and ``map.png``
 (:func:`risloc_rt.studies.figures.plot_map`).
 """
