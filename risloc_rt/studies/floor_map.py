@@ -807,10 +807,12 @@ def _saved_points(path: Path, settings: MapSettings, spec: Any, pairs: tuple[tup
         saved = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    points = saved.get("points") if isinstance(saved, dict) else None
-    if saved.get("key") != settings.key or not isinstance(points, list) or len(points) != len(pairs):
+    if not isinstance(saved, dict) or saved.get("key") != settings.key:
         return None
-    if any(x.get("cell") != c or x.get("ris") != spec.ris[k].name for x, (c, k) in zip(points, pairs)):
+    points = saved.get("points")
+    if not isinstance(points, list) or len(points) != len(pairs) or not all(
+            isinstance(x, dict) and x.get("cell") == c and x.get("ris") == spec.ris[k].name
+            and isinstance(x.get("crb"), dict) for x, (c, k) in zip(points, pairs)):
         return None
     return points
 
