@@ -45,6 +45,7 @@ def _run(args: argparse.Namespace) -> int:
     int
         0 (bad input raises: one line, exit status 2).
     """
+    from ..studies.engine import choose_workers
     from ..studies.walk import load_schedule, plan_walk, read_trajectory, run_walk, write_walk
 
     backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
@@ -58,6 +59,7 @@ def _run(args: argparse.Namespace) -> int:
     slots = plan_walk(args.scene, trajectory, schedule=schedule)  # every bad input before anything is traced
     settings = trace_settings(args)
     cache = trace_cache(args)
+    workers = 1 if not backend.is_numpy else choose_workers(args.workers)
     out = Path(args.out)
     print(f"walking {trajectory.length:.1f} m in {trajectory.duration:g} s: {len(slots)} sweeps "
           f"({', '.join(schedule.order)} in turn), {sum(s.in_view for s in slots)} with the sweeping RIS in view",
@@ -67,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
         result = run_walk(args.scene, trajectory, schedule=schedule, seed=args.seed, tx_power_dbm=args.tx_power_dbm,
                           trace=settings, cache=cache, height=height, estimator=args.estimator,
                           progress=lambda line: print(line, file=sys.stderr, flush=True),
-                          progress_every=args.progress_every, backend=backend, **extra)
+                          progress_every=args.progress_every, backend=backend, workers=workers, **extra)
         write_walk(result, stage)
     s = result.summary
     share = "n/a" if s["fix_share_in_view"] is None else f"{100 * s['fix_share_in_view']:.1f} %"
@@ -113,6 +115,9 @@ def add_parser(sub) -> None:
                    help="the tracker's white acceleration density [m²/s³] per axis (default: the library's)")
     p.add_argument("--estimator", choices=["refined", "paper"], default="refined",
                    help="single-sweep estimator (default: refined)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="processes that trace, simulate and localize the sweeps ahead of the tracker (default: the "
+                        "cores the memory limit allows; the rows are the same for any number)")
     p.add_argument("--progress-every", type=int, default=10, metavar="N",
                    help="a progress line on stderr every N sweeps (default: 10)")
     add_trace_flags(p)

@@ -33,8 +33,9 @@ from .._workers import init_worker
 from .kernel import PreparedPoint, run_once, run_runs
 from .store import RunLog
 
-__all__ = ["StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing", "check_preparer",
-           "run_batch", "execute", "default_workers", "choose_workers", "connect_dask"]
+__all__ = ["ONE_THREAD_ENV", "StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing",
+           "check_preparer", "run_batch", "execute", "default_workers", "choose_workers", "connect_dask",
+           "one_thread", "one_thread_environment", "worker_pool"]
 
 #: A batch whose worker died this many times stops the study.
 MAX_ATTEMPTS = 3
@@ -42,7 +43,9 @@ MAX_ATTEMPTS = 3
 #: batch creates it and dies (exit without cleanup), as a worker killed by the OOM killer would.
 DIE_ONCE = "RISLOC_STUDY_TEST_DIE_ONCE"
 #: Single-threaded numerical libraries in worker processes: the workers are the parallelism.
-_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: The environment variables a worker sets to "1" (its numerical libraries single-threaded: the
+#: workers are the parallelism); :func:`risloc_rt._workers.init_worker` takes them.
+ONE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Memory one worker process needs [bytes]: 0.57 GiB measured at Table I (docs/benchmarks.md), rounded up.
 WORKER_BYTES = int(0.6 * (1 << 30))
 #: Memory one finished run costs the study process [bytes]: its row in the run log's table, the
@@ -262,7 +265,7 @@ def _calibrate(prepare: Preparer, batch: Batch, study_seed: int) -> tuple[float,
     the prepared point stays in this process's cache, so ``workers=1`` does not prepare it again)."""
     import numpy as np
 
-    with _one_thread():
+    with one_thread():
         prep = _prepared(prepare, batch.params)
         t0 = time.perf_counter()
         run_once(prep, study_seed=study_seed, point=batch.point, run=batch.start, buffer=np.empty_like(prep.cube))
@@ -385,12 +388,16 @@ _blas_limiter: Any = None
 
 
 @contextlib.contextmanager
-def _one_thread() -> Iterator[None]:
+def one_thread() -> Iterator[None]:
     """One DSP thread and one BLAS thread for the enclosed work (see :func:`run_batch`).
 
     BLAS's thread count is process-wide: batches running at once on the threads of one Dask
     worker share one limiter, set by the first to enter and restored by the last to leave (a
     batch leaving early must not give the others back a multi-threaded BLAS).
+
+    Yields
+    ------
+    None
     """
     global _blas_users, _blas_limiter
     from threadpoolctl import threadpool_limits
@@ -460,7 +467,7 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
     backend = _BACKENDS.get(device)
     if backend is None:
         backend = _BACKENDS.setdefault(device, backend_for(device))
-    with _one_thread():
+    with one_thread():
         prep = _prepared(prepare, params)
         buffer = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else None
         rows = run_runs(prep, study_seed=study_seed, point=point, runs=range(start, stop), backend=backend,
@@ -583,7 +590,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         # bounds of points whose runs were all done before this start (needed by the summary)
         for p, params in enumerate(spec.points()):
             if p not in info["crb"]:
-                with _one_thread():
+                with one_thread():
                     prep = _prepared(prepare, params)
                 info["crb"][p], info["prepare_seconds"][p] = prep.crb, prep.seconds
                 info["warnings"][p] = list(prep.params.get("warnings", ()))
@@ -604,14 +611,11 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
     def next_batch() -> Batch | None:
         return retry.pop(0) if retry else next(plan, None)
 
-    saved = {k: os.environ.get(k) for k in _ONE_THREAD}
-    for k in _ONE_THREAD:  # spawned workers read them when they import numpy
-        os.environ.setdefault(k, "1")
-    try:
+    with one_thread_environment():
         b: Batch | None = next_batch()
         while b is not None:
             pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=init_worker, initargs=(os.getpid(), _ONE_THREAD))
+                                       initializer=init_worker, initargs=(os.getpid(), ONE_THREAD_ENV))
             running: dict[Any, Batch] = {}
             broken: list[Batch] = []
             try:
@@ -652,12 +656,59 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
                 retry[:0] = broken
                 retry.sort(key=lambda x: (x.point, x.start))
                 b = next_batch()
+
+
+@contextlib.contextmanager
+def one_thread_environment() -> Iterator[None]:
+    """:data:`ONE_THREAD_ENV` set to ``"1"`` (unless set) while worker processes are spawned, then as it was.
+
+    Spawned workers read them when they import NumPy, before their initializer could set them.
+
+    Yields
+    ------
+    None
+    """
+    saved = {k: os.environ.get(k) for k in ONE_THREAD_ENV}
+    for k in ONE_THREAD_ENV:
+        os.environ.setdefault(k, "1")
+    try:
+        yield
     finally:
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """``workers`` spawned processes started as a study's (``risloc_rt._workers.init_worker``).
+
+    Each ignores Ctrl-C (this process handles it), runs its numerical libraries on one thread and
+    dies with this process. On an exception (Ctrl-C included) the pool drops what has not started
+    and is not waited for; otherwise it is shut down when every task is done.
+
+    Parameters
+    ----------
+    workers : int
+        Processes (>= 1).
+
+    Yields
+    ------
+    concurrent.futures.ProcessPoolExecutor
+    """
+    import multiprocessing
+
+    with one_thread_environment():
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=init_worker, initargs=(os.getpid(), ONE_THREAD_ENV))
+        try:
+            yield pool
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
 
 
 def connect_dask(address: Any, *, timeout: float = 10.0) -> Any:

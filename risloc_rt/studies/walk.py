@@ -36,9 +36,10 @@ import json
 import math
 import time
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -505,12 +506,118 @@ def _measurement(name: str, pose: Any, loc: Any, slot: WalkSlot, t_mid: float, f
                           std_velocity=math.hypot(float(loc.std.velocity), floors[2]))
 
 
+@dataclass(frozen=True)
+class _SlotJob:
+    """What one slot's measurement needs, picklable for a worker process."""
+
+    folder: Path
+    slot: WalkSlot
+    idle: str
+    parked_beam: Any
+    trace: Any
+    sweep: Any
+    radar: Any
+    seed: int
+    estimator: str
+    height: float | None
+    t_mid: float
+    pose: Any
+    floors: tuple[float, float, float]
+    cache: Any
+    backend: Any
+
+
+def _measure_slot(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
+    """One slot traced, simulated and localized: (its measurement or None, the fix's position 1σ [m], seconds).
+
+    On one DSP and one BLAS thread (:func:`risloc_rt.studies.engine.one_thread`), here or in a worker
+    process alike: a multi-threaded BLAS sums in another order (last-digit differences), so this is
+    what makes the rows the same for any number of workers.
+    """
+    from .engine import one_thread
+
+    with one_thread():
+        return _measured(job)
+
+
+def _measured(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
+    from ..hall.pruning import AliasWarning
+    from ..hall.scenario import hall_paths, hall_scenario
+    from ..io.report import process_capture
+    from ..model.simulate import simulate
+
+    slot = job.slot
+    secs = {"seconds_trace": 0.0, "seconds_simulate": 0.0, "seconds_dsp": 0.0}
+    if not slot.facing:
+        return None, math.nan, secs
+    hs = hall_scenario(job.folder, ris=slot.ris, ue_position=slot.position, ue_velocity=slot.velocity,
+                       idle=job.idle, parked_beam=job.parked_beam, trace=job.trace, sweep=job.sweep, radar=job.radar)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AliasWarning)
+        t0 = time.perf_counter()
+        traced = hall_paths(hs, cache=job.cache)
+    t1 = time.perf_counter()
+    capture = simulate(hs.base, rng=np.random.default_rng([job.seed, slot.index]), paths=traced.paths,
+                       motion="sweep", seed=job.seed, backend=job.backend)
+    t2 = time.perf_counter()
+    loc, _ = process_capture(capture, estimator=job.estimator, ue_height=job.height, backend=job.backend)
+    secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
+    if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
+        return (_measurement(slot.ris, job.pose, loc, slot, job.t_mid, job.floors),
+                float(np.linalg.norm(loc.std.position)), secs)
+    return None, math.nan, secs
+
+
+@contextmanager
+def _slot_results(jobs: list[_SlotJob], workers: int) -> Iterator[Iterator[tuple[Any, float, dict[str, float]]]]:
+    """The slots' measurements in slot order: here, or on ``workers`` processes (results do not depend on it)."""
+    if workers <= 1 or len(jobs) <= 1:
+        yield map(_measure_slot, jobs)
+        return
+    from concurrent.futures.process import BrokenProcessPool
+
+    from .engine import worker_pool
+
+    def in_order(pool: Any) -> Iterator[tuple[Any, float, dict[str, float]]]:
+        try:
+            yield from pool.map(_measure_slot, jobs)
+        except BrokenProcessPool:
+            raise RuntimeError(f"a worker process died (killed, or out of memory: each of the {workers} loads the "
+                               "ray tracer); rerun with fewer --workers") from None
+
+    with worker_pool(min(workers, len(jobs))) as pool:
+        yield in_order(pool)
+
+
+def _track_row(slot: WalkSlot, job: _SlotJob, meas: Any, fix_sigma: float, secs: dict[str, float]) -> dict[str, Any]:
+    """A row's truth, status, seconds and fix columns (the track's are added by the caller)."""
+    row: dict[str, Any] = {"sweep": slot.index, "time": slot.time, "ris": slot.ris, "in_view": slot.in_view}
+    row.update(zip(("truth_x", "truth_y", "truth_z"), map(float, slot.position)))
+    row.update(zip(("truth_vx", "truth_vy", "truth_vz"), map(float, slot.velocity)))
+    row["status"] = "behind" if not slot.facing else ("fix" if meas is not None else "no-detection")
+    row.update(secs)
+    if meas is not None:
+        fix = meas.fix
+        p_fix = fix.pose.point_at(fix.aod, fix.distance)
+        row.update(zip(("fix_x", "fix_y", "fix_z"), map(float, p_fix)))
+        row.update(fix_distance=fix.distance, fix_std_distance=fix.std_distance, fix_az=float(fix.aod[0]),
+                   fix_std_az=float(fix.std_aod[0]), fix_velocity=meas.velocity,
+                   fix_std_velocity=meas.std_velocity, fix_error=float(np.linalg.norm(p_fix - slot.position)),
+                   fix_sigma=fix_sigma, fix_flags=",".join(fix.flags))
+    else:
+        row.update({k: math.nan for k in ("fix_x", "fix_y", "fix_z", "fix_distance", "fix_std_distance", "fix_az",
+                                           "fix_std_az", "fix_velocity", "fix_std_velocity", "fix_error",
+                                           "fix_sigma")})
+        row["fix_flags"] = ""
+    return row
+
+
 def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, seed: int = 0,
              tx_power_dbm: float | None = None, trace: Any = None, cache: Any = None, height: Any = "path",
              height_std: float = 0.01, accel_density: float = 0.5, gate_pfa: float = 1e-3, restart_after: int = 3,
              estimator: str = "refined", progress: Callable[[str], None] | None = None,
              progress_every: int = 10, max_sweeps: int | None = None, floors: Any = MOVING_FLOORS,
-             sweep: Any = None, backend: Any = None) -> WalkResult:
+             sweep: Any = None, backend: Any = None, workers: int = 1) -> WalkResult:
     """Walk the radar along ``trajectory`` through the traced hall, localize every sweep and track it.
 
     Parameters
@@ -558,6 +665,11 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
         The RISs' sweep (default the hall's, −45° … 45° in 1.5° steps); its beams set the slot's length.
     backend : dsp.ArrayBackend, optional
         Where the receiver noise and the DSP's whole-cube work run (``--device``); default NumPy.
+    workers : int
+        Processes that trace, simulate and localize the slots ahead of the tracker (each slot's
+        numbers depend on its seed and index only, so the rows are the same for any number; one
+        DSP and BLAS thread each). The tracker takes the slots in order in this process. A GPU
+        backend takes one.
 
     Returns
     -------
@@ -567,11 +679,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
 
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
-    from ..hall.pruning import AliasWarning
-    from ..hall.scenario import hall_paths, hall_scenario
-    from ..io.report import process_capture
     from ..model.motion import sweep_reference_time
-    from ..model.simulate import simulate
 
     begin = time.perf_counter()
     folder = scene_directory(scene)
@@ -582,6 +690,12 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
         raise ValueError(f"floors={floors!r} must be three numbers >= 0: distance [m], azimuth [rad], velocity [m/s]")
     if restart_after < 1:
         raise ValueError(f"restart_after={restart_after!r} must be >= 1 (gated measurements in a row)")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers={workers!r} must be an integer >= 1 (processes)")
+    if backend is not None and backend.is_numpy:
+        backend = None  # NumPy is the default, and a worker process is handed no modules
+    if backend is not None:
+        workers = 1  # one GPU: its work is already parallel
     if isinstance(height, str) and height != "path":
         raise ValueError(f"height={height!r} must be 'path', a number [m] or None")
     sweep = sweep or BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))  # the hall's (hall_scenario)
@@ -591,90 +705,58 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
     t_mid = sweep_reference_time(radar, sweep.num_beams)
     axes = tracking.HORIZONTAL if height is not None else tracking.ALL_AXES
     state, gated_run, rows = None, 0, []
-    for n, slot in enumerate(slots):
-        z = None if height is None else (float(slot.position[2]) if height == "path" else float(height))
-        known = None if z is None else (z, height_std)
-        row: dict[str, Any] = {"sweep": slot.index, "time": slot.time, "ris": slot.ris, "in_view": slot.in_view}
-        row.update(zip(("truth_x", "truth_y", "truth_z"), map(float, slot.position)))
-        row.update(zip(("truth_vx", "truth_vy", "truth_vz"), map(float, slot.velocity)))
-        meas, secs = None, {"seconds_trace": 0.0, "seconds_simulate": 0.0, "seconds_dsp": 0.0}
-        if not slot.facing:
-            row["status"] = "behind"
-        else:
-            hs = hall_scenario(folder, ris=slot.ris, ue_position=slot.position, ue_velocity=slot.velocity,
-                               idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace, sweep=sweep,
-                               radar=radar)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", AliasWarning)
-                t0 = time.perf_counter()
-                traced = hall_paths(hs, cache=cache)
-            t1 = time.perf_counter()
-            capture = simulate(hs.base, rng=np.random.default_rng([int(seed), slot.index]), paths=traced.paths,
-                               motion="sweep", seed=int(seed), backend=backend)
-            t2 = time.perf_counter()
-            loc, _ = process_capture(capture, estimator=estimator, ue_height=z, backend=backend)
-            secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
-            if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
-                meas = _measurement(slot.ris, poses[slot.ris], loc, slot, t_mid, floors)
-                row["status"] = "fix"
-            else:
-                row["status"] = "no-detection"
-        row.update(secs)
-        if meas is not None:
-            fix = meas.fix
-            p_fix = fix.pose.point_at(fix.aod, fix.distance)
-            row.update(zip(("fix_x", "fix_y", "fix_z"), map(float, p_fix)))
-            row.update(fix_distance=fix.distance, fix_std_distance=fix.std_distance, fix_az=float(fix.aod[0]),
-                       fix_std_az=float(fix.std_aod[0]), fix_velocity=meas.velocity,
-                       fix_std_velocity=meas.std_velocity, fix_error=float(np.linalg.norm(p_fix - slot.position)),
-                       fix_sigma=float(np.linalg.norm(loc.std.position)), fix_flags=",".join(fix.flags))
-        else:
-            row.update({k: math.nan for k in ("fix_x", "fix_y", "fix_z", "fix_distance", "fix_std_distance", "fix_az",
-                                               "fix_std_az", "fix_velocity", "fix_std_velocity", "fix_error",
-                                               "fix_sigma")})
-            row["fix_flags"] = ""
-        nis, nis_dof = math.nan, 0
-        flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
-        if flagged:
-            state, kind = (None, "none") if state is None else (
-                tracking.predict(state, slot.time, accel_density=accel_density), "flagged")
-        elif state is None:
-            if meas is not None:
-                state, kind = tracking.start_track(meas, height=known), "start"
-            else:
-                kind = "none"
-        elif meas is None:
-            state, kind = tracking.predict(state, slot.time, accel_density=accel_density), "coast"
-        else:
-            up = tracking.update(state, meas, accel_density=accel_density, gate_pfa=gate_pfa, height=known)
-            nis, nis_dof = up.nis, up.dof
-            if up.accepted:
-                state, kind, gated_run = up.state, "used", 0
-            else:
-                gated_run += 1
-                if gated_run >= restart_after:
-                    state, kind, gated_run = tracking.start_track(meas, height=known), "restart", 0
+    jobs = [_SlotJob(folder=folder, slot=slot, idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace,
+                     sweep=sweep, radar=radar, seed=int(seed), estimator=estimator,
+                     height=None if height is None else (float(slot.position[2]) if height == "path" else float(height)),
+                     t_mid=t_mid, pose=poses[slot.ris], floors=floors, cache=cache, backend=backend)
+            for slot in slots]
+    with _slot_results(jobs, workers) as results:
+        for n, (slot, job, (meas, fix_sigma, secs)) in enumerate(zip(slots, jobs, results)):
+            row = _track_row(slot, job, meas, fix_sigma, secs)
+            known = None if job.height is None else (job.height, height_std)
+            nis, nis_dof = math.nan, 0
+            flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
+            if flagged:
+                state, kind = (None, "none") if state is None else (
+                    tracking.predict(state, slot.time, accel_density=accel_density), "flagged")
+            elif state is None:
+                if meas is not None:
+                    state, kind = tracking.start_track(meas, height=known), "start"
                 else:
-                    state, kind = up.state, "gated"
-        row.update(update=kind, nis=nis, nis_dof=nis_dof)
-        if state is not None:
-            truth = np.concatenate([slot.position, slot.velocity])
-            row.update(zip(("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz"), map(float, state.mean)))
-            row.update(zip(("track_std_x", "track_std_y", "track_std_z"), map(float, state.position_std)))
-            row.update(track_error=float(np.linalg.norm(state.mean[:3] - slot.position)),
-                       track_sigma=float(np.sqrt(np.trace(state.covariance[:3, :3]))),
-                       nees=tracking.nees(state, truth, axes=axes), nees_dof=len(axes))
-        else:
-            row.update({k: math.nan for k in ("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz",
-                                               "track_std_x", "track_std_y", "track_std_z", "track_error",
-                                               "track_sigma", "nees")})
-            row["nees_dof"] = 0
-        row["elapsed"] = time.perf_counter() - begin
-        rows.append({k: row[k] for k in COLUMNS})
-        if progress is not None and ((n + 1) % max(int(progress_every), 1) == 0 or n + 1 == len(slots)):
-            fixes = sum(r["status"] == "fix" for r in rows)
-            progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
-                     f"{time.perf_counter() - begin:.0f} s")
+                    kind = "none"
+            elif meas is None:
+                state, kind = tracking.predict(state, slot.time, accel_density=accel_density), "coast"
+            else:
+                up = tracking.update(state, meas, accel_density=accel_density, gate_pfa=gate_pfa, height=known)
+                nis, nis_dof = up.nis, up.dof
+                if up.accepted:
+                    state, kind, gated_run = up.state, "used", 0
+                else:
+                    gated_run += 1
+                    if gated_run >= restart_after:
+                        state, kind, gated_run = tracking.start_track(meas, height=known), "restart", 0
+                    else:
+                        state, kind = up.state, "gated"
+            row.update(update=kind, nis=nis, nis_dof=nis_dof)
+            if state is not None:
+                truth = np.concatenate([slot.position, slot.velocity])
+                row.update(zip(("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz"),
+                               map(float, state.mean)))
+                row.update(zip(("track_std_x", "track_std_y", "track_std_z"), map(float, state.position_std)))
+                row.update(track_error=float(np.linalg.norm(state.mean[:3] - slot.position)),
+                           track_sigma=float(np.sqrt(np.trace(state.covariance[:3, :3]))),
+                           nees=tracking.nees(state, truth, axes=axes), nees_dof=len(axes))
+            else:
+                row.update({k: math.nan for k in ("track_x", "track_y", "track_z", "track_vx", "track_vy", "track_vz",
+                                                   "track_std_x", "track_std_y", "track_std_z", "track_error",
+                                                   "track_sigma", "nees")})
+                row["nees_dof"] = 0
+            row["elapsed"] = time.perf_counter() - begin
+            rows.append({k: row[k] for k in COLUMNS})
+            if progress is not None and ((n + 1) % max(int(progress_every), 1) == 0 or n + 1 == len(slots)):
+                fixes = sum(r["status"] == "fix" for r in rows)
+                progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
+                         f"{time.perf_counter() - begin:.0f} s")
     summary = _summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
                        height=height, height_std=height_std, accel_density=accel_density, gate_pfa=gate_pfa,
                        wall=time.perf_counter() - begin)

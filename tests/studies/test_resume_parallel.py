@@ -135,13 +135,13 @@ def test_batches_sharing_a_process_keep_blas_single_threaded_until_the_last_leav
     seen: dict[str, int] = {}
 
     def first_batch() -> None:  # enters first and leaves first: the other batch still runs
-        with engine._one_thread():
+        with engine.one_thread():
             long_entered.wait(10)
             seen["first"] = blas["threads"]
         first_left.set()
 
     def long_batch() -> None:
-        with engine._one_thread():
+        with engine.one_thread():
             long_entered.set()
             first_left.wait(10)
             seen["long, after the first left"] = blas["threads"]

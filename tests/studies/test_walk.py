@@ -59,9 +59,11 @@ def quiet_walk():
 
 @pytest.mark.slow
 def test_same_seed_same_rows(quiet_walk):
-    """Slot k's noise is default_rng([seed, k]): the first three sweeps again give the same rows, bit for bit."""
+    """Slot k's noise is default_rng([seed, k]): the first three sweeps again, measured on two worker
+    processes ahead of the tracker, give the same rows, bit for bit."""
     tr, first = quiet_walk
-    again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE, max_sweeps=3)
+    again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE, max_sweeps=3,
+                     workers=2)
     assert len(first.rows) == 5 and len(again.rows) == 3
     for a, b in zip(first.rows, again.rows):
         for key in COLUMNS:
