@@ -31,40 +31,58 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 
+def same_rows(first: list, second: list) -> bool:
+    """Every row equal but the timings (NaN equals NaN)."""
+    timing = ("seconds_trace", "seconds_simulate", "seconds_dsp", "elapsed")
+    return len(first) == len(second) and all(
+        all(a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]) for k in a if k not in timing)
+        for a, b in zip(first, second))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="also write the 40 m walk's outputs (walk.parquet, PNGs) into this folder")
     parser.add_argument("--skip-cold", action="store_true", help="skip the cold-cache run (1)")
+    parser.add_argument("--workers", type=int, help="processes ahead of the tracker (default: the cores); the warm "
+                                                    "60 sweeps also run on one, for the ratio")
     args = parser.parse_args()
 
     from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.studies.engine import choose_workers
     from risloc_rt.studies.walk import read_trajectory, run_walk, write_walk
+
+    workers = choose_workers(args.workers)
 
     walk = read_trajectory(HERE / "l_hall_walk.csv")
     report: dict = {"machine": f"{platform.node()} {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs",
-                    "load_average_start": os.getloadavg()}
+                    "load_average_start": os.getloadavg(), "workers": workers}
     say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     with tempfile.TemporaryDirectory(prefix="bench-walk-cache-") as folder:
         cache = TraceCache(Path(folder))
         if not args.skip_cold:
             start, cpu = time.perf_counter(), time.process_time()
-            cold = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say)
+            cold = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say,
+                            workers=workers)
             report["sweeps60_cold_s"] = time.perf_counter() - start
             report["sweeps60_cold_cpu_s"] = time.process_time() - cpu
             report["sweeps60_cold_parts_s"] = cold.summary["seconds"]
         start, cpu = time.perf_counter(), time.process_time()
-        warm = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say)
+        warm = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say,
+                        workers=workers)
         report["sweeps60_warm_s"] = time.perf_counter() - start
-        report["sweeps60_warm_cpu_s"] = time.process_time() - cpu
+        report["sweeps60_warm_cpu_s"] = time.process_time() - cpu  # this process's only: the workers' are not in it
         report["sweeps60_warm_parts_s"] = warm.summary["seconds"]
+        if workers > 1:  # the same warm walk in this process alone: the ratio, and the same rows
+            start = time.perf_counter()
+            alone = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, max_sweeps=60, progress=say)
+            report["sweeps60_warm_one_worker_s"] = time.perf_counter() - start
+            report["speedup_workers"] = report["sweeps60_warm_one_worker_s"] / report["sweeps60_warm_s"]
+            report["sweeps60_same_rows_1_vs_n_workers"] = same_rows(alone.rows, warm.rows)
         if not args.skip_cold:  # the same seed gives the same rows, whether the traces were made or read back
-            timing = ("seconds_trace", "seconds_simulate", "seconds_dsp", "elapsed")
-            report["sweeps60_same_rows_cold_warm"] = all(
-                all(a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]) for k in a if k not in timing)
-                for a, b in zip(cold.rows, warm.rows))
+            report["sweeps60_same_rows_cold_warm"] = same_rows(cold.rows, warm.rows)
         start, cpu = time.perf_counter(), time.process_time()
-        full = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, progress=say)
+        full = run_walk("l_hall_2ris", walk, seed=args.seed, cache=cache, progress=say, workers=workers)
         report["walk40_s"] = time.perf_counter() - start
         report["walk40_cpu_s"] = time.process_time() - cpu
     report["load_average_end"] = os.getloadavg()
