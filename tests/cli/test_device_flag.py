@@ -75,6 +75,7 @@ VERBS = {
     "speed": ["speed"],
     "study sweep": ["study", "sweep", "--out", "o"],
     "study map": ["study", "map", "--out", "o"],
+    "track": ["track", "l_hall_2ris", "--trajectory", "w.csv", "--out", "o"],
 }
 
 
@@ -107,6 +108,9 @@ def _argv(verb: str, tmp_path, capture: str) -> tuple[list[str], list]:
         return ["demo", "--analytic", "--out", str(tmp_path / "demo")], [tmp_path / "demo"]
     if verb == "speed":
         return (["speed", "--scene", "paper_hall", "--json", str(tmp_path / "s.json")], [tmp_path / "s.json"])
+    if verb == "track":  # the device is checked before the trajectory file is read
+        return (["track", "l_hall_2ris", "--trajectory", str(tmp_path / "w.csv"), "--out", str(tmp_path / "t")],
+                [tmp_path / "t"])
     if verb == "study sweep":
         return (["study", "sweep", "--vary", "tx_power_dbm=30", "--runs", "1", "--workers", "1", "--quiet",
                  "--out", str(tmp_path / "sw")], [tmp_path / "sw"])
