@@ -8,10 +8,10 @@ from pathlib import Path
 
 from .._outputs import output_folder, safe_name
 from ..io.capture_file import load_capture
-from ..io.fused import common_truth, format_fused, fuse_cases, fused_dict
+from ..io.fused import check_distinct_ris, common_truth, format_fused, fuse_cases, fused_dict
 from ..io.report import format_case, format_environment, report_capture, run_environment, write_result
-from .common import (EXIT_NO_DETECTION, CliError, add_device_flag, add_estimator_flags, add_force_flag, add_processing_flags,
-                     device_backend, estimator_options, processing_overrides)
+from .common import (EXIT_NO_DETECTION, CliError, add_device_flag, add_estimator_flags, add_force_flag,
+                     add_processing_flags, device_backend, estimator_options, processing_overrides)
 
 __all__ = ["add_parser"]
 
@@ -36,6 +36,7 @@ def _run(args: argparse.Namespace) -> int:
         raise CliError(f"two capture files are named {twice[0]!r}: the results are kept by file name; rename one "
                        "(e.g. after its RIS: ris0.npz, ris1.npz)")
     captures = [_load(path, args) for path in args.capture]
+    check_distinct_ris(names, captures)  # before any is localized
     env = run_environment(backend)
     out = Path(args.out) if args.out else None
     with (output_folder(out, force=args.force, flag="--out", expect=("result.json",)) if out else

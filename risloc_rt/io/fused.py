@@ -17,12 +17,36 @@ from dsp.fusion import FusedFix, RisFix, fuse_fixes
 
 from .report import CaseResult, significant
 
-__all__ = ["fuse_cases", "fused_dict", "format_fused", "common_truth"]
+__all__ = ["check_distinct_ris", "fuse_cases", "fused_dict", "format_fused", "common_truth"]
 
 #: Two captures whose RIS centres are closer than this are the same RIS [m].
 SAME_RIS = 1e-3
 #: Truth positions within this of each other are one (static) radar position [m].
 SAME_POSITION = 1e-3
+
+
+def check_distinct_ris(names: list[str], captures: list[Any]) -> None:
+    """Refuse two captures of one RIS (their RIS centres within 1 mm), before any is localized.
+
+    Parameters
+    ----------
+    names : list of str
+        The captures' names (file stems).
+    captures : list of risloc_rt.model.Capture
+        The captures, in the same order.
+
+    Raises
+    ------
+    ValueError
+        One line naming both captures.
+    """
+    for i, a in enumerate(captures):
+        for j in range(i):
+            b = captures[j]
+            if float(np.linalg.norm(a.ris.pose.position - b.ris.pose.position)) < SAME_RIS:
+                raise ValueError(f"captures {names[j]!r} and {names[i]!r} are of the same RIS (at "
+                                 f"{np.round(a.ris.pose.position, 3).tolist()} m): a fused fix takes one "
+                                 "sweep per RIS; locate them separately, or track a moving radar with 'risloc track'")
 
 
 def fuse_cases(cases: list[CaseResult]) -> FusedFix | None:
@@ -40,15 +64,9 @@ def fuse_cases(cases: list[CaseResult]) -> FusedFix | None:
     Raises
     ------
     ValueError
-        Two captures of one RIS (their RIS centres within 1 mm): one line naming both.
+        Two captures of one RIS (:func:`check_distinct_ris`).
     """
-    for i, a in enumerate(cases):
-        for b in cases[:i]:
-            gap = float(np.linalg.norm(a.capture.ris.pose.position - b.capture.ris.pose.position))
-            if gap < SAME_RIS:
-                raise ValueError(f"captures {b.name!r} and {a.name!r} are of the same RIS (at "
-                                 f"{np.round(a.capture.ris.pose.position, 3).tolist()} m): a fused fix takes one "
-                                 "sweep per RIS; locate them separately, or track a moving radar with 'risloc track'")
+    check_distinct_ris([c.name for c in cases], [c.capture for c in cases])
     fixes = [RisFix.from_localization(c.name, c.capture.ris.pose, c.localization)
              for c in cases if c.localization.detected and c.localization.std is not None]
     return fuse_fixes(fixes) if fixes else None
