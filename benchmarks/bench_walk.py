@@ -50,7 +50,8 @@ def main() -> int:
 
     from risloc_rt.hall.raytrace.cache import TraceCache
     from risloc_rt.studies.engine import choose_workers
-    from risloc_rt.studies.walk import read_trajectory, run_walk, write_walk
+    from risloc_rt.studies.trajectory import read_trajectory
+    from risloc_rt.studies.walk import run_walk, write_walk
 
     workers = choose_workers(args.workers)
 

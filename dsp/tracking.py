@@ -59,7 +59,7 @@ from .fusion import RisFix, central_jacobian
 from .validation import finite, positive
 
 __all__ = ["RisMeasurement", "TrackState", "TrackUpdate", "predict", "update", "start_track", "nees", "HORIZONTAL",
-           "ALL_AXES"]
+           "ALL_AXES", "nees_band"]
 
 #: State indices of the horizontal position and velocity (x, y, vx, vy).
 HORIZONTAL = (0, 1, 3, 4)
@@ -344,3 +344,22 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
     return TrackUpdate(state=TrackState(time=prior.time, mean=x, covariance=cov), nis=nis, dof=dof, gate=gate,
                        accepted=True, ris=measurement.fix.name)
 
+
+def nees_band(dof: int, count: int, level: float = 0.95) -> tuple[float, float]:
+    """The two-sided ``level`` band of the mean of ``count`` independent χ²(``dof``) values [unitless].
+
+    Parameters
+    ----------
+    dof : int
+        Degrees of freedom of each.
+    count : int
+        How many are averaged (1: the band of one value).
+    level : float
+        Probability inside the band.
+
+    Returns
+    -------
+    (float, float)
+    """
+    lo, hi = scipy.stats.chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * count) / count
+    return float(lo), float(hi)

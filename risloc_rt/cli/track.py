@@ -46,7 +46,8 @@ def _run(args: argparse.Namespace) -> int:
         0 (bad input raises: one line, exit status 2).
     """
     from ..studies.engine import choose_workers
-    from ..studies.walk import load_schedule, plan_walk, read_trajectory, run_walk, write_walk
+    from ..studies.trajectory import read_trajectory
+    from ..studies.walk import load_schedule, plan_walk, run_walk, write_walk
 
     backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
     if args.progress_every < 1:

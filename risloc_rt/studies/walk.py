@@ -1,8 +1,9 @@
 """A tracked walk: a radar carried along timed waypoints through a traced hall, the RISs sweeping in turn.
 
-``risloc track`` (issue 22, ``docs/tracking.md``). The walk is a :class:`Trajectory` (waypoints
-``t, x, y, z`` [s, m] joined by straight segments, read by :func:`read_trajectory`). The RISs sweep
-in time division (:class:`risloc_rt.model.time_division.TimeDivision`; default every RIS of the
+``risloc track`` (issue 22, ``docs/tracking.md``). The walk is a
+:class:`risloc_rt.studies.trajectory.Trajectory` (waypoints ``t, x, y, z`` [s, m] joined by straight
+segments, read by :func:`risloc_rt.studies.trajectory.read_trajectory`); its figures are drawn by
+:mod:`risloc_rt.studies.walk_figures`. The RISs sweep in time division (:class:`risloc_rt.model.time_division.TimeDivision`; default every RIS of the
 scene in spec order, back to back), starting at the walk's first waypoint. For every slot whose
 sweep ends within the walk:
 
@@ -30,22 +31,25 @@ the scene on the straight line between them (:meth:`risloc_rt.authoring.geometry
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import math
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
 
-__all__ = ["Trajectory", "TrajectoryError", "read_trajectory", "WalkSlot", "WalkResult", "plan_walk", "run_walk",
-           "write_walk", "COLUMNS", "UPDATE_KINDS", "default_schedule", "nees_band", "load_schedule", "MOVING_FLOORS",
-           "SKIP_FLAGS"]
+from dsp.tracking import nees_band
+
+from .trajectory import Trajectory, TrajectoryError
+from .walk_figures import plot_consistency, plot_error, plot_plan
+
+__all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
+           "default_schedule", "load_schedule", "MOVING_FLOORS", "SKIP_FLAGS"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
 #: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
@@ -81,192 +85,6 @@ MOVING_FLOORS = (5e-3, math.radians(0.1), 5e-3)
 #: Fixes carrying one of these flag codes are not given to the tracker (the row says ``flagged``):
 #: ``beam-edge``, an AoD at the edge of the swept span, extrapolated beyond the beams that saw it.
 SKIP_FLAGS = ("beam-edge",)
-
-
-class TrajectoryError(ValueError):
-    """A trajectory file or path that cannot be walked: one line naming the file, the line and the fix."""
-
-
-@dataclass(frozen=True, eq=False)
-class Trajectory:
-    """Timed waypoints joined by straight segments, walked at constant velocity between them.
-
-    Attributes
-    ----------
-    times : float array [W]
-        Strictly increasing [s], W ≥ 2.
-    points : float array [W, 3]
-        World positions [m].
-    lines : int array [W]
-        The file line of each waypoint (for messages; 0 when not read from a file).
-    source : str
-        Where it came from (the file), for messages.
-    """
-
-    times: np.ndarray
-    points: np.ndarray
-    lines: np.ndarray = field(default=None)  # type: ignore[assignment]
-    source: str = "trajectory"
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.times, dtype=float).reshape(-1)
-        p = np.asarray(self.points, dtype=float)
-        if p.shape != (len(t), 3):
-            raise TrajectoryError(f"{self.source}: points has shape {list(p.shape)}; give one [x, y, z] [m] per time")
-        if len(t) < 2:
-            raise TrajectoryError(f"{self.source}: {len(t)} waypoint(s); a walk needs at least two (t,x,y,z lines)")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
-            raise TrajectoryError(f"{self.source}: times and points must be finite numbers")
-        lines = np.zeros(len(t), dtype=int) if self.lines is None else np.asarray(self.lines, dtype=int)
-        for k in range(1, len(t)):
-            if not t[k] > t[k - 1]:
-                where = f"line {lines[k]}" if lines[k] else f"waypoint {k}"
-                prev = f"line {lines[k - 1]}" if lines[k - 1] else f"waypoint {k - 1}"
-                verb = "repeats" if t[k] == t[k - 1] else "goes back from"
-                raise TrajectoryError(f"{self.source}: {where}: t = {t[k]:g} s {verb} t = {t[k - 1]:g} s of {prev}; "
-                                      "timestamps must increase from line to line")
-        for name, arr in (("times", t), ("points", p), ("lines", lines)):
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-
-    @property
-    def duration(self) -> float:
-        """Last time minus first [s]."""
-        return float(self.times[-1] - self.times[0])
-
-    @property
-    def length(self) -> float:
-        """Path length [m]."""
-        return float(np.sum(np.linalg.norm(np.diff(self.points, axis=0), axis=1)))
-
-    def _segment(self, t: float) -> int:
-        k = int(np.searchsorted(self.times, t, side="right")) - 1
-        return min(max(k, 0), len(self.times) - 2)
-
-    def position(self, t: float) -> np.ndarray:
-        """The radar's position at a time of the walk.
-
-        Parameters
-        ----------
-        t : float
-            Time [s], within ``times[0]`` … ``times[-1]``.
-
-        Returns
-        -------
-        float array [3]
-            World position [m].
-        """
-        k = self._segment(t)
-        a = (t - self.times[k]) / (self.times[k + 1] - self.times[k])
-        return self.points[k] + a * (self.points[k + 1] - self.points[k])
-
-    def velocity(self, t: float) -> np.ndarray:
-        """The velocity of the segment walked at a time of the walk (at a waypoint: the next segment's).
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        float array [3]
-            World velocity [m/s].
-        """
-        k = self._segment(t)
-        return (self.points[k + 1] - self.points[k]) / (self.times[k + 1] - self.times[k])
-
-    def check_in(self, geometry: Any) -> None:
-        """Refuse waypoints outside the hall (or in an object, or in a wall) and segments through a surface.
-
-        Parameters
-        ----------
-        geometry : risloc_rt.authoring.geometry.HallGeometry
-            The scene's triangles.
-
-        Raises
-        ------
-        TrajectoryError
-            One line naming the waypoint's line (or the segment's two lines) and the surface.
-        """
-        for k, p in enumerate(self.points):
-            try:
-                geometry.check_point(p, what="radar")
-            except ValueError as exc:
-                raise TrajectoryError(f"{self.source}: {self._where(k)}: {exc}") from None
-        for k in range(len(self.points) - 1):
-            a, b = self.points[k], self.points[k + 1]
-            length = float(np.linalg.norm(b - a))
-            if length == 0:
-                continue
-            name, dist = geometry.first_hit(a, b - a)
-            if name is not None and dist < length:
-                hit = a + (b - a) * dist / length
-                raise TrajectoryError(
-                    f"{self.source}: the segment from {self._where(k)} {_fmt(a)} to {self._where(k + 1)} {_fmt(b)} m "
-                    f"passes through '{name}' at {_fmt(hit)} m; add a waypoint that walks around it")
-
-    def _where(self, k: int) -> str:
-        return f"line {self.lines[k]}" if self.lines[k] else f"waypoint {k}"
-
-
-def _fmt(p: np.ndarray) -> str:
-    return "[" + ", ".join(f"{x:.3f}" for x in np.asarray(p, dtype=float)) + "]"
-
-
-def read_trajectory(path: str | Path) -> Trajectory:
-    """A trajectory CSV: a header ``t,x,y,z`` then one waypoint per line [s, m, m, m].
-
-    Blank lines and lines starting with ``#`` are skipped. Every error names the file and line.
-
-    Parameters
-    ----------
-    path : str or Path
-        The CSV file.
-
-    Returns
-    -------
-    Trajectory
-
-    Raises
-    ------
-    TrajectoryError
-        A missing header, a line without four numbers, timestamps that repeat or go back, fewer
-        than two waypoints.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise TrajectoryError(f"{path}: not a text file; give a CSV with a header t,x,y,z and one waypoint "
-                              "per line [s, m]") from None
-    rows, lines, header = [], [], False
-    for number, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
-        if not header:
-            if [c.lower() for c in cells] != ["t", "x", "y", "z"]:
-                raise TrajectoryError(f"{path}: line {number}: the header must be 't,x,y,z' (time [s], position [m]), "
-                                      f"got {line[:60]!r}")
-            header = True
-            continue
-        if len(cells) != 4:
-            raise TrajectoryError(f"{path}: line {number}: {len(cells)} value(s) {line[:60]!r}; give four numbers "
-                                  "t,x,y,z [s, m]")
-        try:
-            values = [float(c) for c in cells]
-        except ValueError:
-            raise TrajectoryError(f"{path}: line {number}: {line[:60]!r} is not four numbers t,x,y,z [s, m]") from None
-        if not all(math.isfinite(v) for v in values):
-            raise TrajectoryError(f"{path}: line {number}: {line[:60]!r} must hold finite numbers")
-        rows.append(values)
-        lines.append(number)
-    if not header:
-        raise TrajectoryError(f"{path}: empty; give a header t,x,y,z and at least two waypoints [s, m]")
-    arr = np.array(rows, dtype=float).reshape(-1, 4)
-    return Trajectory(times=arr[:, 0], points=arr[:, 1:], lines=np.array(lines, dtype=int), source=str(path))
 
 
 def default_schedule(spec: Any, radar: Any, num_beams: int) -> Any:
@@ -445,28 +263,6 @@ def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None
         raise TrajectoryError(f"{trajectory.source}: the walk lasts {trajectory.duration:g} s, less than one sweep "
                               f"({schedule.sweep_duration:g} s); give later timestamps")
     return tuple(out)
-
-
-def nees_band(dof: int, count: int, level: float = 0.95) -> tuple[float, float]:
-    """The two-sided ``level`` band of the mean of ``count`` independent χ²(``dof``) values [unitless].
-
-    Parameters
-    ----------
-    dof : int
-        Degrees of freedom of each.
-    count : int
-        How many are averaged (1: the band of one value).
-    level : float
-        Probability inside the band.
-
-    Returns
-    -------
-    (float, float)
-    """
-    import scipy.stats
-
-    lo, hi = scipy.stats.chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * count) / count
-    return float(lo), float(hi)
 
 
 @dataclass(frozen=True)
@@ -857,144 +653,3 @@ def write_walk(result: WalkResult, folder: str | Path) -> list[Path]:
     out += [plot_plan(result, folder / "plan.png"), plot_error(result, folder / "error.png"),
             plot_consistency(result, folder / "consistency.png")]
     return out
-
-
-def _column(result: WalkResult, key: str) -> np.ndarray:
-    return np.array([r[key] for r in result.rows], dtype=float)
-
-
-def plot_plan(result: WalkResult, path: str | Path) -> Path:
-    """Plan view: the hall's walls and objects, the RISs, the true path, the fixes by RIS and the track.
-
-    Parameters
-    ----------
-    result : WalkResult
-        The walk.
-    path : str or Path
-        The PNG to write.
-
-    Returns
-    -------
-    Path
-    """
-    from matplotlib.patches import Polygon
-
-    from ..authoring.spec import load_spec
-    from ..plotting import new_figure, save_figure
-
-    spec = load_spec(result.scene / "spec.toml")
-    fig = new_figure(figsize=(8.0, 7.0))
-    ax = fig.add_subplot(1, 1, 1)
-    fp = spec.footprint_array
-    ax.add_patch(Polygon(fp, closed=True, facecolor="#f4f4f4", edgecolor="#333333", lw=1.5, zorder=1))
-    for obj in spec.objects:
-        if hasattr(obj, "corners_xy"):
-            ax.add_patch(Polygon(obj.corners_xy(), closed=True, facecolor="#c8a165", edgecolor="#333333", lw=0.6,
-                                 zorder=2))
-    colours = ["#7b2cbf", "#1f77b4", "#2ca02c", "#ff7f0e", "#8c564b"]
-    for i, (r, cfg) in enumerate(zip(spec.ris, spec.ris_configs())):
-        p, n = cfg.pose.position, cfg.pose.normal
-        c = colours[i % len(colours)]
-        ax.plot([p[0]], [p[1]], marker="s", color=c, ms=8, zorder=5)
-        ax.annotate(r.name, p[:2], xytext=(6, 6), textcoords="offset points", color=c, fontsize=8)
-        ax.arrow(p[0], p[1], 1.2 * n[0], 1.2 * n[1], color=c, width=0.05, zorder=5)
-    pts = result.trajectory.points
-    ax.plot(pts[:, 0], pts[:, 1], color="#333333", lw=1.0, ls="--", label="true path", zorder=3)
-    ris = np.array([r["ris"] for r in result.rows])
-    for i, r in enumerate(spec.ris):
-        sel = ris == r.name
-        x, y = _column(result, "fix_x")[sel], _column(result, "fix_y")[sel]
-        if np.isfinite(x).any():
-            ax.plot(x, y, ls="none", marker=".", ms=4, color=colours[i % len(colours)], label=f"fixes ({r.name})",
-                    zorder=4)
-    ax.plot(_column(result, "track_x"), _column(result, "track_y"), color="#d62728", lw=1.2, label="track", zorder=4)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    s = result.summary
-    ax.set_title(f"{s['scene']}: {s['sweeps']} sweeps, fixes {s['fixes']}, track RMSE "
-                 f"{(s['track_rmse_m'] or math.nan) * 100:.1f} cm", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    return save_figure(fig, path)
-
-
-def plot_error(result: WalkResult, path: str | Path) -> Path:
-    """Position error against time: the single fixes (by RIS), the track, and the track's 1σ.
-
-    Parameters
-    ----------
-    result : WalkResult
-        The walk.
-    path : str or Path
-        The PNG to write.
-
-    Returns
-    -------
-    Path
-    """
-    from ..plotting import new_figure, save_figure
-
-    fig = new_figure(figsize=(8.0, 4.0))
-    ax = fig.add_subplot(1, 1, 1)
-    t = _column(result, "time")
-    ris = np.array([r["ris"] for r in result.rows])
-    for name in sorted(set(ris)):
-        sel = ris == name
-        ax.semilogy(t[sel], _column(result, "fix_error")[sel], ls="none", marker=".", ms=4, label=f"fix ({name})")
-    ax.semilogy(t, _column(result, "track_error"), color="#d62728", lw=1.2, label="track")
-    ax.semilogy(t, _column(result, "track_sigma"), color="#d62728", lw=0.8, ls=":", label="track 1σ (sqrt trace)")
-    coast = np.array([r["update"] in ("coast", "gated") for r in result.rows])
-    for tc in t[coast]:
-        ax.axvline(tc, color="#cccccc", lw=0.5, zorder=0)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("position error [m]")
-    ax.set_title("error against time (grey: coasted or gated sweeps)", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    return save_figure(fig, path)
-
-
-def plot_consistency(result: WalkResult, path: str | Path) -> Path:
-    """NEES and NIS per sweep against their 95 % χ² bands (per sweep, and of the walk's mean).
-
-    Parameters
-    ----------
-    result : WalkResult
-        The walk.
-    path : str or Path
-        The PNG to write.
-
-    Returns
-    -------
-    Path
-    """
-    from ..plotting import new_figure, save_figure
-
-    fig = new_figure(figsize=(8.0, 6.0))
-    t = _column(result, "time")
-    s = result.summary
-    kinds = np.array([r["update"] for r in result.rows])
-    for i, (key, dof_key, name) in enumerate((("nees", "nees_dof", "NEES"), ("nis", "nis_dof", "NIS"))):
-        ax = fig.add_subplot(2, 1, i + 1)
-        v, dof = _column(result, key), _column(result, dof_key)
-        ok = np.isfinite(v) & (dof > 0)
-        if key == "nis":  # the updates made; a gated measurement's NIS is drawn apart (it is why it was gated)
-            gated = ok & np.isin(kinds, ("gated", "restart"))
-            ok &= kinds == "used"
-            if gated.any():
-                ax.semilogy(t[gated], v[gated] / dof[gated], ls="none", marker="x", ms=5, color="#d62728",
-                            label="gated (not used)")
-        ax.semilogy(t[ok], v[ok] / dof[ok], ls="none", marker=".", ms=4, label=f"{name} / dof")
-        if ok.any():
-            d = int(np.median(dof[ok]))
-            lo, hi = nees_band(d, 1)
-            ax.axhspan(lo / d, hi / d, color="#2ca02c", alpha=0.12, label=f"95 % band of one χ²({d}) / {d}")
-            mean = float(np.sum(v[ok]) / np.sum(dof[ok]))
-            mlo, mhi = nees_band(int(np.sum(dof[ok])), 1)
-            ax.axhline(mean, color="#d62728", lw=1.0, label=f"walk mean {mean:.2f}")
-            ax.axhspan(mlo / np.sum(dof[ok]), mhi / np.sum(dof[ok]), color="#d62728", alpha=0.15,
-                       label="95 % band of the mean")
-        ax.set_ylabel(f"{name} per dof")
-        ax.legend(fontsize=7, loc="best")
-    ax.set_xlabel("time [s]")
-    fig.suptitle(f"filter consistency: NEES over {s['nees_dof']} states, NIS per measurement", fontsize=9)
-    return save_figure(fig, path)

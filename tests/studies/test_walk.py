@@ -9,8 +9,9 @@ import pytest
 
 from dsp import BeamSweep
 from risloc_rt.hall.raytrace.tracer import TraceSettings
-from risloc_rt.studies.walk import (COLUMNS, Trajectory, TrajectoryError, plan_walk, read_trajectory, run_walk,
-                                    write_walk, nees_band)
+from dsp.tracking import nees_band
+from risloc_rt.studies.trajectory import Trajectory, TrajectoryError, read_trajectory
+from risloc_rt.studies.walk import COLUMNS, plan_walk, run_walk, write_walk
 
 CHEAP = TraceSettings(max_depth=1, samples_per_src=10_000)
 
