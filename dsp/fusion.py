@@ -235,18 +235,22 @@ def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
     return central_jacobian(fix.residuals, x)
 
 
-def _solve(fixes: list[RisFix], start: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def _solve(fixes: list[RisFix], start: np.ndarray,
+           height: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Weighted least squares from ``start``: (x̂, information [3, 3] at x̂ [1/m²], T at x̂).
 
     A trust-region Gauss–Newton (:func:`scipy.optimize.least_squares`, ``"trf"``): plain
     Gauss–Newton steps can run away when the fixes disagree (two range circles that do not meet);
     a trust region only takes steps that lower T. Steps along a direction no fix sees are zero.
+    A known ``height`` (z, σ_z) [m] is one more measurement, (z − x₃)/σ_z.
     """
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([f.residuals(x) for f in fixes])
+        known = [] if height is None else [np.array([(height[0] - x[2]) / height[1]])]
+        return np.concatenate([f.residuals(x) for f in fixes] + known)
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        return np.vstack([_jacobian(f, x) for f in fixes])  # ∂r/∂x = −∂h/∂x / σ
+        known = [] if height is None else [np.array([[0.0, 0.0, -1.0 / height[1]]])]
+        return np.vstack([_jacobian(f, x) for f in fixes] + known)  # ∂r/∂x = −∂h/∂x / σ
 
     fit = scipy.optimize.least_squares(residuals, np.array(start, dtype=float), jac=jacobian, method="trf",
                                        xtol=_TOLERANCE, ftol=1e-15, gtol=1e-15, max_nfev=20 * _MAX_STEPS)
@@ -282,7 +286,7 @@ def _describe(direction: np.ndarray) -> str:
     return f"the world direction [{direction[0]:+.2f}, {direction[1]:+.2f}, {direction[2]:+.2f}]"
 
 
-def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
+def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix:
     """Fuse the fixes of several RISs into one position with its covariance (module notes).
 
     Parameters
@@ -291,6 +295,9 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
         One per detected RIS (distinct names).
     pfa : float, default 1e-3
         Probability that consistent fixes fail the χ² test (and one is left out wrongly).
+    height : (float, float), optional
+        The radar's known height z and its 1σ [m], world frame: one more measurement in the fusion
+        and its χ² test (RISs at one height whose 1-D sweeps cannot see elevation then fix z too).
 
     Returns
     -------
@@ -313,6 +320,16 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
     pfa = finite(pfa, "pfa", "")
     if not 0 < pfa < 1:
         raise ValueError(f"pfa={pfa!r} must lie in (0, 1), e.g. 1e-3")
+    if height is not None:
+        h = as_finite_array(height, "height", shape=(2,))
+        height = (float(h[0]), positive(float(h[1]), "height's 1σ", "m"))
+    known = 0 if height is None else 1  # measurements the height adds
+
+    def begin(f: RisFix) -> np.ndarray:
+        x = f.position(None if np.isfinite(f.std_aod[1]) else 0.0)
+        if height is not None and not np.isfinite(f.std_aod[1]):
+            x = f.position(f.pose.angles_to(np.array([*x[:2], height[0]]))[1])  # its fix at the known height
+        return x
 
     # the start: the single fix whose own position is best determined (smallest σ·d lever), elevation 0 if unseen
     def lever(f: RisFix) -> float:
@@ -320,20 +337,20 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
         return float(np.hypot(f.std_distance, f.distance * s_az))
 
     used = sorted(fixes, key=lever)
-    start = used[0].position(None if np.isfinite(used[0].std_aod[1]) else 0.0)
+    start = begin(used[0])
     excluded: list[tuple[str, str]] = []
     flags: list[Flag] = []
     while True:
-        x, info, stat = _solve(used, start)
-        dof = sum(f.measurements for f in used) - _rank(info)
+        x, info, stat = _solve(used, start, height)
+        dof = sum(f.measurements for f in used) + known - _rank(info)
         threshold = float(scipy.stats.chi2.isf(pfa, dof)) if dof > 0 else float("nan")
         if dof <= 0 or stat <= threshold:
             break
         trials = []  # leave each fix out; the remaining fixes must still over-determine what they see
         for i, f in enumerate(used):
             rest = used[:i] + used[i + 1:]
-            xr, info_r, tr = _solve(rest, x)
-            rest_dof = sum(g.measurements for g in rest) - _rank(info_r)
+            xr, info_r, tr = _solve(rest, x, height)
+            rest_dof = sum(g.measurements for g in rest) + known - _rank(info_r)
             if rest_dof >= 1 and tr <= float(scipy.stats.chi2.isf(pfa, rest_dof)):
                 trials.append((tr, i, xr))
         doubtful = [f for f in used if set(f.flags) & DOUBT_CODES]
@@ -343,7 +360,7 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3) -> FusedFix:
                 excluded.append((f.name, f"its own flags ({', '.join(sorted(set(f.flags) & DOUBT_CODES))}) and the "
                                          "others disagree with it"))
             used = [f for f in used if f not in doubtful]
-            start = used[0].position(None if np.isfinite(used[0].std_aod[1]) else 0.0)
+            start = begin(used[0])
             continue
         if not trials:
             flags.append(Flag("inconsistent-ris", (

@@ -19,10 +19,10 @@ continues and the numbers do not depend on the number of workers.
 
 **Per cell and run** (:func:`cell_run_position`): each detected RIS gives a ``dsp.RisFix`` (its
 distance and azimuth with their stated 1σ; the 1-D sweep sees no elevation); one fix is the
-position as ``dsp.self_localize`` gave it; two or more are fused: ``dsp.fuse_fixes`` decides which
-agree (its χ² test leaves out an inconsistent one, flag ``inconsistent-ris``), then the position of
-the fixes it used is re-solved with the radar's height known (the map's height: :func:`fuse_at_height`;
-RISs at one height leave the height unobservable, and a known height is what the single-RIS fix uses).
+position as ``dsp.self_localize`` gave it; two or more are fused by ``dsp.fuse_fixes`` with the radar's height
+known (the map's height, one more measurement: :func:`fuse_at_height`; RISs at one height leave the
+height unobservable, and a known height is what the single-RIS fix uses): its χ² test leaves out an
+inconsistent one (flag ``inconsistent-ris``).
 **Folded returns**: a radar beyond a RIS's unambiguous range sees its return folded to d - R_max,
 a wrong fix the DSP does not flag; the map applies ``risloc locate``'s link-budget check to every
 detected run (:func:`folded_return`) and a fix it flags ``aliased`` gives no position (the run counts
@@ -64,7 +64,7 @@ from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "grid_budget", "prepare_cell",
-           "multi_ris_peb", "fuse_at_height", "cell_run_position", "folded_return", "coverage", "MAX_GRID_POINTS",
+           "multi_ris_peb", "fuse_at_height", "HEIGHT_STD", "cell_run_position", "folded_return", "coverage", "MAX_GRID_POINTS",
            "COVERED_PD", "DEFAULT_PEB_BOUND"]
 
 #: More grid points than this (before the cells are chosen) are refused unless ``force_long``: each
@@ -426,13 +426,18 @@ def multi_ris_peb(bounds: Any, position: Any) -> float:
     return float(np.sqrt(np.trace(np.linalg.inv(info))))
 
 
+#: The 1σ of the map's known radar height in the fusion [m]: the cell's height is exact, as the
+#: single-RIS fix assumes it (``elevation-assumed``); 0.1 mm keeps the information well conditioned.
+HEIGHT_STD = 1e-4
+
+
 def fuse_at_height(fixes: Any, height: float, *, pfa: float = 1e-3) -> tuple[np.ndarray, Any]:
     """Fuse RIS fixes into one position at a known radar height.
 
-    ``dsp.fuse_fixes`` decides which fixes agree (its χ² test leaves an inconsistent one out and
-    flags it); the fixes it used are then solved for (x, y) with z = ``height`` (weighted least
-    squares of their ``dsp.RisFix.residuals``, from the fused position): RISs at one height cannot
-    see the height, and the map's radar height is known, as the single-RIS fix assumes it.
+    ``dsp.fuse_fixes`` with the height as one more measurement (``height=(height, HEIGHT_STD)``): its
+    χ² test decides which fixes agree (an inconsistent one is left out and flagged) with the height
+    known, and the position is returned at z = ``height``. RISs at one height cannot see the height
+    (1-D sweeps), and the map's radar height is known, as the single-RIS fix assumes it.
 
     Parameters
     ----------
@@ -450,19 +455,10 @@ def fuse_at_height(fixes: Any, height: float, *, pfa: float = 1e-3) -> tuple[np.
     fused : dsp.FusedFix
         What ``dsp.fuse_fixes`` said (used, excluded, flags).
     """
-    import scipy.optimize
-
     from dsp import fuse_fixes
 
-    fused = fuse_fixes(fixes, pfa=pfa)
-    used = [f for f in fixes if f.name in fused.used]
-
-    def residuals(q: np.ndarray) -> np.ndarray:
-        return np.concatenate([f.residuals(np.array([q[0], q[1], height])) for f in used])
-
-    fit = scipy.optimize.least_squares(residuals, np.asarray(fused.position[:2], dtype=float), method="trf",
-                                       xtol=1e-12, ftol=1e-15, gtol=1e-15)
-    return np.array([fit.x[0], fit.x[1], float(height)]), fused
+    fused = fuse_fixes(fixes, pfa=pfa, height=(float(height), HEIGHT_STD))
+    return np.array([fused.position[0], fused.position[1], float(height)]), fused
 
 
 def cell_run_position(entries: Any, truth: Any,

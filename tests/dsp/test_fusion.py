@@ -194,3 +194,16 @@ def test_degrees_of_freedom_count_what_the_fixes_see():
     fused = fuse_fixes([_fix("ris-a", a, TRUTH, sees_elevation=False), _fix("ris-b", b, TRUTH, sees_elevation=False)])
     assert fused.dof == 2
     assert fused.threshold == pytest.approx(scipy.stats.chi2.isf(1e-3, 2))
+
+
+def test_a_known_height_is_one_more_measurement():
+    """Two 1-D fixes at one height cannot see z; with z known to 1 mm the position is 3-D, z's 1σ that 1 mm
+    (the fixes add nothing along z), and the χ² has 4 + 1 − 3 = 2 degrees of freedom."""
+    a, b = _pose([0.0, 4.0, 1.2], (6, 4, 1.2)), _pose([12.0, 0.0, 1.2], (6, 4, 1.2))
+    fixes = [_fix("ris-a", a, TRUTH, sees_elevation=False), _fix("ris-b", b, TRUTH, sees_elevation=False)]
+    fused = fuse_fixes(fixes, height=(TRUTH[2], 1e-3))
+    assert not fused.unobservable and np.isfinite(fused.peb)
+    np.testing.assert_allclose(fused.position, TRUTH, atol=1e-6)  # [m]
+    assert fused.std[2] == pytest.approx(1e-3, rel=1e-3) and fused.dof == 2
+    with pytest.raises(ValueError, match="height"):
+        fuse_fixes(fixes, height=(1.2, 0.0))
