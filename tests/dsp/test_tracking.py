@@ -182,3 +182,17 @@ def test_a_known_height_holds_z_and_the_horizontal_track_is_consistent():
     assert lo <= np.mean(values) <= hi, np.mean(values)
     with pytest.raises(ValueError, match="height"):
         update(state, meas[-1], accel_density=q, height=(1.2,))
+
+
+def test_the_nees_band_holds_its_share_of_means():
+    """dsp.tracking.nees_band(dof, n): the mean of n χ²(dof) values falls inside it 95 % of the time
+    (4000 draws of means of 10 χ²(4): a binomial 99.9 % interval around 95 %)."""
+    from dsp.tracking import nees_band
+
+    rng = np.random.default_rng(7)
+    means = rng.chisquare(4, size=(4000, 10)).mean(axis=1)
+    lo, hi = nees_band(4, 10)
+    share = np.mean((means >= lo) & (means <= hi))
+    k_lo, k_hi = scipy.stats.binom.ppf([5e-4, 1 - 5e-4], 4000, 0.95) / 4000
+    assert k_lo <= share <= k_hi
+    assert np.mean(means < lo) == pytest.approx(0.025, abs=0.01)  # two-sided: 2.5 % on each side

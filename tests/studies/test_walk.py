@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
+import scipy.stats
 
 from dsp import BeamSweep
 from risloc_rt.hall.raytrace.tracer import TraceSettings
-from dsp.tracking import nees_band
 from risloc_rt.studies.trajectory import Trajectory, TrajectoryError, read_trajectory
 from risloc_rt.studies.walk import COLUMNS, plan_walk, run_walk, write_walk
 
@@ -84,7 +84,7 @@ def test_it_coasts_through_the_undetected_ris_and_its_sigma_says_how_far(quiet_w
         assert coast["track_sigma"] > before["track_sigma"] and after["track_sigma"] < coast["track_sigma"]
         assert math.isnan(coast["nis"]) and coast["nis_dof"] == 0 and math.isnan(coast["fix_error"])
     # each row's track error within its stated covariance: NEES (x, y, vx, vy) within the 99.9 % band of χ²(4)
-    _, hi = nees_band(4, 1, level=0.999)
+    hi = scipy.stats.chi2.ppf(0.9995, 4)  # the upper edge of χ²(4)'s two-sided 99.9 % band
     for r in rows:
         assert r["nees_dof"] == 4 and r["nees"] <= hi, r
 
@@ -98,7 +98,7 @@ def test_the_track_error_is_within_its_covariance_and_the_outputs_are_written(qu
     _, walk = quiet_walk
     s = walk.summary
     nees = np.array([r["nees"] for r in walk.rows])
-    _, hi = nees_band(4, len(nees), level=0.99)
+    hi = scipy.stats.chi2.ppf(0.995, 4 * len(nees)) / len(nees)  # the mean of n χ²(4): χ²(4n)/n, 99 % band
     assert np.mean(nees) <= hi, nees
     assert s["fixes_in_view"] == 3 and s["sweeps_in_view"] == 5 and s["fix_share_in_view"] == pytest.approx(3 / 5)
     assert s["fix_rmse_m"] < 0.02 and walk.rows[-1]["track_error"] < 0.02
