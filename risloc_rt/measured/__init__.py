@@ -9,7 +9,10 @@ never one after; ``tests/measured/test_measured_rooms.py`` checks it):
 3. :mod:`.sweep` — a recorded RIS sweep: schedule, RIS timing, alignment, leakage removal, the import;
 4. :mod:`.emulate` — experiment emulators: raw files, an experiment's folder, a whole recording;
 5. :mod:`.compare` — against the traced hall: hall model, calibration file and fit, comparison and its page
-   (not re-exported here: it loads ``hall`` and ``io``).
+   (not re-exported here: it loads ``hall`` and ``io``);
+6. :mod:`.live` — recording from a radar and a DCA1000 on Linux: the radar's CLI port, the DCA1000
+   control link, the data receiver, the recording writer, live sweeps (not re-exported here: it
+   opens serial ports and sockets; ``pyserial`` is imported only when a port is opened).
 
 Rooms 0-2 and :mod:`.emulate.raw_files` are numpy/scipy (plus ``dsp``) only; the sweep import
 (``import_capture``) and the experiment emulators build and take a ``risloc_rt.model.Capture``

@@ -6,6 +6,7 @@
     3  sweep      schedule, RIS timing, alignment, leakage, import
     4  emulate    raw files, an experiment's folder, a whole recording
     5  compare    traced hall, calibration file and fit, comparison and its page
+    6  live       recording from a radar and a DCA1000: radar CLI, DCA1000 link, receiver, live sweeps
 
 A module may import its own room and the rooms before it (every ``import`` counts, at top level or
 inside a function); ``measured/__init__.py`` only re-exports. Import cycles between modules are
@@ -21,7 +22,7 @@ from pathlib import Path
 import pytest
 
 MEASURED = Path(__file__).resolve().parents[2] / "risloc_rt" / "measured"
-ROOMS = ("errors", "ti", "dca1000", "sweep", "emulate", "compare")
+ROOMS = ("errors", "ti", "dca1000", "sweep", "emulate", "compare", "live")
 PACKAGE = "risloc_rt.measured"
 MAX_FUNCTION_LINES = 80
 """Lines of code of one function, its docstring not counted."""
