@@ -2,7 +2,10 @@
 
 Only the commands that describe the waveform and the ADC are mapped (``channelCfg``, ``adcCfg``,
 ``adcbufCfg``, ``profileCfg``, ``chirpCfg``, ``frameCfg``, ``dfeDataOutputMode``); the processing
-chain's commands (``cfarCfg``, ``guiMonitor``, …) are recognised and skipped. Field orders follow
+chain's commands (``cfarCfg``, ``guiMonitor``, …) are recognised and skipped. ``lvdsStreamCfg`` is
+listed as skipped too (it says nothing about the waveform) but its fields are kept in
+:attr:`ParsedSdkCfg.lvds_stream`, and ``adcbufCfg``'s ChirpThreshold in
+:attr:`ParsedSdkCfg.chirp_threshold`, for the device check (``risloc_rt.measured.ti.devices``). Field orders follow
 the SDK 3.5 CLI (``docs/measured-captures.md`` has the table).
 
 ``adcbufCfg``'s SampleSwap is the on-chip ADC buffer's I/Q order (mmWave SDK user's guide), kept in
@@ -18,7 +21,8 @@ from pathlib import Path
 from ..errors import MeasuredFormatError
 from .chirp_config import ADC_FORMATS, TiChirp, TiChirpConfig
 
-__all__ = ["MAX_CHIRP_INDEX", "MAX_LOOPS", "ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg", "read_sdk_cfg"]
+__all__ = ["LvdsStreamCfg", "MAX_CHIRP_INDEX", "MAX_LOOPS", "ParsedSdkCfg", "format_sdk_cfg", "parse_sdk_cfg",
+           "read_sdk_cfg"]
 
 #: Argument counts of the mapped commands in mmWave SDK 3.x (adcbufCfg: 4 in SDK 1.x).
 ARGUMENT_COUNTS: dict[str, tuple[int, ...]] = {
@@ -47,6 +51,28 @@ MAX_CHIRP_INDEX = 511
 MAX_LOOPS = 255
 
 @dataclass(frozen=True)
+class LvdsStreamCfg:
+    """``lvdsStreamCfg <subFrameIdx> <enableHeader> <dataFmt> <enableSW>`` (mmWave SDK 3.x user's guide, CLI).
+
+    Parameters
+    ----------
+    enable_header : bool
+        An HSI header before each chirp's data on LVDS.
+    data_format : int
+        The hardware stream: 0 off, 1 ADC samples, 4 CP + ADC + CQ.
+    enable_sw : bool
+        The demo's software (processed) data streamed after each frame.
+    line : int
+        The ``.cfg`` line number, for messages.
+    """
+
+    enable_header: bool
+    data_format: int
+    enable_sw: bool
+    line: int = 0
+
+
+@dataclass(frozen=True)
 class ParsedSdkCfg:
     """Result of :func:`parse_sdk_cfg`.
 
@@ -58,11 +84,17 @@ class ParsedSdkCfg:
         ``(line number, command)`` of the recognised commands that were not used.
     source : str
         The file name (or ``"<text>"``) the errors quote.
+    chirp_threshold : int or None
+        ``adcbufCfg``'s ChirpThreshold (chirps gathered in the ADC buffer), None without ``adcbufCfg``.
+    lvds_stream : LvdsStreamCfg or None
+        ``lvdsStreamCfg``'s fields, None when the file has none.
     """
 
     config: TiChirpConfig
     skipped: tuple[tuple[int, str], ...]
     source: str
+    chirp_threshold: int | None = None
+    lvds_stream: LvdsStreamCfg | None = None
 
 
 def _number(tok: str, where: str, field: str) -> float:
@@ -122,6 +154,7 @@ class _CfgCommands:
     profiles: dict[int, tuple[int, list[str]]]
     chirps: tuple[tuple[int, list[str]], ...]
     skipped: tuple[tuple[int, str], ...]
+    lvds: tuple[int, list[str]] | None = None
 
     def where(self, command: str) -> str:
         """``source:line`` of a command given once."""
@@ -146,6 +179,7 @@ def _command_lines(text: str, source: str, strict: bool) -> _CfgCommands:
     profiles: dict[int, tuple[int, list[str]]] = {}
     chirp_lines: list[tuple[int, list[str]]] = []
     skipped: list[tuple[int, str]] = []
+    lvds: tuple[int, list[str]] | None = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("%", 1)[0].strip()
         if not line:
@@ -154,6 +188,8 @@ def _command_lines(text: str, source: str, strict: bool) -> _CfgCommands:
         where = f"{source}:{lineno}"
         if cmd in SKIPPED:
             skipped.append((lineno, cmd))
+            if cmd == "lvdsStreamCfg":
+                lvds = (lineno, args)
             continue
         if cmd in ("advFrameCfg", "subFrameCfg"):
             raise MeasuredFormatError(f"{where}: {cmd} (advanced frame) is not supported; "
@@ -183,7 +219,7 @@ def _command_lines(text: str, source: str, strict: bool) -> _CfgCommands:
                 raise MeasuredFormatError(f"{where}: {cmd} given again (first at line {found[cmd][0]}); keep one")
             found[cmd] = (lineno, args)
     return _CfgCommands(source=source, single=found, profiles=profiles, chirps=tuple(chirp_lines),
-                        skipped=tuple(skipped))
+                        skipped=tuple(skipped), lvds=lvds)
 
 
 def _check_required(cmds: _CfgCommands) -> None:
@@ -247,6 +283,27 @@ def _adc_format(cmds: _CfgCommands) -> tuple[int, str, bool]:
             raise MeasuredFormatError(f"{w2}: adcbufCfg sampleSwap={swap} must be 0 (I in LSB) or 1 (Q in LSB)")
         iq_swap = swap == 1
     return (12, 14, 16)[bits_code], adc_format, iq_swap
+
+
+def _chirp_threshold(cmds: _CfgCommands) -> int | None:
+    """``adcbufCfg``'s last field, ChirpThreshold (SDK 3.x: 5 arguments, SDK 1.x: 4), or None without it."""
+    if "adcbufCfg" not in cmds.single:
+        return None
+    args = cmds.single["adcbufCfg"][1]
+    return _integer(args[-1], cmds.where("adcbufCfg"), "chirpThreshold")
+
+
+def _lvds_stream(cmds: _CfgCommands) -> LvdsStreamCfg | None:
+    """``lvdsStreamCfg <subFrameIdx> <enableHeader> <dataFmt> <enableSW>``, or None without it."""
+    if cmds.lvds is None:
+        return None
+    line, args = cmds.lvds
+    where = f"{cmds.source}:{line}"
+    if len(args) != 4:
+        raise MeasuredFormatError(f"{where}: lvdsStreamCfg takes 4 arguments in mmWave SDK 3.x (subFrameIdx "
+                                  f"enableHeader dataFmt enableSW), got {len(args)}")
+    header, fmt, sw = (_integer(a, where, f) for a, f in zip(args[1:], ("enableHeader", "dataFmt", "enableSW")))
+    return LvdsStreamCfg(enable_header=bool(header), data_format=fmt, enable_sw=bool(sw), line=line)
 
 
 def _frame_command(cmds: _CfgCommands) -> _FrameCommand:
@@ -364,7 +421,8 @@ def parse_sdk_cfg(text: str, *, source: str = "<text>", strict: bool = True) -> 
             adc_format=adc_format, iq_swap=iq_swap)
     except MeasuredFormatError as exc:
         raise MeasuredFormatError(f"{wp}: profileCfg: {exc}") from None
-    return ParsedSdkCfg(config=config, skipped=cmds.skipped, source=source)
+    return ParsedSdkCfg(config=config, skipped=cmds.skipped, source=source, chirp_threshold=_chirp_threshold(cmds),
+                        lvds_stream=_lvds_stream(cmds))
 
 
 def _g(value: float) -> str:
