@@ -241,21 +241,10 @@ def recording_summary(exc: BaseException) -> RecordingSummary | None:
 class _Setup:
     """The checked configuration of a plan."""
 
-    lines: tuple[str, ...]
     frame_bytes: int
     target_frames: int | None
     lanes: int
     fpga: object
-
-
-def _cfg_lines(path: Path) -> tuple[str, ...]:
-    """The ``.cfg``'s command lines for the radar: comments, blanks and ``sensorStart`` left out."""
-    lines = []
-    for raw in path.read_text(encoding="utf-8", errors="replace").splitlines():
-        line = raw.strip()
-        if line and not line.startswith("%") and line.split()[0] != "sensorStart":
-            lines.append(line)
-    return tuple(lines)
 
 
 def _check(plan: RecordPlan) -> _Setup:
@@ -280,7 +269,7 @@ def _check(plan: RecordPlan) -> _Setup:
     elif target is None and plan.duration is None:
         raise MeasuredFormatError(f"{plan.config}: frameCfg numFrames is 0 (the radar runs until stopped): give "
                                   "--frames N or --duration S")
-    return _Setup(lines=_cfg_lines(plan.config), frame_bytes=check.frame_bytes, target_frames=target,
+    return _Setup(frame_bytes=check.frame_bytes, target_frames=target,
                   lanes=check.lanes, fpga=FpgaConfig.from_chirp_config(cfg, lanes=check.lanes))
 
 
@@ -334,7 +323,7 @@ class _Session:
         self.dca_started = True
         self.link.start_record()
         self.radar = stack.enter_context(RadarCli(self.plan.serial_port, self.plan.baudrate, o["serial_timeout"]))
-        self.radar.send_config(list(self.setup.lines))
+        self.radar.send_config(self.plan.config, start=False)
         self.radar.sensor_start()
         self.t0 = time.monotonic()
 
@@ -386,11 +375,13 @@ class _Session:
     def stop(self) -> list[str]:
         """sensorStop, RECORD_STOP, drain the datagrams in flight (best effort, never raises)."""
         problems = []
-        if self.radar is not None:
+        if self.radar is not None and self.stopped in ("frames", "duration"):
             try:
                 self.radar.sensor_stop()
             except Exception as exc:  # noqa: BLE001 - cleanup: reported, never raised
                 problems.append(f"sensorStop: {' '.join(str(exc).split())}")
+        elif self.radar is not None and not self.radar.stop_best_effort():
+            problems.append("sensorStop: no 'Done' from the radar")
         if self.link is not None and not self.dca_started:
             self.link.stop_record_quietly()                 # never started: one datagram, no wait
         elif self.link is not None:
