@@ -1,5 +1,6 @@
 """``risloc capture inspect``: what a raw TI DCA1000 capture holds, before anything is localized;
-``risloc capture import``: a recorded RIS sweep (raw + config + sweep schedule) → a capture file."""
+``risloc capture import``: a recorded RIS sweep (raw + config + sweep schedule) → a capture file;
+``risloc capture record``: record from a TI radar and a DCA1000 on Linux (docs/live-capture.md)."""
 
 from __future__ import annotations
 
@@ -236,8 +237,148 @@ def _import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _record_plan(args: argparse.Namespace):
+    """The :class:`~risloc_rt.measured.live.record.RecordPlan` of the command line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``config``, ``serial``, ``out``, ``frames``, ``duration``, ``sweep``, ``device``, ``host_ip``,
+        ``fpga_ip``, ``config_port``, ``data_port``, ``split_size``, ``baudrate``.
+
+    Returns
+    -------
+    RecordPlan
+    """
+    from ..measured.live.addresses import Endpoints
+    from ..measured.live.record import RecordPlan
+
+    if args.frames is not None and args.duration is not None:
+        raise CliError("give --frames N or --duration S, not both")
+    return RecordPlan(config=args.config, serial_port=args.serial, out=args.out, frames=args.frames,
+                      duration=args.duration, sweep=args.sweep,
+                      endpoints=Endpoints(host_ip=args.host_ip, fpga_ip=args.fpga_ip, config_port=args.config_port,
+                                          data_port=args.data_port), device=args.device,
+                      split_size=args.split_size, baudrate=args.baudrate)
+
+
+class _RecordProgress:
+    """The ``capture record`` progress line (tqdm on stderr): MB/s, frames, lost packets, socket high-water."""
+
+    def __init__(self, total_bytes: int | None) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total_bytes, unit="B", unit_scale=True, desc="record", file=sys.stderr,
+                        dynamic_ncols=True, leave=True)
+        self.shown = 0
+
+    def __call__(self, progress) -> None:
+        """Show one :class:`~risloc_rt.measured.live.record.RecordingProgress`.
+
+        Parameters
+        ----------
+        progress : RecordingProgress
+            The recording's state.
+        """
+        self.bar.update(progress.final_bytes - self.shown)
+        self.shown = progress.final_bytes
+        self.bar.set_postfix_str(f"{progress.rate / 1e6:.2f} MB/s, {progress.frames} frames, "
+                                 f"{progress.lost_packets} lost packets, socket high-water "
+                                 f"{progress.socket_high_water / 1e6:.2f} MB", refresh=False)
+
+    def close(self) -> None:
+        """Close the bar."""
+        self.bar.close()
+
+
+def _record(args: argparse.Namespace) -> int:
+    """``risloc capture record``: the radar's ``.cfg`` and a DCA1000 → a DCA1000 folder, with progress.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (--config, --serial, --out, --frames | --duration, --sweep, ...).
+
+    Returns
+    -------
+    int
+        0 when the frames or the duration were recorded (a summary line, with the lost packets);
+        a failure raises (one line, exit 2; Ctrl-C: exit 130), after the summary of what was recorded.
+    """
+    from ..measured.live.record import record, recording_summary
+
+    plan = _record_plan(args)
+    bar = _RecordProgress(None)
+    try:
+        summary = record(plan, on_progress=bar)
+    except BaseException as exc:
+        bar.close()
+        done = recording_summary(exc)
+        if done is not None:
+            print(f"recorded {done.describe()}", file=sys.stderr)
+            for run in done.lost[:20]:
+                print(f"  lost packets {run.first_sequence}..{run.first_sequence + run.count - 1}: "
+                      f"{run.num_bytes} B zero-filled at byte {run.stream_offset}", file=sys.stderr)
+        raise
+    bar.close()
+    print(f"recorded {summary.describe()}")
+    for run in summary.lost[:20]:
+        print(f"  lost packets {run.first_sequence}..{run.first_sequence + run.count - 1}: {run.num_bytes} B "
+              f"zero-filled at byte {run.stream_offset}")
+    if len(summary.lost) > 20:
+        print(f"  ... {len(summary.lost) - 20} more runs in {summary.folder / 'lost_packets.csv'}")
+    buffer = summary.socket_buffer
+    if buffer is not None and buffer.hint():
+        print(f"warning: {buffer.hint()}", file=sys.stderr)
+    if summary.kernel_drops:
+        print(f"warning: the kernel dropped {summary.kernel_drops} datagram(s) for a full socket buffer (listed as "
+              "lost packets): raise net.core.rmem_max (docs/live-capture.md)", file=sys.stderr)
+    return 0
+
+
+def _add_record_parser(verbs) -> None:
+    """Add ``capture record`` to the ``capture`` sub-parsers.
+
+    Parameters
+    ----------
+    verbs : argparse._SubParsersAction
+        The ``capture`` verb's sub-parsers.
+    """
+    from ..measured.live.addresses import CONFIG_PORT, DATA_PORT, DEFAULT_FPGA_IP, DEFAULT_HOST_IP
+    from ..measured.live.recording_writer import DEFAULT_SPLIT_SIZE
+
+    rec = verbs.add_parser("record", help="record from a TI radar (its CLI port) and a DCA1000 (Ethernet) into a "
+                                          "folder that capture import reads (docs/live-capture.md)")
+    rec.add_argument("--config", required=True, metavar="RADAR.cfg",
+                     help="the mmWave SDK .cfg, sent to the radar line by line (its lanes and ADC format configure "
+                          "the DCA1000; copied into --out as adc_data.cfg)")
+    rec.add_argument("--serial", required=True, metavar="PORT",
+                     help="the radar's CLI (user) UART, e.g. /dev/ttyUSB0 or /dev/ttyACM0 (you need the dialout group)")
+    rec.add_argument("--out", required=True, metavar="DIR", help="the recording's folder (new or empty)")
+    stop = rec.add_mutually_exclusive_group()
+    stop.add_argument("--frames", type=int, metavar="N",
+                      help="stop after N frames (default: the .cfg's frameCfg numFrames)")
+    stop.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    rec.add_argument("--sweep", metavar="SWEEP.toml", help="the sweep schedule, copied into --out as sweep.toml")
+    rec.add_argument("--device", default="IWR6843",
+                     help="the radar's device family: IWR6843 (ISK, AOP), xWR1843, xWR1642, xWR1443 "
+                          "(default: %(default)s)")
+    rec.add_argument("--host-ip", default=DEFAULT_HOST_IP,
+                     help="this computer's address on the DCA1000's Ethernet port (default: %(default)s)")
+    rec.add_argument("--fpga-ip", default=DEFAULT_FPGA_IP, help="the DCA1000's address (default: %(default)s)")
+    rec.add_argument("--config-port", type=int, default=CONFIG_PORT,
+                     help="the DCA1000's UDP configuration port, on both sides (default: %(default)s)")
+    rec.add_argument("--data-port", type=int, default=DATA_PORT,
+                     help="the UDP port this computer receives the data on (default: %(default)s)")
+    rec.add_argument("--split-size", type=int, default=DEFAULT_SPLIT_SIZE, metavar="BYTES",
+                     help="start a new adc_data_Raw_<i>.bin at this size, rounded down to whole 1456-byte packets "
+                          "(default: %(default)s = 1024 MiB, TI's DCA1000 CLI default)")
+    rec.add_argument("--baudrate", type=int, default=115200, help="the CLI UART's baud rate (default: %(default)s)")
+    rec.set_defaults(func=_record)
+
+
 def add_parser(sub) -> None:
-    """Add ``capture`` (with ``inspect`` and ``import``) to an ``add_subparsers()`` object.
+    """Add ``capture`` (with ``inspect``, ``import`` and ``record``) to an ``add_subparsers()`` object.
 
     Parameters
     ----------
@@ -245,9 +386,9 @@ def add_parser(sub) -> None:
         What ``ArgumentParser.add_subparsers()`` returned; the verb's parser is added to it, its
         ``func`` set to the verb (which takes the parsed arguments and returns the exit status).
     """
-    capture = sub.add_parser("capture", help="measured TI DCA1000 captures: inspect raw data, import a RIS sweep",
+    capture = sub.add_parser("capture", help="measured TI DCA1000 captures: inspect raw data, import a RIS sweep, record live",
                              description="Measured captures (docs/measured-captures.md).")
-    verbs = capture.add_subparsers(dest="capture_command", required=True, metavar="{inspect,import}")
+    verbs = capture.add_subparsers(dest="capture_command", required=True, metavar="{inspect,import,record}")
     ins = verbs.add_parser("inspect", help="frames, chirps, channels, the range-Doppler peak, dropped packets, "
                                            "clipping, DC offset and I/Q imbalance of a raw capture")
     ins.add_argument("raw", help="adc_data_Raw_0.bin (its _Raw_1, _Raw_2 ... siblings are found)")
@@ -301,3 +442,4 @@ def add_parser(sub) -> None:
     imp.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
                      help="refuse an automatic alignment less sure than this (default: %(default)s)")
     imp.set_defaults(func=_import)
+    _add_record_parser(verbs)
