@@ -9,7 +9,7 @@
    --sweep DIR/sweep.toml`` reads it);
 2. the data port bound (:class:`~.receiver.DatagramReceiver`), the DCA1000 connected, configured
    (lanes and ADC bits from the ``.cfg``) and told RECORD_START (:class:`~.dca1000_link.Dca1000Link`);
-3. the radar sent the ``.cfg`` line by line, then ``sensorStart`` (:class:`~.radar_cli.RadarCli`);
+3. the radar (its port opened first) sent the ``.cfg`` line by line, then ``sensorStart`` (:class:`~.radar_cli.RadarCli`);
 4. datagrams written (:class:`~.recording_writer.RecordingWriter`) until the frames asked (or the
    ``.cfg``'s ``numFrames``), the duration, Ctrl-C or a silent link;
 5. ``sensorStop``, RECORD_STOP, the datagrams still in flight drained, everything closed.
@@ -307,11 +307,16 @@ class _Session:
         self.stopped, self.message = "error", None
 
     def start(self, stack: ExitStack) -> None:
-        """Bind the data port, start the DCA1000 recording, configure and start the radar."""
+        """Open the radar's port, bind the data port, start the DCA1000 recording, configure and start the radar.
+
+        The radar's port is opened first: a wrong port fails before the DCA1000 is touched, and a
+        failure at the DCA1000 still reaches the radar with ``sensorStop``.
+        """
         from .dca1000_link import Dca1000Link
         from .radar_cli import RadarCli
 
         o = self.options
+        self.radar = stack.enter_context(RadarCli(self.plan.serial_port, self.plan.baudrate, o["serial_timeout"]))
         self.receiver = stack.enter_context(DatagramReceiver(self.plan.endpoints, rcvbuf=o["rcvbuf"],
                                                              silence_timeout=o["silence_timeout"]))
         limit = None if self.setup.target_frames is None else self.setup.target_frames * self.setup.frame_bytes
@@ -322,7 +327,6 @@ class _Session:
         self.link.configure(self.setup.fpga)
         self.dca_started = True
         self.link.start_record()
-        self.radar = stack.enter_context(RadarCli(self.plan.serial_port, self.plan.baudrate, o["serial_timeout"]))
         self.radar.send_config(self.plan.config, start=False)
         self.radar.sensor_start()
         self.t0 = time.monotonic()
