@@ -107,6 +107,8 @@ class EmulatedRadarCli:
             self.port = os.ttyname(slave)
             self._master, self._slave = master, slave
             self._stop.clear()
+            if self.banner and not self.silent:
+                self._write(EMULATED_PROMPT)          # before the thread: a client opening later finds it waiting
             self._thread = threading.Thread(target=self._serve, name="emulated-radar-cli", daemon=True)
             self._thread.start()
         except BaseException:
@@ -210,8 +212,6 @@ class EmulatedRadarCli:
 
     def _serve(self) -> None:
         try:
-            if self.banner and not self.silent:
-                self._write(EMULATED_PROMPT)
             pending = bytearray()
             while not self._stop.is_set():
                 ready, _, _ = select.select([self._master], [], [], 0.02)

@@ -129,7 +129,8 @@ def _open_error(port: str, baudrate: int, exc: BaseException) -> RadarCliError:
     if code in (errno.EBUSY, errno.EAGAIN) or "exclusively lock" in text or "busy" in text.lower():
         return RadarCliError(f"radar CLI port {port} is busy; close the program holding it (a terminal, "
                              "the mmWave visualizer, another risloc)")
-    return RadarCliError(f"cannot open the radar CLI port {port} at {baudrate} baud: {text.splitlines()[0] if text else exc!r}")
+    first = text.splitlines()[0] if text else repr(exc)
+    return RadarCliError(f"cannot open the radar CLI port {port} at {baudrate} baud: {first}")
 
 
 class RadarCli:
@@ -246,7 +247,11 @@ class RadarCli:
 
     # ------------------------------------------------------------------ exchange
     def _read_until_prompt(self, timeout: float) -> tuple[str, bool]:
-        """Bytes up to the prompt (decoded, prompt removed) and whether the prompt came."""
+        """Bytes up to the prompt (decoded, prompt removed) and whether the prompt came.
+
+        A prompt with nothing before it is one the radar wrote before this line (after booting, or
+        for an empty line) and is dropped: the SDK demo echoes every line before its prompt.
+        """
         buf = bytearray()
         prompt = CLI_PROMPT.encode()
         deadline = time.monotonic() + timeout
@@ -254,7 +259,9 @@ class RadarCli:
             chunk = self._serial.read(max(1, self._serial.in_waiting or 1))
             if chunk:
                 buf += chunk
-                if buf.rstrip().endswith(prompt):
+                if buf.strip() == prompt:     # a prompt left over from before this line (boot, Enter): not ours
+                    buf.clear()
+                elif buf.rstrip().endswith(prompt):
                     text = buf.decode("utf-8", errors="replace").rstrip()
                     return text[: -len(CLI_PROMPT)], True
             elif time.monotonic() >= deadline:

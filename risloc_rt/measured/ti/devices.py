@@ -282,10 +282,10 @@ def check_device_config(cfg: TiChirpConfig | ParsedSdkCfg, family: DeviceFamily 
     Checked, each with its source (see the module docstring): the sweep inside the RF band; no more
     receivers/transmitters than the chip has; the ADC output rate at most the IF bandwidth's maximum
     for the format; ``chirp_threshold`` chirps of all enabled receivers inside the ADC buffer's ping
-    half; a frame no longer than its period; the 2-lane interleave's even sample count; a frame of
-    whole 16-bit words on every lane; the chirps' data within the LVDS lanes' rate while chirping;
-    the frame rate within the DCA1000's Ethernet throughput; ``lvdsStreamCfg`` (when given) streaming
-    plain ADC samples without the HSI header.
+    half; the ADC window inside the ramp; a frame no longer than its period; the 2-lane interleave's
+    even sample count; a frame of whole 16-bit words on every lane; the chirps' data within the LVDS
+    lanes' rate while chirping; the frame rate within the DCA1000's Ethernet throughput;
+    ``lvdsStreamCfg`` (when given) streaming plain ADC samples without the HSI header.
 
     Parameters
     ----------
@@ -321,7 +321,8 @@ def check_device_config(cfg: TiChirpConfig | ParsedSdkCfg, family: DeviceFamily 
     limit = family.max_sample_rate(cfg.adc_format)
     if cfg.sample_rate > limit * (1 + 1e-9):
         bad.append(f"profileCfg digOutSampleRate={cfg.sample_rate / 1e3:g} ksps exceeds the {family.name}'s "
-                   f"{limit / 1e3:g} ksps for {cfg.adc_format} samples (IF bandwidth {family.if_bandwidth / 1e6:g} MHz, "
+                   f"{limit / 1e3:g} ksps for {cfg.adc_format} samples (IF bandwidth "
+                   f"{family.if_bandwidth / 1e6:g} MHz, "
                    "data sheet and rl_sensor.h); lower the sample rate")
     per_sample, per_chirp, frame_bytes = _sizes(cfg, family)
     if chirp_threshold < 1 or per_chirp * chirp_threshold > family.adc_buffer_bytes:
@@ -338,7 +339,8 @@ def check_device_config(cfg: TiChirpConfig | ParsedSdkCfg, family: DeviceFamily 
                    f"DCA1000's {eth / 1e6:g} Mbps Ethernet throughput (DCA1000EVM); lengthen frameCfg "
                    "framePeriodicity or shrink the frame")
     if bad:
-        raise MeasuredFormatError(bad[0] if len(bad) == 1 else f"{bad[0]} (and {len(bad) - 1} more: {'; '.join(bad[1:])})")
+        more = f" (and {len(bad) - 1} more: {'; '.join(bad[1:])})" if len(bad) > 1 else ""
+        raise MeasuredFormatError(bad[0] + more)
     burst = max(per_chirp / (cfg.chirp_period + c.idle_time_offset) for c in cfg.chirps)
     return DeviceCheck(family=family.name, lanes=family.lvds_lanes, adc_bits=cfg.adc_bits, adc_format=cfg.adc_format,
                        bytes_per_sample=per_sample, bytes_per_chirp=per_chirp, frame_bytes=frame_bytes,
@@ -358,6 +360,11 @@ def _timing_violations(cfg: TiChirpConfig, family: DeviceFamily, per_chirp: int,
         bad.append(f"the frame's chirps take {cfg.frame_active_time * 1e3:.4g} ms, longer than frameCfg "
                    f"framePeriodicity={cfg.frame_periodicity * 1e3:g} ms (mmWave SDK user's guide: the frame must "
                    "fit its period); lengthen the period or use fewer loops")
+    window_end = cfg.adc_start_time + cfg.adc_sampling_time
+    if window_end > cfg.ramp_end_time * (1 + 1e-9):
+        bad.append(f"the ADC samples until {window_end * 1e6:.4g} us (adcStartTime + numAdcSamples/digOutSampleRate), "
+                   f"after the ramp ends at rampEndTime={cfg.ramp_end_time * 1e6:.4g} us (TI's profile rule, E2E "
+                   "thread 736001); lengthen rampEndTime or use fewer samples")
     lanes = family.lvds_lanes
     if lanes == 2 and cfg.is_complex and cfg.num_samples % 2:
         bad.append(f"numAdcSamples={cfg.num_samples} is odd: 2-lane complex data interleaves sample pairs "
