@@ -395,7 +395,11 @@ class EmulatedDca1000:
                 pass
 
     def _execute(self, packet: CommandPacket) -> int:
-        """Carry out a command; its response status."""
+        """Carry out a command; its response status.
+
+        RECORD_START while a stream runs is answered (status 0) and the stream goes on; after a
+        stream ended, it starts a new one from the source's first byte (sequence 1).
+        """
         cmd = packet.command
         if cmd in self.refuse:
             return self.refuse[cmd]

@@ -171,13 +171,13 @@ def test_frame_size_and_period_from_the_cfg(loopback_endpoints, tmp_path):
     cfg.write_text(CFG)
     # complex1x: I and Q int16 per sample: 2 words x 2 bytes x 64 samples x 4 rx x 2 chirps x 16 loops
     frame_bytes = 2 * 2 * 64 * 4 * 2 * 16
-    src = source_bytes(4 * frame_bytes, seed=5)
+    src = source_bytes(8 * frame_bytes, seed=5)
     with make(loopback_endpoints, src, config=cfg, frame_bytes=None, frame_period=None) as emu:
         assert (emu.frame_bytes, emu.frame_period) == (frame_bytes, pytest.approx(0.030))
         got = record(loopback_endpoints, emu)
-    starts = sorted(d.t for d in got if d.byte_count % frame_bytes < PAYLOAD)
-    assert len(starts) == 4
-    assert starts[-1] - starts[0] == pytest.approx(3 * 0.030, rel=0.10)
+    starts = sorted(d.t for d in got if d.byte_count % frame_bytes < PAYLOAD)   # each frame's first packet
+    assert len(starts) == 8
+    assert np.polyfit(np.arange(8), starts, 1)[0] == pytest.approx(0.030, rel=0.10)
     assert rebuild(got, len(src)) == src
 
 
