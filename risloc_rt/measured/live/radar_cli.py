@@ -91,21 +91,23 @@ def config_lines(source: str | Path | Iterable[str]) -> list[tuple[int, str]]:
 
     Parameters
     ----------
-    source : path or iterable of str
-        A ``.cfg`` file, or its lines.
+    source : path, str or iterable of str
+        A ``.cfg`` file, its text (a string with line breaks), or its lines.
 
     Returns
     -------
     list of (int, str)
         1-based line numbers of the file and the stripped command lines, in order.
     """
-    if isinstance(source, (str, Path)):
+    if isinstance(source, str) and "\n" in source:
+        lines: Iterable[str] = source.splitlines()
+    elif isinstance(source, (str, Path)):
         path = Path(source)
         try:
             text = path.read_text(encoding="utf-8", errors="replace")
         except OSError as exc:
             raise RadarCliError(f"cannot read the config {path}: {exc.strerror}; give an mmWave SDK .cfg") from None
-        lines: Iterable[str] = text.splitlines()
+        lines = text.splitlines()
     else:
         lines = source
     out = []
@@ -350,8 +352,8 @@ class RadarCli:
 
         Parameters
         ----------
-        source : path or iterable of str
-            The ``.cfg`` file or its lines; ``%`` comments and blank lines are not sent.
+        source : path, str or iterable of str
+            The ``.cfg`` file, its text or its lines; ``%`` comments and blank lines are not sent.
         progress : callable, optional
             ``progress(done, total, line)`` after each accepted line.
         start : bool, optional
@@ -369,7 +371,8 @@ class RadarCli:
             The first refused line (the radar's text, the ``.cfg`` line number and the line) or a line
             without an answer; ``sensorStop`` has been sent (best effort) before it is raised.
         """
-        name = str(source) if isinstance(source, (str, Path)) else "<config>"
+        name = str(source) if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source) \
+            else "<config>"
         lines = config_lines(source)
         if start is False:
             lines = [(n, ln) for n, ln in lines if ln.split()[0] != "sensorStart"]
