@@ -23,12 +23,14 @@ from typing import Any
 
 from ..errors import MeasuredFormatError
 
-__all__ = ["CLI_BAUDRATE", "CLI_PROMPT", "CliExchange", "RadarCli", "RadarCliError", "config_lines", "is_accepted"]
+__all__ = ["CLI_BAUDRATE", "CLI_MAX_LINE", "CLI_PROMPT", "CliExchange", "RadarCli", "RadarCliError", "config_lines", "is_accepted"]
 
 #: The SDK demo's CLI prompt (mmWave SDK user's guide; ``cliPrompt`` of the demo's ``CLI_open``).
 CLI_PROMPT = "mmwDemo:/>"
 #: The CLI UART's baud rate in the SDK demos (mmWave SDK user's guide).
 CLI_BAUDRATE = 115200
+#: Longest line the demo's CLI reads (``cli.c``: a 256-byte command buffer, one byte for the terminating zero).
+CLI_MAX_LINE = 255
 #: What to check when the radar does not answer (appended to the timeout message).
 _NO_ANSWER_HINT = ("check that this is the CLI (User/UART, usually the first /dev/ttyUSB or /dev/ttyACM of the board) "
                    "port and not the data port, that the SOP jumpers are in functional mode with the mmWave SDK "
@@ -369,7 +371,8 @@ class RadarCli:
         ------
         RadarCliError
             The first refused line (the radar's text, the ``.cfg`` line number and the line) or a line
-            without an answer; ``sensorStop`` has been sent (best effort) before it is raised.
+            without an answer; ``sensorStop`` has been sent (best effort) before it is raised. A line
+            longer than the CLI reads (:data:`CLI_MAX_LINE`) is refused before anything is sent.
         """
         name = str(source) if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source) \
             else "<config>"
@@ -378,6 +381,11 @@ class RadarCli:
             lines = [(n, ln) for n, ln in lines if ln.split()[0] != "sensorStart"]
         elif start and not any(ln.split()[0] == "sensorStart" for _, ln in lines):
             lines.append((0, "sensorStart"))
+        for number, line in lines:
+            if len(line) + len(self.eol) > CLI_MAX_LINE:
+                raise RadarCliError(f"{name}:{number}: {line.split()[0]} is {len(line)} characters long; the radar's "
+                                    f"CLI reads at most {CLI_MAX_LINE} per line (mmWave SDK cli.c): shorten its "
+                                    "numbers (fewer decimals)")
         done: list[CliExchange] = []
         try:
             for i, (number, line) in enumerate(lines):

@@ -166,10 +166,13 @@ def device_family(name: str) -> DeviceFamily:
     MeasuredFormatError
         An unknown name; the message lists the known families.
     """
-    key = re.sub(r"[\s_\-]", "", str(name)).lower()
+    def norm(text: str) -> str:
+        return re.sub(r"[\s_\-]", "", text).lower()
+
+    key = norm(str(name))
     for candidate in (key, re.sub(r"(evm|boost)$", "", key)):
         for family in DEVICE_FAMILIES.values():
-            if candidate == family.name.lower() or candidate in family.aliases:
+            if candidate == norm(family.name) or candidate in {norm(a) for a in family.aliases}:
                 return family
     known = ", ".join(f"{f.name} ({'/'.join(a for a in f.aliases[1:3])})" for f in DEVICE_FAMILIES.values())
     raise MeasuredFormatError(f"unknown radar device {name!r}; known families: {known}")

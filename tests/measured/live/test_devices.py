@@ -98,6 +98,7 @@ def test_six_eight_four_three_lvds_lane_rate_is_the_data_sheet():
     ("IWR6843", "IWR6843"), ("iwr6843isk", "IWR6843"), ("IWR6843AOP", "IWR6843"), ("IWR6843AOPEVM", "IWR6843"),
     ("iwr6843-isk", "IWR6843"), ("xwr1843", "xWR1843"), ("AWR1843BOOST", "xWR1843"), ("IWR1843", "xWR1843"),
     ("AWR1642", "xWR1642"), ("iwr1642boost", "xWR1642"), ("xWR1642", "xWR1642"), ("IWR1443", "xWR1443"),
+    ("IWR6843ISK-ODS", "IWR6843"), ("awr1642 evm", "xWR1642"), ("XWR68XX", "IWR6843"),
 ])
 def test_usual_spellings(spelling, name):
     assert device_family(spelling).name == name

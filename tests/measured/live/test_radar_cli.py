@@ -259,3 +259,21 @@ def test_emulator_closes_on_every_path():
         with pytest.raises(RadarCliError):
             cli.send("flushCfg")
     assert _emulator_threads() == before
+
+
+def test_cfg_text_and_lines_are_sent_alike(cfg_file):
+    with EmulatedRadarCli() as radar, RadarCli(radar.port, timeout=2) as cli:
+        cli.send_config(CFG, start=False)
+        cli.send_config(CFG.splitlines(), start=False)
+        assert list(radar.lines) == [ln for ln in SENT if ln != "sensorStart"] * 2
+
+
+def test_a_line_longer_than_the_cli_reads_is_refused_before_sending():
+    long_line = "compRangeBiasAndRxChanPhase 0.0 " + " ".join(["1.000000000000 0.000000000000"] * 12)
+    assert len(long_line) + 1 > 255                       # cli.c reads into a 256-byte buffer
+    with EmulatedRadarCli() as radar, RadarCli(radar.port, timeout=2) as cli:
+        with pytest.raises(RadarCliError, match=r"<config>:2: compRangeBiasAndRxChanPhase is 3\d\d characters long; "
+                                                r"the radar's CLI reads at most 255"):
+            cli.send_config(["flushCfg", long_line])
+        time.sleep(0.05)
+        assert radar.lines == ()
