@@ -1,10 +1,16 @@
-"""``risloc locate``: run the DSP on a capture file."""
+"""``risloc locate``: run the DSP on a capture file; ``risloc locate --live``: record and localize every sweep."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import queue
+import sys
+import threading
+import time
 from contextlib import nullcontext
 from pathlib import Path
+from typing import Any, Callable
 
 from .._outputs import output_folder, safe_name
 from ..io.capture_file import load_capture
@@ -30,6 +36,13 @@ def _run(args: argparse.Namespace) -> int:
         0 with a position, ``EXIT_NO_DETECTION`` when nothing was detected (by any RIS).
     """
     backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
+    if args.live:
+        return _run_live(args, backend)
+    if not args.capture:
+        raise CliError("give the capture file(s) to localize (.npz), or --live with --config, --serial, --out and "
+                       "--sweep to record and localize every sweep")
+    for flag, value in _live_only(args):
+        raise CliError(f"{flag} {value} is for --live (recording from a radar); leave it out to localize capture files")
     names = [safe_name(Path(p).stem) for p in args.capture]
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
@@ -41,13 +54,7 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     with (output_folder(out, force=args.force, flag="--out", expect=("result.json",)) if out else
           nullcontext()) as stage:
-        results = []
-        for name, capture in zip(names, captures):
-            budget = None
-            if capture.provenance.get("source") == "measurement":
-                from ..measured.compare.uncertainty_budget import apply_budget as budget
-            results.append(report_capture(name, capture, out_dir=stage, processing=processing_overrides(
-                args, capture.processing), timing={}, budget=budget, backend=backend, **estimator_options(args)))
+        results = [_localize(name, capture, args, backend, stage) for name, capture in zip(names, captures)]
         fused = truth = None
         if len(results) > 1:
             fused = fuse_cases(results)
@@ -66,6 +73,34 @@ def _run(args: argparse.Namespace) -> int:
     return 0 if detected else EXIT_NO_DETECTION
 
 
+def _localize(name: str, capture, args: argparse.Namespace, backend, stage: Path | None):
+    """One capture localized: the DSP with the command line's processing and estimator, a measured capture's σ from
+    its uncertainty budget; figures under ``stage/name/`` when ``stage`` is given. Files and ``--live`` share it.
+
+    Parameters
+    ----------
+    name : str
+        The case's name (the capture file's stem, or the RIS's name live).
+    capture : risloc_rt.model.Capture
+        The capture (``--calibration`` applied).
+    args : argparse.Namespace
+        The parsed command line.
+    backend : dsp.ArrayBackend
+        The DSP's device (``--device``).
+    stage : Path or None
+        Where the figures go (None: none).
+
+    Returns
+    -------
+    risloc_rt.io.report.CaseResult
+    """
+    budget = None
+    if capture.provenance.get("source") == "measurement":
+        from ..measured.compare.uncertainty_budget import apply_budget as budget
+    return report_capture(name, capture, out_dir=stage, processing=processing_overrides(args, capture.processing),
+                          timing={}, budget=budget, backend=backend, **estimator_options(args))
+
+
 def _load(path: str, args: argparse.Namespace):
     """One capture file, with ``--calibration`` applied.
 
@@ -80,12 +115,290 @@ def _load(path: str, args: argparse.Namespace):
     -------
     risloc_rt.model.Capture
     """
-    capture = load_capture(path)
+    return _calibrated(load_capture(path), args)
+
+
+def _calibrated(capture, args: argparse.Namespace):
+    """``capture`` with ``--calibration`` applied (itself without the flag).
+
+    Parameters
+    ----------
+    capture : risloc_rt.model.Capture
+        A loaded or imported capture.
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    risloc_rt.model.Capture
+    """
     if args.calibration is not None:
         from ..measured.compare.calibration_file import apply_to_capture, read_calibration
 
         capture = apply_to_capture(capture, read_calibration(args.calibration))
     return capture
+
+
+#: ``--live`` options that make no sense for capture files (their default when not given).
+_LIVE_ONLY = {"config": None, "serial": None, "sweep": None, "frames": None, "duration": None, "first_frame": None,
+              "period_frames": None, "channels": None}
+#: The JSON lines file of the fixes, in the recording's folder.
+LIVE_FIXES = "live_fixes.jsonl"
+
+
+def _live_only(args: argparse.Namespace) -> list[tuple[str, Any]]:
+    """The ``--live`` options given without ``--live``: ``[(flag, value), ...]``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    list of (str, value)
+    """
+    return [("--" + k.replace("_", "-"), getattr(args, k)) for k, default in _LIVE_ONLY.items()
+            if getattr(args, k, default) != default]
+
+
+def _record_plan(args: argparse.Namespace):
+    """The recording of ``--live``: ``risloc capture record``'s plan from the same options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``config``, ``serial``, ``out``, ``frames``, ``duration``, ``sweep``, ``radar_device``, ``host_ip``,
+        ``fpga_ip``, ``config_port``, ``data_port``, ``split_size``, ``baudrate``.
+
+    Returns
+    -------
+    risloc_rt.measured.live.record.RecordPlan
+    """
+    from ..measured.live.addresses import Endpoints
+    from ..measured.live.record import RecordPlan
+
+    missing = [f for f, v in (("--config", args.config), ("--serial", args.serial), ("--out", args.out),
+                              ("--sweep", args.sweep)) if v is None]
+    if missing:
+        raise CliError(f"--live needs {', '.join(missing)}: the radar's .cfg, its CLI port, a new folder for the "
+                       "recording and the sweep schedule (docs/live-locate.md)")
+    if args.frames is not None and args.duration is not None:
+        raise CliError("give --frames N or --duration S, not both")
+    return RecordPlan(config=args.config, serial_port=args.serial, out=args.out, frames=args.frames,
+                      duration=args.duration, sweep=args.sweep,
+                      endpoints=Endpoints(host_ip=args.host_ip, fpga_ip=args.fpga_ip, config_port=args.config_port,
+                                          data_port=args.data_port),
+                      device=args.radar_device, split_size=args.split_size, baudrate=args.baudrate)
+
+
+def _first_frame(text: str | None) -> int | str | None:
+    """``--first-frame``: None, ``"auto"`` or a frame index >= 0.
+
+    Parameters
+    ----------
+    text : str or None
+        The flag's value.
+
+    Returns
+    -------
+    int, "auto" or None
+    """
+    if text is None or text == "auto":
+        return text
+    try:
+        first = int(text)
+    except ValueError:
+        raise CliError(f"--first-frame {text!r} must be 'auto' or a frame index >= 0") from None
+    if first < 0:
+        raise CliError(f"--first-frame {first} must be >= 0 (the recorded frame of the first beam), or 'auto'")
+    return first
+
+
+def _import_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``import_capture`` keywords of ``--live`` (``--leakage``, ``--gate-range``, ``--channels``, ...).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+    """
+    channels = None
+    if args.channels is not None:
+        try:
+            channels = [int(c) for c in args.channels.split(",")]
+        except ValueError:
+            raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
+                           "e.g. 0,1,2,3") from None
+    return {"leakage": args.leakage, "gate_range": args.gate_range, "channels": channels,
+            "min_confidence": args.min_confidence}
+
+
+def fix_line(event: Any, latency: float) -> str:
+    """One console line of a live fix: time, sweep, RIS, ``x y z ± σ`` [m], flags, latency [ms].
+
+    Parameters
+    ----------
+    event : LiveFix or FusedLiveFix
+        The fix (:mod:`risloc_rt.measured.live.live_sweeps`).
+    latency : float
+        From the sweep's last frame final to this line [s].
+
+    Returns
+    -------
+    str
+        ``HH:MM:SS.mmm  sweep S  RIS  x +X y +Y z +Z ± σ m  flags CODES  latency L ms``; σ is the PEB
+        (``unobservable`` when an axis is); ``NO FIX: why`` or ``NOTHING DETECTED`` instead of the position.
+    """
+    import numpy as np
+
+    from ..io.report import significant
+
+    now = time.time()
+    stamp = time.strftime("%H:%M:%S", time.localtime(now)) + f".{int(now % 1 * 1000):03d}"
+    who = getattr(event, "ris", None)
+    who = ("fused(" + "+".join(event.used) + ")") if who is None else (who or "ris")
+    codes = [c for c, _ in event.flags] + ([f"lost-packets({event.lost_packets})"]
+                                           if getattr(event, "lost_packets", 0) else [])
+    if getattr(event, "error", None):
+        where = f"NO FIX: {event.error}"
+    elif not event.detected:
+        where = "NOTHING DETECTED: no position"
+    else:
+        sigma = "unobservable" if not np.isfinite(event.peb) else f"{significant(event.peb)} m"
+        where = " ".join(f"{a} {x:+.4f}" for a, x in zip("xyz", event.position)) + f" ± {sigma}"
+    return (f"{stamp}  sweep {event.sweep}  {who}  {where}  flags {','.join(codes) or '-'}  "
+            f"latency {latency * 1e3:.0f} ms")
+
+
+class _LiveLoop:
+    """Localizes the sweeps on a thread of its own while ``record`` writes: progress in, one line per fix out."""
+
+    def __init__(self, make_watcher: Callable[[], Any], jsonl: Path) -> None:
+        self.make_watcher, self.jsonl = make_watcher, jsonl
+        self.inbox: queue.Queue = queue.Queue()
+        self.error: BaseException | None = None
+        self.detected = 0
+        self.fixes = 0
+        self.thread = threading.Thread(target=self._run, name="risloc-live-sweeps", daemon=True)
+        self.thread.start()
+
+    def __call__(self, progress: Any) -> None:
+        """``record``'s ``on_progress``: hand the final prefix to the thread (an error there stops the recording).
+
+        Parameters
+        ----------
+        progress : RecordingProgress
+            ``final_bytes`` [bytes] and ``final_time`` [s].
+        """
+        if self.error is not None:
+            raise self.error
+        self.inbox.put(("update", progress.final_bytes, progress.final_time))
+
+    def _emit(self, events: list[Any], out) -> None:
+        for e in events:
+            print(fix_line(e, time.monotonic() - e.final_time), flush=True)
+            line = {**e.to_dict(), "latency_printed": time.monotonic() - e.final_time, "time": time.time()}
+            out.write(json.dumps(line, allow_nan=False) + "\n")
+            out.flush()
+            self.fixes += 1
+            self.detected += bool(e.detected)
+
+    def _run(self) -> None:
+        watcher = None
+        try:
+            with open(self.jsonl, "a", encoding="utf-8") as out:
+                while True:
+                    kind, final, when = self.inbox.get()
+                    while kind == "update" and not self.inbox.empty():     # only the newest prefix matters
+                        kind, final, when = self.inbox.get()
+                    if kind == "stop":
+                        return
+                    if final is None or final <= 0:
+                        continue
+                    watcher = watcher or self.make_watcher()
+                    self._emit(watcher.finish(final, when) if kind == "finish" else watcher.update(final, when), out)
+                    if kind == "finish":
+                        return
+        except BaseException as exc:  # noqa: BLE001 - handed to the recording's thread, which stops and reports it
+            self.error = exc
+
+    def close(self, final_bytes: int | None, timeout: float = 600.0) -> None:
+        """Localize what ``final_bytes`` completes (None: stop at once), then end the thread.
+
+        Parameters
+        ----------
+        final_bytes : int or None
+            The recording's length [bytes]; None after Ctrl-C.
+        timeout : float
+            Longest wait for the thread [s].
+        """
+        self.inbox.put(("stop", None, None) if final_bytes is None else ("finish", final_bytes, None))
+        self.thread.join(timeout)
+
+
+def _run_live(args: argparse.Namespace, backend: Any) -> int:
+    """``risloc locate --live``: record with ``risloc capture record``'s options and print a fix per complete sweep.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    backend : dsp.ArrayBackend
+        The DSP's device.
+
+    Returns
+    -------
+    int
+        0 when some sweep gave a position, ``EXIT_NO_DETECTION`` when none did; errors and Ctrl-C as
+        ``risloc capture record`` (the recording is complete up to what arrived).
+    """
+    from ..measured.live.live_sweeps import SweepWatcher
+    from ..measured.live.record import record, recording_summary
+
+    if args.capture:
+        raise CliError("--live records its own sweeps; leave out the capture files (localize them without --live)")
+    plan = _record_plan(args)
+    options = _import_options(args)
+    first = _first_frame(args.first_frame)
+
+    def watcher() -> SweepWatcher:
+        return SweepWatcher(plan.out, plan.out / "adc_data.cfg", plan.out / "sweep.toml", first_frame=first,
+                            period_frames=args.period_frames, import_options=options,
+                            localize=lambda name, cap: _localize(name, _calibrated(cap, args), args, backend, None))
+
+    holder: dict[str, _LiveLoop] = {}
+
+    def on_progress(progress: Any) -> None:
+        if "loop" not in holder:             # record() has made the folder and copied the .cfg and the schedule
+            print(f"recording into {plan.out}: one line per complete sweep (docs/live-locate.md)", flush=True)
+            holder["loop"] = _LiveLoop(watcher, plan.out / LIVE_FIXES)
+        holder["loop"](progress)
+
+    try:
+        summary = record(plan, on_progress=on_progress)
+    except KeyboardInterrupt:
+        if "loop" in holder:
+            holder["loop"].close(None, timeout=5.0)
+        raise
+    except BaseException as exc:
+        done = recording_summary(exc)
+        if "loop" in holder:
+            holder["loop"].close(None if done is None else done.bytes)
+        if done is not None:
+            print(f"recorded {done.describe()}", file=sys.stderr)
+        raise
+    loop = holder.get("loop") or _LiveLoop(watcher, plan.out / LIVE_FIXES)
+    loop.close(summary.bytes)
+    if loop.error is not None:
+        raise loop.error
+    print(f"recorded {summary.describe()}")
+    print(f"wrote {plan.out / LIVE_FIXES}: {loop.fixes} fix(es), {loop.detected} with a position")
+    return 0 if loop.detected else EXIT_NO_DETECTION
 
 
 def add_parser(sub) -> None:
@@ -105,13 +418,68 @@ def add_parser(sub) -> None:
                                      "(flag inconsistent-ris; docs/estimation.md 'Several RISs'). Exit status 0 with "
                                      f"a position, {EXIT_NO_DETECTION} when nothing was detected (no position), 2 for "
                                      "bad input.")
-    loc.add_argument("capture", nargs="+", help="capture file(s) (.npz) from 'risloc simulate', 'risloc capture "
+    loc.add_argument("capture", nargs="*", help="capture file(s) (.npz) from 'risloc simulate', 'risloc capture "
                                                 "import' or a converter; several: one per RIS, named after it")
-    loc.add_argument("--out", help="directory for result.json and plots (default: print only)")
+    loc.add_argument("--out", help="directory for result.json and plots (default: print only); with --live the "
+                                   "recording's folder (new or empty), which also gets live_fixes.jsonl")
     add_force_flag(loc, "a result.json or plot in --out")
     loc.add_argument("--calibration", metavar="FILE",
                      help="a calibration file from 'risloc calibrate': its tau_RB and range offset set the distance")
     add_processing_flags(loc)
     add_estimator_flags(loc)
     add_device_flag(loc)
+    _add_live_flags(loc)
     loc.set_defaults(func=_run)
+
+
+def _add_live_flags(loc: argparse.ArgumentParser) -> None:
+    """Add ``--live`` and its options (``risloc capture record``'s connection options, the sweeps' import).
+
+    Parameters
+    ----------
+    loc : argparse.ArgumentParser
+        The ``locate`` verb's parser.
+    """
+    from ..measured.live.addresses import CONFIG_PORT, DATA_PORT, DEFAULT_FPGA_IP, DEFAULT_HOST_IP
+    from ..measured.live.recording_writer import DEFAULT_SPLIT_SIZE
+    from ..measured.sweep.importer import DEFAULT_LEAKAGE
+    from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
+
+    live = loc.add_argument_group("--live", "record from a TI radar and a DCA1000 (as 'risloc capture record') and "
+                                            "print a position for every complete RIS sweep (docs/live-locate.md)")
+    live.add_argument("--live", action="store_true",
+                      help="record and localize every complete sweep as it arrives (needs --config, --serial, --out, "
+                           "--sweep)")
+    live.add_argument("--config", metavar="RADAR.cfg", help="the mmWave SDK .cfg sent to the radar")
+    live.add_argument("--serial", metavar="PORT", help="the radar's CLI (user) UART, e.g. /dev/ttyUSB0")
+    live.add_argument("--sweep", metavar="SWEEP.toml", help="the sweep schedule (first frame or auto, one RIS or "
+                                                             "several [[ris]] slots), copied into --out")
+    stop = live.add_mutually_exclusive_group()
+    stop.add_argument("--frames", type=int, metavar="N", help="stop after N frames (default: the .cfg's numFrames)")
+    stop.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    live.add_argument("--radar-device", default="IWR6843",
+                      help="the radar's device family (capture record's --device; here --device is the DSP's): "
+                           "IWR6843 (ISK, AOP), xWR1843, xWR1642, xWR1443 (default: %(default)s)")
+    live.add_argument("--host-ip", default=DEFAULT_HOST_IP,
+                      help="this computer's address on the DCA1000's Ethernet port (default: %(default)s)")
+    live.add_argument("--fpga-ip", default=DEFAULT_FPGA_IP, help="the DCA1000's address (default: %(default)s)")
+    live.add_argument("--config-port", type=int, default=CONFIG_PORT,
+                      help="the DCA1000's UDP configuration port (default: %(default)s)")
+    live.add_argument("--data-port", type=int, default=DATA_PORT,
+                      help="the UDP port this computer receives the data on (default: %(default)s)")
+    live.add_argument("--split-size", type=int, default=DEFAULT_SPLIT_SIZE, metavar="BYTES",
+                      help="start a new adc_data_Raw_<i>.bin at this size (default: %(default)s)")
+    live.add_argument("--baudrate", type=int, default=115200, help="the CLI UART's baud rate (default: %(default)s)")
+    live.add_argument("--first-frame", metavar="N|auto",
+                      help="override the schedule's first_frame (one RIS): the first sweep's first beam frame, or "
+                           "'auto' (found from the sync code and the RIS's power)")
+    live.add_argument("--period-frames", type=float, metavar="F",
+                      help="frames from one sweep's start to the next (default: the time-division cycle, else the "
+                           "RIS's program: sync code, gap, beams)")
+    live.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
+                      help="self-interference removal, as capture import (default: %(default)s)")
+    live.add_argument("--gate-range", type=float, default=DEFAULT_GATE_RANGE, metavar="M",
+                      help="range gate [m] (default: %(default)s)")
+    live.add_argument("--channels", metavar="V,V,...", help="virtual channels to combine (default: the schedule's)")
+    live.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
+                      help="'auto': refuse an alignment less sure than this (default: %(default)s)")
