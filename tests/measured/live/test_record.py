@@ -181,7 +181,7 @@ def test_ctrl_c_from_on_progress(experiment, endpoints, tmp_path):
         if progress.frames >= 5:
             raise KeyboardInterrupt
 
-    with EmulatedRadarCli() as cli, dca1000(experiment, endpoints, speed=0.1) as dca:
+    with EmulatedRadarCli() as cli, dca1000(experiment, endpoints, speed=0.03) as dca:   # 61 frames in 1.6 s
         with pytest.raises(KeyboardInterrupt) as err:
             record(plan(experiment, cli.port, tmp_path / "rec", endpoints), on_progress=interrupt, **FAST)
         lines = cli.lines
@@ -189,6 +189,19 @@ def test_ctrl_c_from_on_progress(experiment, endpoints, tmp_path):
     assert summary.stopped == "interrupted" and 5 <= summary.frames < 61
     data = recorded(tmp_path / "rec")
     assert len(data) == summary.bytes and data == source[:len(data)]
+    assert lines[-1] == "sensorStop" and saw(dca, RECORD_STOP)
+
+
+def test_a_duration_stops_the_recording(experiment, endpoints, tmp_path):
+    with EmulatedRadarCli() as cli, dca1000(experiment, endpoints, speed=0.01) as dca:   # 61 frames in 4.9 s
+        t0 = time.monotonic()
+        summary = record(plan(experiment, cli.port, tmp_path / "rec", endpoints, duration=0.6), **FAST)
+        took = time.monotonic() - t0
+        lines = cli.lines
+    assert summary.stopped == "duration" and 0.6 <= summary.elapsed < 2.0 and took < 4.0
+    assert 0 < summary.frames < 61
+    data = recorded(tmp_path / "rec")
+    assert len(data) == summary.bytes and data == experiment.raw_path.read_bytes()[:len(data)]
     assert lines[-1] == "sensorStop" and saw(dca, RECORD_STOP)
 
 
