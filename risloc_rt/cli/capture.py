@@ -271,6 +271,7 @@ class _RecordProgress:
         self.bar = tqdm(total=total_bytes, unit="B", unit_scale=True, desc="record", file=sys.stderr,
                         dynamic_ncols=True, leave=True)
         self.shown = 0
+        self.warned = False
 
     def __call__(self, progress) -> None:
         """Show one :class:`~risloc_rt.measured.live.record.RecordingProgress`.
@@ -280,6 +281,9 @@ class _RecordProgress:
         progress : RecordingProgress
             The recording's state.
         """
+        if not self.warned and progress.socket_buffer is not None and progress.socket_buffer.hint():
+            self.bar.write(f"warning: {progress.socket_buffer.hint()}", file=sys.stderr)
+        self.warned = True
         self.bar.update(progress.final_bytes - self.shown)
         self.shown = progress.final_bytes
         self.bar.set_postfix_str(f"{progress.rate / 1e6:.2f} MB/s, {progress.frames} frames, "
@@ -327,9 +331,6 @@ def _record(args: argparse.Namespace) -> int:
               f"zero-filled at byte {run.stream_offset}")
     if len(summary.lost) > 20:
         print(f"  ... {len(summary.lost) - 20} more runs in {summary.folder / 'lost_packets.csv'}")
-    buffer = summary.socket_buffer
-    if buffer is not None and buffer.hint():
-        print(f"warning: {buffer.hint()}", file=sys.stderr)
     if summary.kernel_drops:
         print(f"warning: the kernel dropped {summary.kernel_drops} datagram(s) for a full socket buffer (listed as "
               "lost packets): raise net.core.rmem_max (docs/live-capture.md)", file=sys.stderr)

@@ -130,6 +130,8 @@ class RecordingProgress:
         ``time.monotonic()`` when ``final_bytes`` last grew [s].
     folder : Path
         The recording's folder.
+    socket_buffer : SocketBuffer or None
+        The data socket's receive buffer (its :meth:`~.receiver.SocketBuffer.hint` when too small).
     """
 
     elapsed: float
@@ -142,6 +144,7 @@ class RecordingProgress:
     socket_high_water: int
     final_time: float | None
     folder: Path
+    socket_buffer: SocketBuffer | None = None
 
 
 @dataclass(frozen=True)
@@ -341,7 +344,7 @@ class _Session:
                                  final_bytes=w.final_bytes, frames=w.final_bytes // self.setup.frame_bytes,
                                  frame_bytes=self.setup.frame_bytes, lost_packets=sum(d.count for d in w.lost),
                                  rate=rate, socket_high_water=r.high_water, final_time=w.final_time,
-                                 folder=self.plan.out)
+                                 folder=self.plan.out, socket_buffer=r.buffer)
 
     def run(self, on_progress: Callable[[RecordingProgress], None] | None) -> str:
         """Receive and write until a stop condition; returns the reason."""

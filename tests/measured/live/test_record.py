@@ -117,6 +117,7 @@ def test_the_recording_is_the_source_except_lost_packets(experiment, endpoints, 
     assert (out / "adc_data.cfg").read_bytes() == experiment.config_path.read_bytes()
     assert (out / "sweep.toml").read_bytes() == experiment.schedule_path.read_bytes()
     assert seen and seen[-1].final_bytes <= summary.bytes
+    assert seen[0].socket_buffer == summary.socket_buffer and summary.socket_buffer.granted > 0
     assert all(b.final_bytes >= a.final_bytes for a, b in zip(seen, seen[1:]))
 
 
