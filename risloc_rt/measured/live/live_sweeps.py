@@ -519,15 +519,17 @@ class SweepWatcher:
         return _Slot(sweep=sweep, ris_index=k, first_frame=first,
                      start=max(0, first - int(math.ceil(p.sync_length))), stop=stop)
 
-    def _predicted_slot(self) -> _Slot:
-        """``"auto"``: the window of the next sweep, around where the last one found puts it."""
+    def _predicted_slot(self) -> tuple[_Slot, float]:
+        """``"auto"``: the window of the next sweep, around where the last one found puts it, and its predicted
+        end [frames]."""
         sweep, start, dwell = self._anchor  # type: ignore[misc]
         p = self.program
         rate = dwell / float(p.frames_per_beam)
         t = start + (self._next_auto - sweep) * self.period * rate
         lo = int(math.floor(t - p.sync_length * rate - self.slack_frames))
         hi = int(math.ceil(t + (p.sweep_length + p.after_length) * rate + self.slack_frames)) + self.margin_frames
-        return _Slot(sweep=self._next_auto, ris_index=0, first_frame=None, start=max(0, lo), stop=hi)
+        end = t + (p.sweep_length + p.after_length) * rate
+        return _Slot(sweep=self._next_auto, ris_index=0, first_frame=None, start=max(0, lo), stop=hi), end
 
     @property
     def search_frames(self) -> int:
@@ -658,7 +660,9 @@ class SweepWatcher:
                 return out
             out.append(fix)
         while True:
-            slot = self._predicted_slot()
+            slot, end = self._predicted_slot()
+            if slot.stop > frames and self._finished and end <= frames:     # the recording's end cuts the slack
+                slot = _Slot(sweep=slot.sweep, ris_index=0, first_frame=None, start=slot.start, stop=frames)
             if slot.stop > frames:
                 return out
             self._next_auto += 1

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -104,12 +105,10 @@ def run_live(source: Path, live: Path, *, step: int, split_size: int | None = No
     growing.reveal(1)
     watcher = SweepWatcher(live, **kw)
     log = []
-    clock = 0.0
     while growing.written < len(growing.stream):
         final = growing.reveal(growing.written + step)
-        clock += 1.0
-        log.append((final, watcher.update(final, clock) if final < len(growing.stream) else
-                    watcher.finish(final, clock)))
+        now = time.monotonic()                      # the recorder's clock: when final_bytes grew
+        log.append((final, watcher.update(final, now) if final < len(growing.stream) else watcher.finish(final, now)))
     events = [e for _, got in log for e in got]
     return events, log, watcher
 
@@ -182,16 +181,18 @@ def test_fixed_first_frame_two_sweeps_equal_the_file_import(two_sweeps, tmp_path
         assert fix.window == (BEAMS * fix.sweep, BEAMS * (fix.sweep + 1))     # one sweep read, nothing more
         ref = reference(two_sweeps, tmp_path / f"ref{fix.sweep}", first_frame=BEAMS * fix.sweep)
         assert_same(fix, ref["capture"])
-        assert fix.latency >= 0
+        assert 0 <= fix.latency < 10.0                     # one sweep imported and localized [s]
+
+
+SYNC_PLAN = RecordingPlan(lead_frames=4.3, frames_per_beam=2, sync_on=3, sync_off=3, sync_cycles=3, sync_gap=2,
+                          clock_drift=0.004, tail_frames=3)
 
 
 @pytest.fixture(scope="module")
 def synced(tmp_path_factory):
     """Lead frames, a sync code (3 x 3 frames on, 3 off), a gap, two frames per beam and a RIS clock 0.4 % slow;
     the schedule says first_frame = "auto"."""
-    plan = RecordingPlan(lead_frames=4.3, frames_per_beam=2, sync_on=3, sync_off=3, sync_cycles=3, sync_gap=2,
-                         clock_drift=0.004, tail_frames=3)
-    rec = emulate_recording(_scenario(), tmp_path_factory.mktemp("sync") / "rec", plan=plan,
+    rec = emulate_recording(_scenario(), tmp_path_factory.mktemp("sync") / "rec", plan=SYNC_PLAN,
                             rng=np.random.default_rng(5))
     return rec
 
@@ -292,3 +293,19 @@ def test_memory_one_sweep_at_a_time(two_sweeps, tmp_path, monkeypatch):
     assert len(events) == 2 and reads
     assert max(stop - start for start, stop in reads) <= BEAMS * 8192 + PAYLOAD
     assert list(work.iterdir()) == []
+
+
+def test_auto_finds_each_later_sweep_around_its_predicted_start(synced, tmp_path):
+    """Two recordings with lead frames, sync code and drifting clock back to back: the second sweep is found in a
+    window around where the first one's start and dwell put it, and equals the import of its own recording."""
+    second = emulate_recording(_scenario(), tmp_path / "second", plan=SYNC_PLAN, rng=np.random.default_rng(6))
+    folder = _concatenate([synced.experiment.folder, second.experiment.folder], tmp_path / "rec")
+    F = synced.num_frames
+    events, log, watcher = run_live(folder, tmp_path / "live", step=3 * 8192 + 999,
+                                    period_frames=F / (1 + SYNC_PLAN.clock_drift))
+    assert [(e.sweep, e.error) for e in events] == [(0, None), (1, None)]
+    assert_complete_when_reported(log, watcher, events)
+    np.testing.assert_array_equal(events[0].frames, synced.true_frame_index)
+    np.testing.assert_array_equal(events[1].frames, F + second.true_frame_index)
+    assert F <= events[1].window[0] < F + second.start                 # the window: around sweep 1 only
+    assert_same(events[1], reference(second.experiment.folder, tmp_path / "ref1")["capture"])
