@@ -208,7 +208,8 @@ class LiveFix:
     lost_packets : int
         Lost DCA1000 packets (zero-filled) whose bytes lie in a beam's frame.
     final_time : float
-        ``time.monotonic()`` when the sweep's last frame became final [s].
+        ``time.monotonic()`` when the sweep's last frame became final [s]: interpolated at the data rate
+        between the progress report that first covered it and the one before.
     fix_time : float
         ``time.monotonic()`` when the fix was made [s].
     window : tuple of (int, int)
@@ -552,13 +553,21 @@ class SweepWatcher:
     # ------------------------------------------------------------------------------------------ the fixes
 
     def _became_final(self, capture: Any, start: int) -> float:
-        """When the capture's last recorded frame (the last beam's last chirp) became final [s]."""
+        """When the capture's last recorded frame (the last beam's last chirp) became final [s]: between the first
+        progress report that covers it and the one before, interpolated at the data rate in between."""
         chirps = capture.provenance["alignment"]["beam_chirps"]
         stop = start + max(seg[0] for beam in chirps for seg in beam) + 1
         need = self._ready_bytes(stop)
+        if self._finished:
+            need = min(need, stop * self.frame_bytes)
+        before = None
         for grown, when in self._history:
-            if grown >= need or grown >= stop * self.frame_bytes and self._finished:
-                return when
+            if grown >= need:
+                if before is None or grown == before[0]:
+                    return when
+                share = (need - before[0]) / (grown - before[0])
+                return before[1] + share * (when - before[1])
+            before = (grown, when)
         return self._history[-1][1]
 
     def _fix(self, slot: _Slot, capture: Any, start: int) -> LiveFix:
