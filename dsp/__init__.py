@@ -11,6 +11,7 @@ from .beamscan import BeamScan, scan_beams
 from .crb import SweepBound, position_std, rician_information, sweep_crb, tone_frequency_crb
 from .detection import Detection, check_beat_cube, detect, detect_batch
 from .flags import FLAG_CODES, INSPECTION_CODES, Flag
+from .floor_bounce import FloorLadder, floor_ladder, rung_spacing
 from .fusion import FusedFix, RisFix, fuse_fixes
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .localization import Alternative
@@ -28,6 +29,9 @@ from .threads import limit_threads, thread_count
 from .xp import DEVICE_ENV, ArrayBackend, DeviceError, backend_for, cuda_available, device_choice, numpy_backend, strict_backend
 
 __all__ = [
+    "FloorLadder",
+    "floor_ladder",
+    "rung_spacing",
     "FusedFix",
     "RisFix",
     "fuse_fixes",

@@ -9,6 +9,7 @@ so that :func:`dsp.self_localize` chooses once and then runs the same chain for 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -27,7 +28,8 @@ from .processing import ProcessingConfig, window_vector
 from .qualify import EstimatorBounds
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .refine import refine_estimate
-from .residual import beam_dtft
+from .drift import delay_drift, motion_rate
+from .residual import beam_dtft, beam_values
 from .sweep import BeamSweep
 
 __all__ = ["SweepInputs", "SweepEstimate", "Estimator", "ESTIMATORS", "debiased_peak_snr", "beam_choice_std"]
@@ -191,6 +193,9 @@ def debiased_peak_snr(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho
 _CHOICE_NEIGHBOURS, _CHOICE_POINTS, _CHOICE_NODES, _CHOICE_MAX_SNR = 8, 12, 240, 1e8
 #: Above this ν (a beam's amplitude over the noise's) the Rice distribution is taken as Gaussian.
 _CHOICE_GAUSSIAN = 8.0
+#: Range migration across the sweep, in un-padded fast-time bins, above which the refined AoD is fitted
+#: again on every beam at its own drifted tone [bins] (:func:`_migrated_fit`).
+MIGRATION_REFIT_BINS = 0.25
 
 
 def beam_choice_std(pattern: BeamPattern, sweep: BeamSweep, beam: int, snr: float) -> float:
@@ -313,6 +318,10 @@ def _refined_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -
     arr, sweep, radar, pattern = inp.cube, inp.sweep, inp.radar, inp.pattern
     est = refine_estimate(arr, sweep=sweep, radar=radar, pattern=pattern,
                           initial_delay=det.delay, initial_delay_rate=det.delay_rate)
+    fit, magnitudes = _migrated_fit(inp, est.aod, est.delay, est.delay_rate, est.beat_frequency)
+    if fit is not None:
+        est = dataclasses.replace(est, aod=fit, beam_magnitude=magnitudes / (arr.shape[1] * arr.shape[2]),
+                                  amplitude=fit.amplitude / (arr.shape[1] * arr.shape[2]))
     aod = np.array(est.aod.aod)
     amp2 = pattern.amplitude(aod, sweep.angles) ** 2
     times = radar.beam_times(arr.shape[0])
@@ -321,6 +330,28 @@ def _refined_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -
                          magnitudes=est.beam_magnitude * (arr.shape[1] * arr.shape[2]), amplitude=est.amplitude,
                          time=float(amp2 @ times / amp2.sum()), beat_frequency=est.beat_frequency,
                          delay_variance_factor=est.delay_variance_factor)
+
+
+def _migrated_fit(inp: SweepInputs, fit: AodFit, delay: float, delay_rate: float,
+                  beat_frequency: tuple[float, float]) -> tuple[AodFit | None, np.ndarray | None]:
+    """The AoD fitted again on every beam read at its own drifted tone, when the return's delay migrates
+    across the sweep by more than :data:`MIGRATION_REFIT_BINS` (a radar moving 0.9 m/s radially crosses
+    9 range cells of Table I's chirp in a 0.39 s sweep): read at one frequency, the beams scanned far from
+    the pattern-weighted mean time lose magnitude unevenly and the fitted AoD moves (0.3-0.4° at 13 m off
+    broadside in the traced L-shaped hall; ``docs/estimation.md``, range migration). (fit, magnitudes
+    [√W·K·N]) or (None, None) when the migration is below the threshold."""
+    arr, radar, sweep = inp.cube, inp.radar, inp.sweep
+    weights = np.abs(inp.pattern.amplitude(fit.aod, sweep.angles))
+    times = radar.beam_times(arr.shape[0])
+    drift = delay_drift(arr, radar, delay=delay, delay_rate=delay_rate, weights=weights)
+    rate = motion_rate(radar, delay_rate, drift)
+    span = abs(radar.slope * radar.sample_period * rate * float(times[-1] - times[0])) * arr.shape[2]
+    if not span > MIGRATION_REFIT_BINS:
+        return None, None
+    values, _ = beam_values(arr, radar, beat_frequency[0], beat_frequency[1], weights, drift_rate=rate,
+                            beam_times=times, windowed=False)
+    magnitudes = np.abs(values)
+    return fit_aod(magnitudes, sweep, inp.pattern), magnitudes
 
 
 def _refined_bounds(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: float) -> EstimatorBounds:

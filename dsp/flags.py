@@ -19,6 +19,7 @@ import numpy as np
 from .aod_fit import AodFit, PatternFit
 from .detection import Detection
 from .drift import DelayDrift
+from .floor_bounce import RUNGS, FloorLadder
 from .geometry import RisPose
 from .qualify import Uncertainty, is_one_dimensional, position_at
 from .radar import SPEED_OF_LIGHT, RadarConfig
@@ -35,6 +36,9 @@ FLAG_CODES: dict[str, str] = {
     "beam-edge": "the best beam is the first or last of the sweep: the UE may lie outside it",
     "aliased": "the return may lie beyond the unambiguous range or velocity",
     "unresolved-peaks": "two returns within one resolution cell: delay and AoD are biased",
+    "floor-leg": ("the estimate is the RIS's return via the floor, a rung after the straight leg: "
+                  "the distance is too long"),
+    "first-arrival": "the strongest RIS return came via the floor; the estimate is the earlier straight leg",
     "before-ris-delay": "the delay is shorter than the RIS loop-back delay: negative distance",
     "elevation-assumed": "a 1-D sweep cannot see elevation: the position assumes the sweep plane",
     "unobservable": "the sweep cannot observe an angle: its 1σ and the position's are infinite, not a number",
@@ -144,6 +148,11 @@ class FlagContext:
     pattern_fit : PatternFit or None
         The beam pattern's goodness of fit to the per-beam magnitudes (:func:`dsp.aod_fit.pattern_fit`),
         if computed: ``pattern-mismatch`` reads it.
+    floor : FloorLadder or None
+        The floor's ladder around the estimate (:func:`dsp.floor_bounce.floor_ladder`), when a floor
+        height was given: ``floor-leg`` and ``first-arrival`` read it.
+    floor_moved : bool
+        Whether the estimate was moved down the ladder to the first arrival.
     """
 
     detection: Detection
@@ -165,6 +174,8 @@ class FlagContext:
     drift: DelayDrift | None = None
     std: Uncertainty | None = None
     pattern_fit: PatternFit | None = None
+    floor: FloorLadder | None = None
+    floor_moved: bool = False
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -291,6 +302,35 @@ def _second_return_nearby(c: FlagContext) -> str | None:
             f"{10 * np.log10(max(stat, 1e-30)):.1f} dB (threshold {10 * np.log10(thr):.1f} dB): a second "
             f"return lies within {radar.range_resolution * 100:.1f} cm / {radar.velocity_resolution:.2f} m/s "
             "and biases delay and AoD; move the radar or use more bandwidth/chirps")
+
+
+def _rungs(f: FloorLadder, rungs: int) -> str:
+    return f"{rungs} rung{'s' if rungs > 1 else ''} ({rungs * f.spacing * 100:.1f} cm)"
+
+
+@_rule("floor-leg")
+def _floor_leg_taken(c: FlagContext) -> str | None:
+    f = c.floor
+    if f is None or f.steps_down == 0 or c.floor_moved:
+        return None
+    first = f.levels_db[RUNGS.index(-f.steps_down)]
+    return (f"a RIS return {_rungs(f, f.steps_down)} earlier on the floor's ladder ({first:.1f} dB over its "
+            "noise mean, "
+            f"the estimate {f.levels_db[RUNGS.index(0)]:.1f} dB) is the straight leg: this estimate is the RIS's "
+            f"return via the floor, its distance {f.steps_down * f.spacing * 100:.1f} cm too long (its 1σ includes "
+            "it); the refined estimator takes the first arrival")
+
+
+@_rule("first-arrival")
+def _first_arrival_taken(c: FlagContext) -> str | None:
+    f = c.floor
+    if f is None or not c.floor_moved:
+        return None
+    return (f"the strongest RIS return was its echo via the floor, a rung of {f.spacing * 100:.1f} cm or two later; "
+            "the estimate is the first arrival, the straight leg (floor's ladder "
+            f"{', '.join(f'{v:.1f}' for v in f.levels_db)} "
+            f"dB over noise at rungs {RUNGS}); its distance 1σ includes the {f.bias_std * 1e3:.1f} mm the "
+            "floor's legs beside it may bias it by")
 
 
 @_rule("before-ris-delay")

@@ -54,8 +54,8 @@ _MAX_STEPS, _TOLERANCE = 50, 1e-10
 #: ``unresolved-peaks`` and ``pattern-mismatch`` say of most fixes in a traced hall): when the fixes
 #: disagree and the χ² test cannot say which one is wrong, the fixes that carry one of these are left
 #: out (named) before any compromise.
-DOUBT_CODES = frozenset({"aliased", "grating-lobe", "before-ris-delay", "beam-edge", "no-beam-dependence",
-                         "schedule-mismatch", "damaged-beams", "ris-facing-away"})
+DOUBT_CODES = frozenset({"aliased", "grating-lobe", "floor-leg", "before-ris-delay", "beam-edge",
+                         "no-beam-dependence", "schedule-mismatch", "damaged-beams", "ris-facing-away"})
 #: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.
 _RANK_TOLERANCE = 1e-12
 

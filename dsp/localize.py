@@ -22,6 +22,7 @@ from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_batch, de
 from .drift import delay_drift, motion_rate
 from .estimators import ESTIMATORS, SweepEstimate, SweepInputs
 from .flags import GRATING_LOBE_DB, FlagContext, sweep_flags
+from .floor_bounce import FloorLadder, floor_ladder, rung_spacing
 from .geometry import RisPose, direction_from_angles
 from .localization import Alternative, Localization, NoPositionError, localize, no_position
 from .pattern import BeamPattern
@@ -61,6 +62,7 @@ def self_localize(
     scan: bool = True,
     backend: ArrayBackend | None = None,
     detection: Detection | None = None,
+    floor_height: float | None = None,
 ) -> Localization:
     """Detect the RIS return in a beat cube ``[M, K, N]`` and localize the UE, with uncertainty and flags.
 
@@ -107,6 +109,13 @@ def self_localize(
         This cube's detection, already made by :func:`dsp.detect_batch` with the same ``pfa``,
         ``processing.min_range``, ``pattern``, ``sweep`` and ``oversample=2`` (a study's batch); it is
         then not computed again.
+    floor_height : float, optional
+        World z of a floor under the radar and the RIS [m] (0 in a traced hall): the floor's ladder of
+        the RIS return is read around the estimate (:func:`dsp.floor_bounce.floor_ladder`). When an
+        earlier rung holds the straight leg, the refined estimator starts again there and takes the
+        first arrival (flag ``first-arrival``); the paper's estimator keeps its peak (flag
+        ``floor-leg``, its distance 1σ widened by the rungs it may be too long). Either way the
+        distance 1σ includes the bias the rungs beside the estimate cause. None: no floor is modelled.
 
     Returns
     -------
@@ -140,6 +149,10 @@ def self_localize(
     if not det.detected:
         return no_position(grid, det)
     est = steps.estimate(inp, det, grid)
+    floor, moved = None, False
+    if floor_height is not None:
+        est, floor, moved = _first_arrival(inp, det, grid, est, estimator, finite(floor_height, "floor_height", "m"),
+                                           ue_height)
 
     distance = (est.delay - inp.loopback_delay) * SPEED_OF_LIGHT / 2.0
     velocity = est.delay_rate * SPEED_OF_LIGHT / 2.0
@@ -154,9 +167,11 @@ def self_localize(
         direction = pose.to_world(direction_from_angles(aod))
         position = pose.position + distance * direction
 
-    std = _uncertainty(inp, est, det, steps.bounds, aod, distance, ue_height if height_solved else None)
+    std = _uncertainty(inp, est, det, steps.bounds, aod, distance, ue_height if height_solved else None,
+                       extra_distance_std=_floor_distance_std(floor, moved))
     context = _flag_context(inp, est, det, steps.residual_frequency, aod, distance, ue_height=ue_height,
                             height_solved=height_solved, height_range=height_range, std=std)
+    context = dataclasses.replace(context, floor=floor, floor_moved=moved)
     if context.pattern_fit is not None and context.pattern_fit.mismatch:
         std = _widened(std, inp.pose, aod, distance, context.pattern_fit.excess,
                        ue_height if height_solved else None)
@@ -205,15 +220,60 @@ def _checked(cube: Any, *, sweep: BeamSweep, radar: RadarConfig, processing: Pro
 
 def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
                  bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
-                 aod: np.ndarray, distance: float, solved_height: float | None) -> Uncertainty:
+                 aod: np.ndarray, distance: float, solved_height: float | None, *,
+                 extra_distance_std: float = 0.0) -> Uncertainty:
     """1σ from the CRB at the measured SNR, by the estimator's ``bounds``, per-beam phases random (what a
-    phase-blind estimator can reach: 1.09x / 1.34x the fixed-phase CRB in distance / AoD at 10 dB)."""
+    phase-blind estimator can reach: 1.09x / 1.34x the fixed-phase CRB in distance / AoD at 10 dB); a
+    bias the estimate may carry (``extra_distance_std`` [m], the floor's ladder) added to the distance's
+    in quadrature before the position's is propagated."""
     arr = inp.cube
     noise = det.noise_power
     peak_snr = arr.shape[1] * arr.shape[2] * est.amplitude**2 / noise if noise > 0 else np.inf
     rho = float(min(max(peak_snr, 1e-12), 1e300))
-    return sweep_uncertainty(inp.pose, aod, distance, bounds(inp, est, aod, rho), peak_snr=rho,
-                             solved_height=solved_height)
+    b = bounds(inp, est, aod, rho)
+    if extra_distance_std > 0:
+        b = dataclasses.replace(b, distance=float(np.hypot(b.distance, extra_distance_std)))
+    return sweep_uncertainty(inp.pose, aod, distance, b, peak_snr=rho, solved_height=solved_height)
+
+
+def _first_arrival(inp: SweepInputs, det: Detection, grid: Any, est: SweepEstimate, estimator: str,
+                   floor_height: float, ue_height: float | None) -> tuple[SweepEstimate, FloorLadder | None, bool]:
+    """The floor's ladder around ``est`` and, for the refined estimator, the estimate started again at the
+    first arrival when an earlier rung holds it: (estimate, its ladder or None, whether it moved). The
+    new start is kept when the refinement stays within ½ un-padded bin of it (the rung it was sent to)."""
+    ladder = _ladder(inp, det, est, floor_height, ue_height)
+    if ladder is None or ladder.steps_down == 0 or estimator != "refined":
+        return est, ladder, False
+    seed = est.delay - 2.0 * ladder.steps_down * ladder.spacing / SPEED_OF_LIGHT
+    again = ESTIMATORS[estimator].estimate(inp, dataclasses.replace(det, delay=seed), grid)
+    half_bin = 0.5 / (inp.radar.slope * inp.radar.sample_period * inp.cube.shape[2])
+    if not abs(again.delay - seed) <= half_bin:
+        return est, ladder, False
+    return again, _ladder(inp, det, again, floor_height, ue_height) or ladder, True
+
+
+def _ladder(inp: SweepInputs, det: Detection, est: SweepEstimate, floor_height: float,
+            ue_height: float | None) -> FloorLadder | None:
+    """:func:`dsp.floor_bounce.floor_ladder` at the estimate's position (None without a noise estimate or a
+    radar above the floor)."""
+    distance = (est.delay - inp.loopback_delay) * SPEED_OF_LIGHT / 2.0
+    aod, _ = solve_elevation(inp.sweep, inp.pose, distance, est.aod, ue_height)
+    position = inp.pose.position + distance * inp.pose.to_world(direction_from_angles(aod))
+    spacing = rung_spacing(inp.pose.position, position, floor_height)
+    if not (spacing > 0 and det.noise_power > 0 and distance > 0):
+        return None
+    weights = np.abs(inp.pattern.amplitude(aod, inp.sweep.angles))
+    return floor_ladder(inp.cube, inp.radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights,
+                        spacing=spacing, noise_power=det.noise_power, pfa=inp.pfa)
+
+
+def _floor_distance_std(floor: FloorLadder | None, moved: bool) -> float:
+    """The distance 1σ the floor's ladder adds [m]: the bias of the rungs beside the estimate, and when the
+    estimate stays on a later rung (the paper's estimator), the rungs it may be too long by."""
+    if floor is None:
+        return 0.0
+    late = 0.0 if moved else floor.steps_down * floor.spacing
+    return float(np.hypot(floor.bias_std, late))
 
 
 def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,

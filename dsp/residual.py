@@ -165,7 +165,7 @@ def drift_shifts(radar: RadarConfig, drift_rate: float, beam_times: Any, weights
 
 
 def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: Any, *, drift_rate: float = 0.0,
-                beam_times: Any = None) -> tuple[np.ndarray, float]:
+                beam_times: Any = None, windowed: bool = True) -> tuple[np.ndarray, float]:
     """The Hann-windowed 2-D DTFT of every beam at the fitted tone, and its noise per unit noise power.
 
     Beam m is read at (f₁ + S T_s ν_d (t_m − t̄), f₂) (:func:`drift_shifts`; ν_d = 0: the same tone in
@@ -186,6 +186,9 @@ def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: An
         ν_d [s/s].
     beam_times : float array [M], optional
         Frame centres [s]; needed when ``drift_rate`` ≠ 0.
+    windowed : bool, default True
+        Hann windows on both axes; False: the un-windowed DTFT (all weights 1), the magnitudes the
+        refined estimator's AoD fit reads (``dsp.estimators``, range migration).
 
     Returns
     -------
@@ -198,8 +201,8 @@ def beam_values(cube: Any, radar: RadarConfig, f1: float, f2: float, weights: An
 
     arr = as_cube(cube)
     m, k, n = arr.shape
-    wn = scipy.signal.get_window("hann", n, fftbins=False)
-    wk = scipy.signal.get_window("hann", k, fftbins=False)
+    wn = scipy.signal.get_window("hann", n, fftbins=False) if windowed else np.ones(n)
+    wk = scipy.signal.get_window("hann", k, fftbins=False) if windowed else np.ones(k)
     n_idx = np.arange(n) - (n - 1) / 2.0
     ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0] * wk  # [K]
     rate = float(drift_rate)

@@ -26,7 +26,7 @@ from ..model.ris import RisConfig, RisMode, check_ris_memory
 from ..model.scenario import Scenario
 from ..authoring.scene_folder import DEFAULT_SCENE, SceneError, scene_directory
 
-__all__ = ["HallScenario", "HallPaths", "IdleRis", "IDLE_STATES", "check_up_to_date", "hall_paths", "hall_scenario",
+__all__ = ["FLOOR_HEIGHT", "HallScenario", "HallPaths", "IdleRis", "IDLE_STATES", "check_up_to_date", "hall_paths", "hall_scenario",
            "hall_slots", "facing_radar", "ris_index"]
 
 #: What a RIS does while another one sweeps (time division, ``docs/ray-tracing.md`` "Several RISs"):
@@ -34,6 +34,10 @@ __all__ = ["HallScenario", "HallPaths", "IdleRis", "IDLE_STATES", "check_up_to_d
 #: reflective RIS cannot be switched off: it holds its parked beam); ``"parked"``: it keeps
 #: re-transmitting (relay) or reflecting with one fixed beam, its loop-back a static echo.
 IDLE_STATES = ("off", "parked")
+#: World z of every traced hall's floor [m]: a spec's footprint is the floor polygon at z = 0
+#: (``risloc_rt.authoring.spec``). The DSP reads the floor's ladder of the RIS return against it
+#: (``process_capture(floor_height=...)``, :func:`dsp.floor_bounce.floor_ladder`).
+FLOOR_HEIGHT = 0.0
 
 
 @dataclass(frozen=True)

@@ -70,7 +70,8 @@ DEFAULT_ESTIMATOR = "refined"
 
 def process_capture(capture: Capture, *, processing: ProcessingConfig | None = None,
                     estimator: str = DEFAULT_ESTIMATOR, ue_height: float | None = None,
-                    pfa: float | None = None, backend: Any = None) -> tuple[Localization, float]:
+                    pfa: float | None = None, backend: Any = None,
+                    floor_height: float | None = None) -> tuple[Localization, float]:
     """Run the shared DSP on a capture; returns the localization and the DSP time [s].
 
     Parameters
@@ -88,6 +89,9 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     backend : dsp.ArrayBackend, optional
         Where the whole-cube work runs (``--device``: the detector and the estimators' reads of the cube,
         :func:`dsp.self_localize`); default NumPy.
+    floor_height : float, optional
+        World z of the floor [m] (a traced hall's: 0): the floor's ladder of the RIS return is read and
+        the first arrival taken (:func:`dsp.self_localize`); None: no floor is modelled.
 
     Returns
     -------
@@ -101,7 +105,8 @@ def process_capture(capture: Capture, *, processing: ProcessingConfig | None = N
     loc = self_localize(capture.cube, sweep=capture.sweep, radar=capture.radar,
                         processing=processing or capture.processing, pose=capture.ris.pose,
                         loopback_delay=capture.ris.loopback_delay, estimator=estimator,
-                        pattern=capture.ris.beam_pattern(), ue_height=ue_height, backend=backend, **extra)
+                        pattern=capture.ris.beam_pattern(), ue_height=ue_height, backend=backend,
+                        floor_height=floor_height, **extra)
     alias = range_alias_flag(loc, capture)
     if alias is not None and "aliased" not in loc.flag_codes:
         loc = replace(loc, flags=(*loc.flags, alias))

@@ -338,7 +338,7 @@ def _measure_slot(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
 
 def _measured(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
     from ..hall.pruning import AliasWarning
-    from ..hall.scenario import hall_paths, hall_scenario
+    from ..hall.scenario import FLOOR_HEIGHT, hall_paths, hall_scenario
     from ..io.report import process_capture
     from ..model.simulate import simulate
 
@@ -356,7 +356,8 @@ def _measured(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
     capture = simulate(hs.base, rng=np.random.default_rng([job.seed, slot.index]), paths=traced.paths,
                        motion="sweep", seed=job.seed, backend=job.backend)
     t2 = time.perf_counter()
-    loc, _ = process_capture(capture, estimator=job.estimator, ue_height=job.height, backend=job.backend)
+    loc, _ = process_capture(capture, estimator=job.estimator, ue_height=job.height, backend=job.backend,
+                             floor_height=FLOOR_HEIGHT)
     secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
     if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
         return (_measurement(slot.ris, job.pose, loc, slot, job.t_mid, job.floors),

@@ -275,11 +275,12 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     from dsp.aod_fit import AodFit, PatternFit
     from dsp.detection import Detection
     from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
+    from dsp.floor_bounce import FloorLadder
     from dsp.qualify import Uncertainty
 
     assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
-                                      "unresolved-peaks", "before-ris-delay", "elevation-assumed", "unobservable",
-                                      "pattern-mismatch"]
+                                      "unresolved-peaks", "floor-leg", "first-arrival", "before-ris-delay",
+                                      "elevation-assumed", "unobservable", "pattern-mismatch"]
     quiet = _quiet_context()
     assert sweep_flags(quiet) == ()
     one_d = BeamSweep.azimuth_grid(*np.deg2rad([-12.0, 12.0, 3.0]))  # 9 beams at el 0
@@ -294,6 +295,11 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
                           height_solved=True),
         "aliased": dict(apparent_delay=0.5 * quiet.radar.delay_resolution),  # within two cells of the wrap
         "unresolved-peaks": dict(unresolved=(100.0, 10.0)),
+        # the straight leg a rung (7 cm) earlier, as strong as the estimate: the paper's peak kept
+        "floor-leg": dict(floor=FloorLadder(0.07, (0.0, 20.0, 20.5, 9.0, 0.0), 5.0, steps_down=1, bias_std=4e-3)),
+        # the refined estimator moved to it: the estimate is the first arrival
+        "first-arrival": dict(floor=FloorLadder(0.07, (0.0, 0.0, 20.0, 20.5, 9.0), 5.0, steps_down=0, bias_std=4e-3),
+                              floor_moved=True),
         "before-ris-delay": dict(delay=0.5 * quiet.loopback_delay, distance=-0.5 * quiet.loopback_delay * C / 2),
         "elevation-assumed": dict(sweep=one_d, magnitudes=np.r_[np.ones(4), 5.0, np.ones(4)],
                                   aod=np.deg2rad([1.0, 0.0])),
@@ -310,6 +316,8 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
                   candidates=np.array([[np.deg2rad(-30.0), -(GRATING_LOBE_DB + 0.5)]]))
     assert sweep_flags(dataclasses.replace(quiet, fit=weak)) == ()
     # every cause at once: every flag, in the registry's order
-    everything = {k: v for change in causes.values() for k, v in change.items()}
+    # (but one of floor-leg and first-arrival: the estimate was moved down the ladder or it was not)
+    everything = {k: v for code, change in causes.items() if code != "first-arrival" for k, v in change.items()}
     everything.update(magnitudes=edge_mags, aod=np.deg2rad([-12.0, 0.0]), ue_height=None, height_solved=False)
-    assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **everything))] == list(SWEEP_FLAG_RULES)
+    assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **everything))] == [
+        c for c in SWEEP_FLAG_RULES if c != "first-arrival"]
