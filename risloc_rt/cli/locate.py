@@ -316,9 +316,9 @@ class _LiveLoop:
                     kind, final, when = self.inbox.get()
                     while kind == "update" and not self.inbox.empty():     # only the newest prefix matters
                         kind, final, when = self.inbox.get()
-                    if kind == "stop":
+                    if kind == "stop" or (kind == "finish" and not final):
                         return
-                    if final is None or final <= 0:
+                    if not final:
                         continue
                     watcher = watcher or self.make_watcher()
                     self._emit(watcher.finish(final, when) if kind == "finish" else watcher.update(final, when), out)

@@ -13,6 +13,10 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -89,3 +93,51 @@ def test_locate_live_prints_one_line_per_sweep_equal_to_the_file_import(two_swee
         assert row["flags"] == ref["flags"]
         assert m[7] == ",".join(f["code"] for f in ref["flags"])
         assert 0 <= row["latency"] <= row["latency_printed"] < 10.0
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["locate"], "give the capture file(s) to localize"),
+    (["locate", "--live", "--config", "x.cfg"], "--live needs --serial, --out, --sweep"),
+    (["locate", "c.npz", "--serial", "/dev/ttyUSB0"], "--serial /dev/ttyUSB0 is for --live"),
+    (["locate", "c.npz", "--live", "--config", "x.cfg", "--serial", "p", "--out", "o", "--sweep", "s.toml"],
+     "leave out the capture files"),
+])
+def test_bad_live_input_is_one_line(argv, says, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and says in err and err.startswith("risloc locate: error: ")
+
+
+def test_ctrl_c_exits_130_and_leaves_complete_lines(two_sweeps, loopback_endpoints, tmp_path):
+    """SIGINT once sweep 0's line is out, while recording slowly (1/100 of the real rate: 62 frames take 5 s): exit
+    130, one line on stderr, the recording readable from its start, sweep 0's JSON line whole, no sweep 1."""
+    host, fpga, config_port, data_port = loopback_endpoints
+    out = tmp_path / "live"
+    with EmulatedRadarCli() as cli, EmulatedDca1000(two_sweeps / "adc_data_Raw_0.bin",
+                                                    config=two_sweeps / "adc_data.cfg", host_ip=host, fpga_ip=fpga,
+                                                    config_port=config_port, data_port=data_port, speed=0.01):
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "import sys; from risloc_rt.cli import main; sys.exit(main())", "locate", "--live",
+             "--config", str(two_sweeps / "adc_data.cfg"), "--serial", cli.port, "--out", str(out),
+             "--sweep", str(two_sweeps / "sweep.toml"), "--host-ip", host, "--fpga-ip", fpga,
+             "--config-port", str(config_port), "--data-port", str(data_port)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[3])
+        try:
+            raw, fixes = out / "adc_data_Raw_0.bin", out / "live_fixes.jsonl"
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and (not fixes.is_file() or not fixes.read_text().endswith("\n")):
+                time.sleep(0.05)
+            proc.send_signal(signal.SIGINT)
+            stdout, stderr = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted" in stderr
+    data = raw.read_bytes()
+    assert BEAMS * 8192 <= len(data) < 2 * BEAMS * 8192
+    assert data == (two_sweeps / "adc_data_Raw_0.bin").read_bytes()[:len(data)]
+    rows = [json.loads(r) for r in fixes.read_text().splitlines()]
+    assert [(r["sweep"], r["frames"]) for r in rows] == [(0, [0, BEAMS - 1])]
+    assert re.search(r"  sweep 0  ris  x ", stdout) and "sweep 1" not in stdout
