@@ -282,6 +282,8 @@ class FusedLiveFix:
         The fusion's flags.
     final_time, fix_time : float
         ``time.monotonic()`` when the round's last sweep became final, and of the fused fix [s].
+    error : str or None
+        Why the fixes could not be fused (one line), else None.
     fused : dsp.fusion.FusedFix or None
         Not compared.
     """
@@ -296,6 +298,7 @@ class FusedLiveFix:
     flags: tuple[tuple[str, str], ...]
     final_time: float
     fix_time: float
+    error: str | None = None
     fused: Any = field(default=None, compare=False, repr=False)
 
     @property
@@ -310,12 +313,13 @@ class FusedLiveFix:
         -------
         dict
             ``kind = "fused"``, ``sweep``, ``used``, ``excluded``, ``detected``, ``position`` [m],
-            ``std`` [m], ``peb`` [m], ``flags``, ``latency`` [s].
+            ``std`` [m], ``peb`` [m], ``flags``, ``latency`` [s], ``error``.
         """
         return json_safe({"kind": "fused", "sweep": self.sweep, "used": list(self.used),
                           "excluded": [list(e) for e in self.excluded], "detected": self.detected,
                           "position": list(self.position), "std": list(self.std), "peb": self.peb,
-                          "flags": [{"code": c, "message": m} for c, m in self.flags], "latency": self.latency})
+                          "flags": [{"code": c, "message": m} for c, m in self.flags], "latency": self.latency,
+                          "error": self.error})
 
 
 @dataclass(frozen=True)
@@ -603,7 +607,11 @@ class SweepWatcher:
             return [fix]
         del self._rounds[fix.sweep]
         cases = [f.case for f in done if f.case is not None]
-        fused = fuse_cases(cases) if cases else None
+        error = None
+        try:
+            fused = fuse_cases(cases) if cases else None
+        except ValueError as exc:                   # e.g. two slots of one RIS: no fused fix, said why
+            fused, error = None, " ".join(str(exc).split())
         nan3 = (math.nan,) * 3
         out = FusedLiveFix(
             sweep=fix.sweep, used=() if fused is None else tuple(fused.used),
@@ -611,7 +619,7 @@ class SweepWatcher:
             detected=fused is not None, position=nan3 if fused is None else _vector(fused.position),
             std=nan3 if fused is None else _vector(fused.std), peb=math.nan if fused is None else float(fused.peb),
             flags=() if fused is None else tuple((f.code, f.message) for f in fused.flags),
-            final_time=max(f.final_time for f in done), fix_time=self._clock(), fused=fused)
+            final_time=max(f.final_time for f in done), fix_time=self._clock(), error=error, fused=fused)
         return [fix, out]
 
     def _localized(self, slot: _Slot, final_bytes: int) -> LiveFix:

@@ -309,3 +309,18 @@ def test_auto_finds_each_later_sweep_around_its_predicted_start(synced, tmp_path
     np.testing.assert_array_equal(events[1].frames, F + second.true_frame_index)
     assert F <= events[1].window[0] < F + second.start                 # the window: around sweep 1 only
     assert_same(events[1], reference(second.experiment.folder, tmp_path / "ref1")["capture"])
+
+
+def test_bad_watcher_input_is_one_line(two_sweeps, two_ris, tmp_path):
+    from risloc_rt.measured.errors import MeasuredFormatError
+
+    with pytest.raises(MeasuredFormatError, match=r"^sweep period 20 frames is shorter than one sweep \(31 frames\)"):
+        SweepWatcher(two_sweeps, period_frames=20)
+    with pytest.raises(MeasuredFormatError, match=r"^--first-frame: .* describes 2 RISs in time division"):
+        SweepWatcher(two_ris.folder, first_frame=3)
+    with pytest.raises(MeasuredFormatError, match=r"radar configuration .*nothing.cfg does not exist"):
+        SweepWatcher(two_sweeps, tmp_path / "nothing.cfg")
+    watcher = SweepWatcher(two_sweeps)
+    assert watcher.update(5 * 8192) == []
+    with pytest.raises(MeasuredFormatError, match=r"^final_bytes went back from 40960 to 8192"):
+        watcher.update(8192)
