@@ -63,7 +63,7 @@ from ..dca1000.packets import MAX_PAYLOAD
 from ..dca1000.raw_layout import RawLayout
 from ..dca1000.split_files import capture_files, split_name
 from ..errors import MeasuredFormatError
-from ..sweep.alignment import manual_alignment
+from ..sweep.alignment import DEFAULT_ASSEMBLE, manual_alignment
 from ..sweep.importer import import_capture
 from ..sweep.ris_timing import chirp_fractions
 from ..sweep.schedule import SweepSchedules, read_sweep_schedules
@@ -519,7 +519,7 @@ class SweepWatcher:
         p = self.program
         align = manual_alignment(p, first, num_frames=first + int(math.ceil(p.sweep_length)) + 2,
                                  fractions=self._fractions, frame_width=self._width,
-                                 assemble=self.options.get("assemble", "span"))
+                                 assemble=self.options.get("assemble", DEFAULT_ASSEMBLE))
         stop = int((align.chirp_start[-1] + self._num_chirps - 1) // self._num_chirps) + 1
         return _Slot(sweep=sweep, ris_index=k, first_frame=first,
                      start=max(0, first - int(math.ceil(p.sync_length))), stop=stop)
