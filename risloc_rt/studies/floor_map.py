@@ -354,6 +354,7 @@ def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
 
     from ..hall import hall_paths, hall_scenario
     from ..hall.raytrace import TraceCache, TraceSettings
+    from ..hall.scenario import FLOOR_HEIGHT
     from ..model import simulate
 
     start = time.perf_counter()
@@ -373,7 +374,8 @@ def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
                   "warnings": sorted({str(w.message).split(":")[0] for w in caught})}
     return PreparedPoint(params=run_params, cube=cap.cube, radar=cap.radar, sweep=cap.sweep,
                          processing=cap.processing, pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay,
-                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start)
+                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start,
+                         floor_height=FLOOR_HEIGHT)
 
 
 def _num(value: Any) -> float:

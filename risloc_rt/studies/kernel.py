@@ -47,6 +47,10 @@ class PreparedPoint:
         with the per-beam phases random), and the post-integration ``peak_snr_db`` [dB].
     seconds : float
         Time to prepare it (synthesis, tracing, bound) [s].
+    floor_height : float or None
+        World z of the floor under the radar and the RIS [m] (a traced hall's,
+        ``risloc_rt.hall.scenario.FLOOR_HEIGHT``): ``dsp.self_localize`` reads the floor's ladder
+        (``docs/estimation.md``); None for the analytic scenario (no floor).
     """
 
     params: dict[str, Any]
@@ -60,6 +64,7 @@ class PreparedPoint:
     truth: Any
     crb: dict[str, float]
     seconds: float
+    floor_height: float | None = None
 
 
 def _radar_sweep_processing(p: dict[str, Any]) -> tuple[RadarConfig, BeamSweep, ProcessingConfig]:
@@ -172,6 +177,7 @@ def prepare_point(params: dict[str, Any]) -> PreparedPoint:
     if params["scene"]:
         from ..hall import hall_paths, hall_scenario
         from ..hall.raytrace import TraceCache, TraceSettings
+        from ..hall.scenario import FLOOR_HEIGHT
 
         radar, sweep, processing = _radar_sweep_processing(params)
         hs = hall_scenario(params["scene"], radar_index=params["radar_index"], mode=params["mode"], radar=radar,
@@ -190,7 +196,8 @@ def prepare_point(params: dict[str, Any]) -> PreparedPoint:
                       truth=cap.truth, loopback_delay=cap.ris.loopback_delay)
     return PreparedPoint(params=dict(params), cube=cap.cube, radar=cap.radar, sweep=cap.sweep,
                          processing=cap.processing, pose=cap.ris.pose, loopback_delay=cap.ris.loopback_delay,
-                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start)
+                         pattern=pattern, truth=cap.truth, crb=crb, seconds=time.perf_counter() - start,
+                         floor_height=FLOOR_HEIGHT if params["scene"] else None)
 
 
 def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
@@ -317,7 +324,7 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
             # the realization stays where it is: the estimator's whole-cube reads run there too (dsp.xp)
             loc = dsp.self_localize(cubes[i, ...], sweep=prep.sweep, radar=prep.radar, processing=prep.processing,
                                     pose=prep.pose, loopback_delay=prep.loopback_delay, estimator=p["estimator"],
-                                    pattern=prep.pattern, pfa=p["pfa"], detection=dets[i],
+                                    pattern=prep.pattern, pfa=p["pfa"], detection=dets[i], floor_height=prep.floor_height,
                                     scan=False)  # the refined estimator's numbers do not use the grid
             rows.append(_row(prep, truths[i], loc, point=point, run=r,
                              seconds=shared_seconds + time.perf_counter() - t))

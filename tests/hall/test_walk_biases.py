@@ -71,3 +71,26 @@ def test_a_migrating_return_keeps_its_azimuth(monkeypatch):
     monkeypatch.setattr(dsp.estimators, "MIGRATION_REFIT_BINS", math.inf)            # read at one frequency
     before = math.degrees(_locate(capture).aod[0] - truth)
     assert abs(before) > 0.2 and abs(before) > 5 * abs(error)
+
+
+def test_the_floor_map_cells_read_the_floor():
+    """The floor map's far cells of ris1 in paper_hall_2ris (20 m) were 69-75 mm off in 4 of 5 runs (the
+    floor leg); the map's cells now carry the hall's floor to the DSP (``PreparedPoint.floor_height``)."""
+    import dataclasses
+
+    from risloc_rt.hall.scenario import FLOOR_HEIGHT
+    from risloc_rt.studies.floor_map import MapSettings, prepare_cell
+    from risloc_rt.studies.kernel import run_once
+
+    ue = np.array([11.0, 9.0, 1.2])
+    prep = prepare_cell({"cell": 0, "ue": ue.tolist(), "ris": 1,
+                         "settings": dataclasses.asdict(MapSettings(scene="paper_hall_2ris"))})
+    assert prep.floor_height == FLOOR_HEIGHT
+    delta = dsp.rung_spacing([29.5, 0.5, 1.2], ue, FLOOR_HEIGHT)
+
+    def errors(floor):
+        p = dataclasses.replace(prep, floor_height=floor)
+        return np.array([run_once(p, study_seed=1, point=0, run=r)["position_error"] for r in range(5)])
+
+    assert np.median(errors(None)) > 0.8 * delta             # the floor leg: about one rung (6.6 cm) too far
+    assert np.median(errors(FLOOR_HEIGHT)) < 0.3 * delta
