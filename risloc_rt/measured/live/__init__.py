@@ -1,7 +1,7 @@
 """Live recording from a TI radar and a DCA1000 on Linux, without mmWave Studio (``docs/live-capture.md``).
 
 Room 6 of :mod:`risloc_rt.measured` (imports :mod:`..errors`, :mod:`..ti`, :mod:`..dca1000`,
-:mod:`..sweep`; ``pyserial`` only when a port is opened):
+:mod:`..sweep`, and ``io`` for the localization of a live sweep; ``pyserial`` only when a port is opened):
 
 - :mod:`.addresses`: :class:`Endpoints`, the DCA1000's and the host's addresses and UDP ports;
 - :mod:`.radar_cli`: :class:`RadarCli`, the radar's CLI port (a ``.cfg`` sent line by line);
@@ -15,6 +15,7 @@ Room 6 of :mod:`risloc_rt.measured` (imports :mod:`..errors`, :mod:`..ti`, :mod:
 from .addresses import (CONFIG_PORT, DATA_PORT, DEFAULT_FPGA_IP, DEFAULT_HOST_IP, LOOPBACK_FPGA_IP,
                         LOOPBACK_HOST_IP, Endpoints)
 from .dca1000_link import Dca1000Error, Dca1000Link
+from .live_sweeps import FusedLiveFix, LiveFix, SweepWatcher
 from .radar_cli import RadarCli, RadarCliError
 from .receiver import DatagramReceiver, ReceiverStats
 from .record import RecordingError, RecordingProgress, RecordingSummary, RecordPlan, record
@@ -23,4 +24,4 @@ from .recording_writer import RecordingWriter
 __all__ = ["CONFIG_PORT", "DATA_PORT", "DEFAULT_FPGA_IP", "DEFAULT_HOST_IP", "Endpoints", "LOOPBACK_FPGA_IP",
            "LOOPBACK_HOST_IP", "Dca1000Error", "Dca1000Link", "RadarCli", "RadarCliError", "DatagramReceiver",
            "ReceiverStats", "RecordPlan", "RecordingError", "RecordingProgress", "RecordingSummary", "RecordingWriter",
-           "record"]
+           "record", "FusedLiveFix", "LiveFix", "SweepWatcher"]
