@@ -257,7 +257,7 @@ EXIT_NO_DETECTION = 3
 
 
 def add_estimator_flags(p: argparse.ArgumentParser) -> None:
-    """Add ``--estimator``, ``--ue-height`` [m], ``--pfa``.
+    """Add ``--estimator``, ``--ue-height`` [m], ``--pfa``, ``--floor-height`` [m].
 
     Parameters
     ----------
@@ -271,22 +271,52 @@ def add_estimator_flags(p: argparse.ArgumentParser) -> None:
                    help="known radar height z [m]: resolves the elevation a 1-D (azimuth) sweep cannot see")
     p.add_argument("--pfa", type=float, metavar="P",
                    help="detector false-alarm probability per capture (default 1e-3)")
+    p.add_argument("--floor-height", default="auto", metavar="{auto,none,Z}",
+                   help="world z [m] of the floor under the radar and the RIS: the DSP reads the floor's ladder of "
+                        "the RIS return and takes the first arrival, not the stronger return via the floor "
+                        "(docs/estimation.md); 'auto' (default): 0 for a ray-traced hall's capture, none otherwise; "
+                        "'none': no floor")
 
 
-def estimator_options(args: argparse.Namespace) -> dict[str, Any]:
+def estimator_options(args: argparse.Namespace, *, traced: bool = False) -> dict[str, Any]:
     """The keyword options of :func:`risloc_rt.io.report.process_capture` from the flags.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed flags (:func:`add_estimator_flags`).
+    traced : bool, default False
+        Whether the capture is a ray-traced hall's (``--floor-height auto`` is then the hall's floor,
+        ``risloc_rt.hall.scenario.FLOOR_HEIGHT``).
 
     Returns
     -------
     dict
-        ``estimator``, ``ue_height`` [m] (or None) and ``pfa`` (or None).
+        ``estimator``, ``ue_height`` [m] (or None), ``pfa`` (or None) and ``floor_height`` [m] (or None).
+
+    Raises
+    ------
+    CliError
+        ``--floor-height`` neither ``auto``, ``none`` nor a finite number (one line).
     """
-    return {"estimator": args.estimator, "ue_height": args.ue_height, "pfa": args.pfa}
+    text = str(getattr(args, "floor_height", "auto")).strip().lower()
+    if text == "auto":
+        floor = None
+        if traced:
+            from ..hall.scenario import FLOOR_HEIGHT
+
+            floor = FLOOR_HEIGHT
+    elif text == "none":
+        floor = None
+    else:
+        try:
+            floor = float(text)
+        except ValueError:
+            floor = float("nan")
+        if not np.isfinite(floor):
+            raise CliError(f"--floor-height {args.floor_height!r} must be 'auto', 'none' or the floor's world z in "
+                           "metres, e.g. 0")
+    return {"estimator": args.estimator, "ue_height": args.ue_height, "pfa": args.pfa, "floor_height": floor}
 
 
 def add_processing_flags(p: argparse.ArgumentParser) -> None:

@@ -32,7 +32,7 @@ def _run(args: argparse.Namespace) -> int:
 def _demo_hall(args: argparse.Namespace, out: Path, backend) -> int:
     from ..authoring.scene_folder import scene_directory
     from ..authoring.spec import load_spec
-    from ..hall.scenario import FLOOR_HEIGHT, hall_scenario
+    from ..hall.scenario import hall_scenario
 
     folder = scene_directory(args.scene)
     count = len(load_spec(folder / "spec.toml").radar_positions())
@@ -50,7 +50,7 @@ def _demo_hall(args: argparse.Namespace, out: Path, backend) -> int:
         timing = {"trace" + (" (cached)" if traced.trace.cache_hit else ""): traced.timing["trace"],
                   "paths": traced.timing["paths"], "synthesis": time.perf_counter() - start}
         result = report_capture(safe_name(hs.name.replace("#", "-")), capture, out_dir=out, processing=processing, timing=timing,
-                                backend=backend, floor_height=FLOOR_HEIGHT, **estimator_options(args))
+                                backend=backend, **estimator_options(args, traced=True))
         plot_traced_profile(hs, traced, out / result.name / "traced_profile.png")
         result = replace(result, plots={**result.plots, "traced_profile": f"{result.name}/traced_profile.png"})
         print(format_case(result))

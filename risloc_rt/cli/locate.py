@@ -98,7 +98,8 @@ def _localize(name: str, capture, args: argparse.Namespace, backend, stage: Path
     if capture.provenance.get("source") == "measurement":
         from ..measured.compare.uncertainty_budget import apply_budget as budget
     return report_capture(name, capture, out_dir=stage, processing=processing_overrides(args, capture.processing),
-                          timing={}, budget=budget, backend=backend, **estimator_options(args))
+                          timing={}, budget=budget, backend=backend,
+                          **estimator_options(args, traced="scene" in capture.provenance))
 
 
 def _load(path: str, args: argparse.Namespace):
