@@ -14,6 +14,7 @@ from ..measured.sweep.importer import DEFAULT_LEAKAGE
 from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
 from .._outputs import check_output_file, output_file
 from .common import CliError, add_force_flag, npz_target
+from .connection import add_connection_flags, record_plan
 
 __all__ = ["add_parser"]
 
@@ -237,31 +238,6 @@ def _import(args: argparse.Namespace) -> int:
     return 0
 
 
-def _record_plan(args: argparse.Namespace):
-    """The :class:`~risloc_rt.measured.live.record.RecordPlan` of the command line.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        ``config``, ``serial``, ``out``, ``frames``, ``duration``, ``sweep``, ``device``, ``host_ip``,
-        ``fpga_ip``, ``config_port``, ``data_port``, ``split_size``, ``baudrate``.
-
-    Returns
-    -------
-    RecordPlan
-    """
-    from ..measured.live.addresses import Endpoints
-    from ..measured.live.record import RecordPlan
-
-    if args.frames is not None and args.duration is not None:
-        raise CliError("give --frames N or --duration S, not both")
-    return RecordPlan(config=args.config, serial_port=args.serial, out=args.out, frames=args.frames,
-                      duration=args.duration, sweep=args.sweep,
-                      endpoints=Endpoints(host_ip=args.host_ip, fpga_ip=args.fpga_ip, config_port=args.config_port,
-                                          data_port=args.data_port), device=args.device,
-                      split_size=args.split_size, baudrate=args.baudrate)
-
-
 class _RecordProgress:
     """The ``capture record`` progress line (tqdm on stderr): MB/s, frames, lost packets, socket high-water."""
 
@@ -311,7 +287,7 @@ def _record(args: argparse.Namespace) -> int:
     """
     from ..measured.live.record import record, recording_summary
 
-    plan = _record_plan(args)
+    plan = record_plan(args)
     bar = _RecordProgress(None)
     try:
         summary = record(plan, on_progress=bar)
@@ -345,36 +321,11 @@ def _add_record_parser(verbs) -> None:
     verbs : argparse._SubParsersAction
         The ``capture`` verb's sub-parsers.
     """
-    from ..measured.live.addresses import CONFIG_PORT, DATA_PORT, DEFAULT_FPGA_IP, DEFAULT_HOST_IP
-    from ..measured.live.recording_writer import DEFAULT_SPLIT_SIZE
-
     rec = verbs.add_parser("record", help="record from a TI radar (its CLI port) and a DCA1000 (Ethernet) into a "
                                           "folder that capture import reads (docs/live-capture.md)")
-    rec.add_argument("--config", required=True, metavar="RADAR.cfg",
-                     help="the mmWave SDK .cfg, sent to the radar line by line (its lanes and ADC format configure "
-                          "the DCA1000; copied into --out as adc_data.cfg)")
-    rec.add_argument("--serial", required=True, metavar="PORT",
-                     help="the radar's CLI (user) UART, e.g. /dev/ttyUSB0 or /dev/ttyACM0 (you need the dialout group)")
     rec.add_argument("--out", required=True, metavar="DIR", help="the recording's folder (new or empty)")
-    stop = rec.add_mutually_exclusive_group()
-    stop.add_argument("--frames", type=int, metavar="N",
-                      help="stop after N frames (default: the .cfg's frameCfg numFrames)")
-    stop.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     rec.add_argument("--sweep", metavar="SWEEP.toml", help="the sweep schedule, copied into --out as sweep.toml")
-    rec.add_argument("--device", default="IWR6843",
-                     help="the radar's device family: IWR6843 (ISK, AOP), xWR1843, xWR1642, xWR1443 "
-                          "(default: %(default)s)")
-    rec.add_argument("--host-ip", default=DEFAULT_HOST_IP,
-                     help="this computer's address on the DCA1000's Ethernet port (default: %(default)s)")
-    rec.add_argument("--fpga-ip", default=DEFAULT_FPGA_IP, help="the DCA1000's address (default: %(default)s)")
-    rec.add_argument("--config-port", type=int, default=CONFIG_PORT,
-                     help="the DCA1000's UDP configuration port, on both sides (default: %(default)s)")
-    rec.add_argument("--data-port", type=int, default=DATA_PORT,
-                     help="the UDP port this computer receives the data on (default: %(default)s)")
-    rec.add_argument("--split-size", type=int, default=DEFAULT_SPLIT_SIZE, metavar="BYTES",
-                     help="start a new adc_data_Raw_<i>.bin at this size, rounded down to whole 1456-byte packets "
-                          "(default: %(default)s = 1024 MiB, TI's DCA1000 CLI default)")
-    rec.add_argument("--baudrate", type=int, default=115200, help="the CLI UART's baud rate (default: %(default)s)")
+    add_connection_flags(rec, required=True)
     rec.set_defaults(func=_record)
 
 

@@ -18,6 +18,7 @@ from ..io.fused import check_distinct_ris, common_truth, format_fused, fuse_case
 from ..io.report import format_case, format_environment, report_capture, run_environment, write_result
 from .common import (EXIT_NO_DETECTION, CliError, add_device_flag, add_estimator_flags, add_force_flag,
                      add_processing_flags, device_backend, estimator_options, processing_overrides)
+from .connection import add_connection_flags, record_plan
 
 __all__ = ["add_parser"]
 
@@ -169,28 +170,23 @@ def _record_plan(args: argparse.Namespace):
     Parameters
     ----------
     args : argparse.Namespace
-        ``config``, ``serial``, ``out``, ``frames``, ``duration``, ``sweep``, ``radar_device``, ``host_ip``,
-        ``fpga_ip``, ``config_port``, ``data_port``, ``split_size``, ``baudrate``.
+        The parsed command line (:func:`risloc_rt.cli.connection.record_plan`'s options).
 
     Returns
     -------
     risloc_rt.measured.live.record.RecordPlan
-    """
-    from ..measured.live.addresses import Endpoints
-    from ..measured.live.record import RecordPlan
 
+    Raises
+    ------
+    CliError
+        A connection option missing (one line).
+    """
     missing = [f for f, v in (("--config", args.config), ("--serial", args.serial), ("--out", args.out),
                               ("--sweep", args.sweep)) if v is None]
     if missing:
         raise CliError(f"--live needs {', '.join(missing)}: the radar's .cfg, its CLI port, a new folder for the "
                        "recording and the sweep schedule (docs/live-locate.md)")
-    if args.frames is not None and args.duration is not None:
-        raise CliError("give --frames N or --duration S, not both")
-    return RecordPlan(config=args.config, serial_port=args.serial, out=args.out, frames=args.frames,
-                      duration=args.duration, sweep=args.sweep,
-                      endpoints=Endpoints(host_ip=args.host_ip, fpga_ip=args.fpga_ip, config_port=args.config_port,
-                                          data_port=args.data_port),
-                      device=args.radar_device, split_size=args.split_size, baudrate=args.baudrate)
+    return record_plan(args)
 
 
 def _first_frame(text: str | None) -> int | str | None:
@@ -441,8 +437,6 @@ def _add_live_flags(loc: argparse.ArgumentParser) -> None:
     loc : argparse.ArgumentParser
         The ``locate`` verb's parser.
     """
-    from ..measured.live.addresses import CONFIG_PORT, DATA_PORT, DEFAULT_FPGA_IP, DEFAULT_HOST_IP
-    from ..measured.live.recording_writer import DEFAULT_SPLIT_SIZE
     from ..measured.sweep.importer import DEFAULT_LEAKAGE
     from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
 
@@ -451,26 +445,9 @@ def _add_live_flags(loc: argparse.ArgumentParser) -> None:
     live.add_argument("--live", action="store_true",
                       help="record and localize every complete sweep as it arrives (needs --config, --serial, --out, "
                            "--sweep)")
-    live.add_argument("--config", metavar="RADAR.cfg", help="the mmWave SDK .cfg sent to the radar")
-    live.add_argument("--serial", metavar="PORT", help="the radar's CLI (user) UART, e.g. /dev/ttyUSB0")
     live.add_argument("--sweep", metavar="SWEEP.toml", help="the sweep schedule (first frame or auto, one RIS or "
                                                              "several [[ris]] slots), copied into --out")
-    stop = live.add_mutually_exclusive_group()
-    stop.add_argument("--frames", type=int, metavar="N", help="stop after N frames (default: the .cfg's numFrames)")
-    stop.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    live.add_argument("--radar-device", default="IWR6843",
-                      help="the radar's device family (capture record's --device; here --device is the DSP's): "
-                           "IWR6843 (ISK, AOP), xWR1843, xWR1642, xWR1443 (default: %(default)s)")
-    live.add_argument("--host-ip", default=DEFAULT_HOST_IP,
-                      help="this computer's address on the DCA1000's Ethernet port (default: %(default)s)")
-    live.add_argument("--fpga-ip", default=DEFAULT_FPGA_IP, help="the DCA1000's address (default: %(default)s)")
-    live.add_argument("--config-port", type=int, default=CONFIG_PORT,
-                      help="the DCA1000's UDP configuration port (default: %(default)s)")
-    live.add_argument("--data-port", type=int, default=DATA_PORT,
-                      help="the UDP port this computer receives the data on (default: %(default)s)")
-    live.add_argument("--split-size", type=int, default=DEFAULT_SPLIT_SIZE, metavar="BYTES",
-                      help="start a new adc_data_Raw_<i>.bin at this size (default: %(default)s)")
-    live.add_argument("--baudrate", type=int, default=115200, help="the CLI UART's baud rate (default: %(default)s)")
+    add_connection_flags(live, required=False, device_flag="--radar-device")
     live.add_argument("--first-frame", metavar="N|auto",
                       help="override the schedule's first_frame (one RIS): the first sweep's first beam frame, or "
                            "'auto' (found from the sync code and the RIS's power)")
