@@ -41,7 +41,7 @@ def add_connection_flags(p: Any, *, required: bool, device_flag: str = "--device
     stop.add_argument("--frames", type=int, metavar="N",
                       help="stop after N frames (default: the .cfg's frameCfg numFrames)")
     stop.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    p.add_argument(device_flag, dest="radar_device", default="IWR6843",
+    p.add_argument(device_flag, dest="radar_device", default="IWR6843", metavar="FAMILY",
                    help="the radar's device family: IWR6843 (ISK, AOP), xWR1843, xWR1642, xWR1443 "
                         "(default: %(default)s)")
     p.add_argument("--host-ip", default=DEFAULT_HOST_IP,
