@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 import scipy.integrate
+import scipy.optimize
 import scipy.special
 
 from .aod_fit import AodFit, fit_aod
@@ -27,9 +28,10 @@ from .pattern import BeamPattern
 from .processing import ProcessingConfig, window_vector
 from .qualify import EstimatorBounds
 from .radar import SPEED_OF_LIGHT, RadarConfig
-from .refine import refine_estimate
+from .refine import RefinedEstimate, refine_estimate
 from .drift import delay_drift, motion_rate
-from .residual import beam_dtft, beam_values
+from .dtft_subspace import contract_chirps, dtft_phasors
+from .residual import beam_dtft, beam_values, drift_shifts
 from .sweep import BeamSweep
 
 __all__ = ["SweepInputs", "SweepEstimate", "Estimator", "ESTIMATORS", "debiased_peak_snr", "beam_choice_std"]
@@ -194,8 +196,11 @@ _CHOICE_NEIGHBOURS, _CHOICE_POINTS, _CHOICE_NODES, _CHOICE_MAX_SNR = 8, 12, 240,
 #: Above this ν (a beam's amplitude over the noise's) the Rice distribution is taken as Gaussian.
 _CHOICE_GAUSSIAN = 8.0
 #: Range migration across the sweep, in un-padded fast-time bins, above which the refined AoD is fitted
-#: again on every beam at its own drifted tone [bins] (:func:`_migrated_fit`).
+#: again on every beam at its own drifted tone [bins] (:func:`_migrated`).
 MIGRATION_REFIT_BINS = 0.25
+#: The refined estimator's beams in its delay step: |A_m| at least this fraction of the peak (``refine_estimate``'s
+#: ``min_weight``) [unitless].
+REFINE_MIN_WEIGHT = 0.05
 
 
 def beam_choice_std(pattern: BeamPattern, sweep: BeamSweep, beam: int, snr: float) -> float:
@@ -318,10 +323,7 @@ def _refined_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -
     arr, sweep, radar, pattern = inp.cube, inp.sweep, inp.radar, inp.pattern
     est = refine_estimate(arr, sweep=sweep, radar=radar, pattern=pattern,
                           initial_delay=det.delay, initial_delay_rate=det.delay_rate)
-    fit, magnitudes = _migrated_fit(inp, est.aod, est.delay, est.delay_rate, est.beat_frequency)
-    if fit is not None:
-        est = dataclasses.replace(est, aod=fit, beam_magnitude=magnitudes / (arr.shape[1] * arr.shape[2]),
-                                  amplitude=fit.amplitude / (arr.shape[1] * arr.shape[2]))
+    est = _migrated(inp, est)
     aod = np.array(est.aod.aod)
     amp2 = pattern.amplitude(aod, sweep.angles) ** 2
     times = radar.beam_times(arr.shape[0])
@@ -332,26 +334,75 @@ def _refined_estimate(inp: SweepInputs, det: Detection, grid: BeamScan | None) -
                          delay_variance_factor=est.delay_variance_factor)
 
 
-def _migrated_fit(inp: SweepInputs, fit: AodFit, delay: float, delay_rate: float,
-                  beat_frequency: tuple[float, float]) -> tuple[AodFit | None, np.ndarray | None]:
-    """The AoD fitted again on every beam read at its own drifted tone, when the return's delay migrates
-    across the sweep by more than :data:`MIGRATION_REFIT_BINS` (a radar moving 0.9 m/s radially crosses
-    9 range cells of Table I's chirp in a 0.39 s sweep): read at one frequency, the beams scanned far from
-    the pattern-weighted mean time lose magnitude unevenly and the fitted AoD moves (0.3-0.4° at 13 m off
-    broadside in the traced L-shaped hall; ``docs/estimation.md``, range migration). (fit, magnitudes
-    [√W·K·N]) or (None, None) when the migration is below the threshold."""
+def _migrated(inp: SweepInputs, est: RefinedEstimate) -> RefinedEstimate:
+    """``est`` with its delay and AoD estimated again on every beam read at its own drifted tone, when the
+    return's delay migrates across the sweep by more than :data:`MIGRATION_REFIT_BINS` (a radar moving
+    0.9 m/s radially crosses 9 range cells of Table I's chirp in a 0.39 s sweep); else ``est`` itself.
+
+    Read at one frequency, a migrating return misleads both: the beams scanned far from the
+    pattern-weighted mean time t̄ sit bins away from it, and their sidelobe slopes pull the delay's
+    maximum off the delay at t̄ when the beams are not spread evenly around it (1.6 mm, 2.2 ms of
+    motion, 4.4 m from a RIS whose beam the radar crosses early in the sweep), while their uneven
+    loss of magnitude moves the fitted AoD (0.32-0.37° at 12.5 m, 40° off broadside). Beam m is read
+    at f₁ + S T_s ν (t_m − t̄) (:func:`dsp.residual.drift_shifts`, ν the Doppler unwrapped by the measured
+    drift, :func:`dsp.drift.motion_rate`): f₁ maximizing Σ_m a_m |Z_m| then refers to t̄, the time the
+    estimate states; the AoD is fitted on those |Z_m| (``docs/estimation.md``, range migration). Twice,
+    t̄ and the beams' weights following the new AoD.
+    """
     arr, radar, sweep = inp.cube, inp.radar, inp.sweep
-    weights = np.abs(inp.pattern.amplitude(fit.aod, sweep.angles))
-    times = radar.beam_times(arr.shape[0])
-    drift = delay_drift(arr, radar, delay=delay, delay_rate=delay_rate, weights=weights)
-    rate = motion_rate(radar, delay_rate, drift)
-    span = abs(radar.slope * radar.sample_period * rate * float(times[-1] - times[0])) * arr.shape[2]
+    m, k, n = arr.shape
+    times = radar.beam_times(m)
+    f1, f2 = est.beat_frequency
+    weights = np.abs(inp.pattern.amplitude(est.aod.aod, sweep.angles))
+    rate = motion_rate(radar, est.delay_rate,
+                       delay_drift(arr, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights))
+    span = abs(radar.slope * radar.sample_period * rate * float(times[-1] - times[0])) * n
     if not span > MIGRATION_REFIT_BINS:
-        return None, None
-    values, _ = beam_values(arr, radar, beat_frequency[0], beat_frequency[1], weights, drift_rate=rate,
-                            beam_times=times, windowed=False)
-    magnitudes = np.abs(values)
-    return fit_aod(magnitudes, sweep, inp.pattern), magnitudes
+        return est
+    sel = np.flatnonzero(weights >= REFINE_MIN_WEIGHT * weights.max())
+    ek = dtft_phasors(f2, np.arange(k) - (k - 1) / 2.0, np.zeros(1))[0]
+    rows = contract_chirps(arr, ek, sel)  # [M', N]
+    far = np.flatnonzero(weights < 0.1 * weights.max())
+    if far.size >= 4:  # what is the same in every frame (static returns, leakage), as refine_estimate removes it
+        rows = rows - contract_chirps(arr, ek, far).mean(axis=0)[None, :]
+    n_idx = np.arange(n) - (n - 1) / 2.0
+    fit, magnitudes = est.aod, None
+    for _ in range(2):
+        shift = drift_shifts(radar, rate, times, weights)[sel]
+        a = weights[sel]
+
+        def cost(x: float) -> float:
+            return -float(a @ np.abs(np.sum(rows * dtft_phasors_rows(x + shift, n_idx), axis=1)))
+
+        f1 = float(scipy.optimize.minimize_scalar(cost, bounds=(f1 - 0.5 / n, f1 + 0.5 / n), method="bounded",
+                                                  options={"xatol": 1e-6 / n}).x)
+        values, _ = beam_values(arr, radar, f1, f2, weights, drift_rate=rate, beam_times=times, windowed=False)
+        magnitudes = np.abs(values)
+        fit = fit_aod(magnitudes, sweep, inp.pattern)
+        weights = np.abs(inp.pattern.amplitude(fit.aod, sweep.angles))
+    f1 = f1 % 1.0
+    delay = f1 / (radar.slope * radar.sample_period) - radar.carrier_frequency * est.delay_rate / radar.slope
+    kn = k * n
+    return dataclasses.replace(est, delay=float(delay), beat_frequency=(f1, f2), aod=fit,
+                               beam_magnitude=magnitudes / kn, amplitude=fit.amplitude / kn)
+
+
+def dtft_phasors_rows(freqs: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """exp(j2π f_m idx) for one frequency per row, phases reduced modulo 1 cycle first [M', L].
+
+    Parameters
+    ----------
+    freqs : float array [M']
+        One frequency per row [cycles/sample].
+    idx : float array [L]
+        Sample indices [samples].
+
+    Returns
+    -------
+    complex array [M', L]
+    """
+    ph = np.outer(freqs, idx)
+    return np.exp(2j * np.pi * (ph - np.round(ph)))
 
 
 def _refined_bounds(inp: SweepInputs, est: SweepEstimate, aod: np.ndarray, rho: float) -> EstimatorBounds:
