@@ -43,13 +43,14 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from dsp.fusion import DOUBT_CODES
 from dsp.tracking import nees_band
 
 from .trajectory import Trajectory, TrajectoryError
 from .walk_figures import plot_consistency, plot_error, plot_plan
 
 __all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
-           "default_schedule", "load_schedule", "MOVING_FLOORS", "SKIP_FLAGS"]
+           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
 #: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
@@ -60,7 +61,8 @@ UPDATE_KINDS = ("start", "used", "gated", "restart", "flagged", "coast", "none")
 #: The columns of ``walk.parquet`` (one row per slot) and their units.
 COLUMNS = {
     "sweep": "slot index from the walk's start", "time": "s, the sweep's reference time (middle)",
-    "ris": "the RIS that swept", "status": "fix | no-detection | behind (not simulated)",
+    "ris": "the RIS that swept",
+    "status": "fix | no-detection | no-position (detected, no distance > 0 at the sweep's middle) | behind (not simulated)",
     "in_view": "the RIS could see the radar (geometry: in front, in its span, line of sight)",
     "truth_x": "m", "truth_y": "m", "truth_z": "m", "truth_vx": "m/s", "truth_vy": "m/s", "truth_vz": "m/s",
     "fix_x": "m", "fix_y": "m", "fix_z": "m", "fix_distance": "m, at the reference time",
@@ -77,14 +79,22 @@ COLUMNS = {
 }
 
 
-#: What the single fixes' 1σ (their Cramér–Rao bounds at the measured SNR) leave out for a radar on the
-#: move, added in quadrature before the tracker sees them: distance [m], azimuth [rad], radial velocity
-#: [m/s] (``docs/tracking.md``, "The fixes' σ on the move").
-MOVING_FLOORS = (5e-3, math.radians(0.1), 5e-3)
+#: What the single fixes' 1σ (their Cramér–Rao bounds at the measured SNR, the floor's ladder included)
+#: leave out for a radar on the move, added in quadrature before the tracker sees them: distance [m],
+#: azimuth [rad], radial velocity [m/s] (``docs/tracking.md``, "The fixes' σ on the move"). Calibrated by
+#: ``benchmarks/calibrate_walk_floors.py`` on a walk of their own (``benchmarks/l_hall_calibration_walk.csv``:
+#: the smallest floors with 68.3 % of the used fixes' errors within their 1σ), not on the benchmark walk
+#: that judges them.
+MOVING_FLOORS = (7.1e-5, math.radians(0.0143), 1.6e-5)
 
-#: Fixes carrying one of these flag codes are not given to the tracker (the row says ``flagged``):
-#: ``beam-edge``, an AoD at the edge of the swept span, extrapolated beyond the beams that saw it.
-SKIP_FLAGS = ("beam-edge",)
+#: Fixes carrying one of these flag codes are not given to the tracker (the row says ``flagged``): the
+#: gross-error codes the fusion leaves out too (``dsp.fusion.DOUBT_CODES``: ``beam-edge``, an AoD at the edge
+#: of the swept span; ``aliased``, a distance folded at the unambiguous range; ``grating-lobe``; ``floor-leg``; …).
+SKIP_FLAGS = tuple(sorted(DOUBT_CODES))
+#: What a slot's measurement is when the DSP detected a return but gave no distance > 0 at the sweep's
+#: middle (a return earlier than the RIS's own loop-back delay, flag ``before-ris-delay``): the row says
+#: ``no-position`` and the tracker predicts only.
+NO_POSITION = "no-position"
 
 
 def default_schedule(spec: Any, radar: Any, num_beams: int) -> Any:
@@ -360,6 +370,8 @@ def _measured(job: _SlotJob) -> tuple[Any, float, dict[str, float]]:
                              floor_height=FLOOR_HEIGHT)
     secs = {"seconds_trace": t1 - t0, "seconds_simulate": t2 - t1, "seconds_dsp": time.perf_counter() - t2}
     if loc.detected and loc.std is not None and math.isfinite(float(loc.std.velocity)):
+        if not float(loc.distance) + float(loc.velocity) * (job.t_mid - float(loc.reference_time)) > 0:
+            return NO_POSITION, math.nan, secs  # e.g. before-ris-delay: a return earlier than the RIS's own
         return (_measurement(slot.ris, job.pose, loc, slot, job.t_mid, job.floors),
                 float(np.linalg.norm(loc.std.position)), secs)
     return None, math.nan, secs
@@ -509,7 +521,11 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
             for slot in slots]
     with _slot_results(jobs, workers) as results:
         for n, (slot, job, (meas, fix_sigma, secs)) in enumerate(zip(slots, jobs, results)):
+            no_position = isinstance(meas, str) and meas == NO_POSITION  # a worker sends a copy, not the object
+            meas = None if no_position else meas
             row = _track_row(slot, job, meas, fix_sigma, secs)
+            if no_position:
+                row["status"] = "no-position"
             known = None if job.height is None else (job.height, height_std)
             nis, nis_dof = math.nan, 0
             flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
@@ -607,6 +623,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "fixes_out_of_view": int((fix & ~view).sum()),
         "fix_share_in_view": float((fix & view).sum() / view.sum()) if view.any() else None,
         "behind": status.count("behind"), "no_detection": status.count("no-detection"),
+        "no_position": status.count("no-position"),
         "updates": {k: kinds.count(k) for k in UPDATE_KINDS},
         "fix_rmse_m": _rms(fix_err), "fix_median_error_m": float(np.median(fix_err)) if fix_err.size else None,
         "fix_rmse_in_view_m": _rms(col["fix_error"][fix & view]),

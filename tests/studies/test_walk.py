@@ -117,3 +117,25 @@ def test_a_trajectory_is_refused_before_anything_is_traced():
         Trajectory(times=[0.0, 0.0], points=[[14, 6, 1.2], [12, 6, 1.2]])
     with pytest.raises(TrajectoryError, match=r"passes through 'wall_2' at \[15.714, 12.000, 1.200\]"):
         plan_walk("l_hall_2ris", Trajectory(times=[0.0, 10.0], points=[[20, 6, 1.2], [10, 20, 1.2]]))
+
+
+def test_a_detection_without_a_positive_distance_is_no_position_not_a_crash(monkeypatch):
+    """Regression: a detection whose distance at the sweep's middle is not > 0 (a return earlier than the
+    RIS's own loop-back, ``before-ris-delay``) stopped the walk with a traceback (``RisFix`` refuses a
+    distance <= 0). It is now a ``no-position`` row, and the tracker predicts through it."""
+    import risloc_rt.studies.walk as walk_module
+
+    real = walk_module._measured
+    calls = []
+
+    def second_is_invalid(job):
+        calls.append(job.slot.index)
+        return (walk_module.NO_POSITION, math.nan, {"seconds_trace": 0.0, "seconds_simulate": 0.0,
+                                                    "seconds_dsp": 0.0}) if job.slot.index == 2 else real(job)
+
+    monkeypatch.setattr(walk_module, "_measured", second_is_invalid)
+    tr = Trajectory(times=[0.0, 1.0], points=[[14, 6, 1.2], [13, 6, 1.2]])
+    walk = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE)
+    row = walk.rows[2]
+    assert 2 in calls and row["status"] == "no-position" and row["update"] == "coast" and math.isnan(row["fix_x"])
+    assert walk.summary["no_position"] == 1 and walk.rows[4]["update"] == "used"
