@@ -46,7 +46,7 @@ from .flags import Flag
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .validation import as_finite_array, finite, positive
 
-__all__ = ["DOUBT_CODES", "RisFix", "FusedFix", "fuse_fixes", "central_jacobian"]
+__all__ = ["DOUBT_CODES", "KNOWN_HEIGHT_STD", "RisFix", "FusedFix", "fuse_fixes", "central_jacobian"]
 
 #: Gauss–Newton steps at most, and the step [m] below which it has converged.
 _MAX_STEPS, _TOLERANCE = 50, 1e-10
@@ -54,6 +54,10 @@ _MAX_STEPS, _TOLERANCE = 50, 1e-10
 #: ``unresolved-peaks`` and ``pattern-mismatch`` say of most fixes in a traced hall): when the fixes
 #: disagree and the χ² test cannot say which one is wrong, the fixes that carry one of these are left
 #: out (named) before any compromise.
+#: The 1σ of a known radar height in a fusion (``fuse_fixes(height=(z, KNOWN_HEIGHT_STD))``) [m]: the height
+#: is taken as exact, as a single fix solved for it is (``ue_height``); 0.1 mm keeps the information
+#: well conditioned.
+KNOWN_HEIGHT_STD = 1e-4
 DOUBT_CODES = frozenset({"aliased", "grating-lobe", "floor-leg", "before-ris-delay", "beam-edge",
                          "no-beam-dependence", "schedule-mismatch", "damaged-beams", "ris-facing-away"})
 #: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.

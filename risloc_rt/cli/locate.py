@@ -58,7 +58,7 @@ def _run(args: argparse.Namespace) -> int:
         results = [_localize(name, capture, args, backend, stage) for name, capture in zip(names, captures)]
         fused = truth = None
         if len(results) > 1:
-            fused = fuse_cases(results)
+            fused = fuse_cases(results, height=args.ue_height)
             truth = common_truth(results)
         if stage is not None:
             write_result(stage, results, device=env,
@@ -365,7 +365,7 @@ def _run_live(args: argparse.Namespace, backend: Any) -> int:
 
     def watcher() -> SweepWatcher:
         return SweepWatcher(plan.out, plan.out / "adc_data.cfg", plan.out / "sweep.toml", first_frame=first,
-                            period_frames=args.period_frames, import_options=options,
+                            period_frames=args.period_frames, import_options=options, fuse_height=args.ue_height,
                             localize=lambda name, cap: _localize(name, _calibrated(cap, args), args, backend, None))
 
     holder: dict[str, _LiveLoop] = {}

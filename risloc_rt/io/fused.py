@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from dsp.fusion import FusedFix, RisFix, fuse_fixes
+from dsp.fusion import KNOWN_HEIGHT_STD, FusedFix, RisFix, fuse_fixes
 
 from .report import CaseResult, significant
 
@@ -49,13 +49,16 @@ def check_distinct_ris(names: list[str], captures: list[Any]) -> None:
                                  "sweep per RIS; locate them separately, or track a moving radar with 'risloc track'")
 
 
-def fuse_cases(cases: list[CaseResult]) -> FusedFix | None:
+def fuse_cases(cases: list[CaseResult], *, height: float | None = None) -> FusedFix | None:
     """Fuse the detected captures of several RISs; None when none was detected.
 
     Parameters
     ----------
     cases : list of CaseResult
         One per capture, each of a different RIS.
+    height : float, optional
+        The radar's known height z [m] (``--ue-height``): one more measurement of the fusion, with
+        the 1σ ``dsp.fusion.KNOWN_HEIGHT_STD`` (``dsp.fuse_fixes(height=...)``), and part of its χ² test.
 
     Returns
     -------
@@ -69,7 +72,8 @@ def fuse_cases(cases: list[CaseResult]) -> FusedFix | None:
     check_distinct_ris([c.name for c in cases], [c.capture for c in cases])
     fixes = [RisFix.from_localization(c.name, c.capture.ris.pose, c.localization)
              for c in cases if c.localization.detected and c.localization.std is not None]
-    return fuse_fixes(fixes) if fixes else None
+    known = None if height is None else (float(height), KNOWN_HEIGHT_STD)
+    return fuse_fixes(fixes, height=known) if fixes else None
 
 
 def common_truth(cases: list[CaseResult]) -> np.ndarray | None:

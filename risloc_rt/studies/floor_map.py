@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from dsp.fusion import KNOWN_HEIGHT_STD
 from dsp.validation import integer, non_negative, one_of, positive
 
 from .._files import atomic_write_bytes
@@ -428,9 +429,9 @@ def multi_ris_peb(bounds: Any, position: Any) -> float:
     return float(np.sqrt(np.trace(np.linalg.inv(info))))
 
 
-#: The 1σ of the map's known radar height in the fusion [m]: the cell's height is exact, as the
-#: single-RIS fix assumes it (``elevation-assumed``); 0.1 mm keeps the information well conditioned.
-HEIGHT_STD = 1e-4
+#: The 1σ of the map's known radar height in the fusion [m] (``dsp.fusion.KNOWN_HEIGHT_STD``): the cell's
+#: height is exact, as the single-RIS fix assumes it (``elevation-assumed``).
+HEIGHT_STD = KNOWN_HEIGHT_STD
 
 
 def fuse_at_height(fixes: Any, height: float, *, pfa: float = 1e-3) -> tuple[np.ndarray, Any]:

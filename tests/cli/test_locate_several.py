@@ -60,6 +60,21 @@ def test_two_rises_fuse_to_the_truth_within_the_stated_covariance(files, tmp_pat
     assert (out / "ris0").is_dir() and (out / "ris1").is_dir()
 
 
+def test_a_known_height_joins_the_fusion(files, tmp_path, capsys):
+    """``--ue-height`` with several captures: the fused fix takes the height as one more measurement
+    (``dsp.fusion.KNOWN_HEIGHT_STD``), so its z is the given height and its z 1σ that σ (it was left to
+    the fixes' elevations, and the fused z was whatever they gave)."""
+    from dsp.fusion import KNOWN_HEIGHT_STD
+
+    out = tmp_path / "height"
+    assert main(["locate", str(files["ris0"]), str(files["ris1"]), "--out", str(out), "--ue-height", "1.2"]) == 0
+    fused = json.loads((out / "result.json").read_text())["fused"]
+    assert fused["position"][2] == pytest.approx(1.2, abs=3 * KNOWN_HEIGHT_STD)
+    assert np.sqrt(np.array(fused["covariance"])[2, 2]) <= KNOWN_HEIGHT_STD * 1.01
+    err = np.array(fused["position"]) - UE
+    assert err @ np.linalg.solve(np.array(fused["covariance"]), err) <= scipy.stats.chi2.isf(1e-4, 3)
+
+
 def test_one_capture_is_located_as_before(files, tmp_path, capsys):
     out = tmp_path / "one"
     assert main(["locate", str(files["ris0"]), "--out", str(out)]) == 0

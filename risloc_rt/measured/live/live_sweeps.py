@@ -379,6 +379,9 @@ class SweepWatcher:
         The clock of the fix times [s] (``time.monotonic``).
     workdir : path, optional
         Where the temporary window folders go (default the system's temporary folder).
+    fuse_height : float, optional
+        The radar's known height z [m] (``--ue-height``): a round's fused fix takes it as one more
+        measurement (:func:`risloc_rt.io.fused.fuse_cases`).
 
     Raises
     ------
@@ -391,8 +394,10 @@ class SweepWatcher:
                  first_frame: int | str | None = None, period_frames: float | None = None,
                  localize: Localizer | None = None, import_options: dict[str, Any] | None = None,
                  margin_frames: int | None = None, slack_frames: float | None = None,
-                 clock: Callable[[], float] = time.monotonic, workdir: str | Path | None = None) -> None:
+                 clock: Callable[[], float] = time.monotonic, workdir: str | Path | None = None,
+                 fuse_height: float | None = None) -> None:
         self.folder = Path(folder)
+        self.fuse_height = fuse_height
         self.prefix = prefix
         self.config_path = Path(config) if config is not None else self.folder / f"{prefix}.cfg"
         if not self.config_path.is_file():
@@ -609,7 +614,7 @@ class SweepWatcher:
         cases = [f.case for f in done if f.case is not None]
         error = None
         try:
-            fused = fuse_cases(cases) if cases else None
+            fused = fuse_cases(cases, height=self.fuse_height) if cases else None
         except ValueError as exc:                   # e.g. two slots of one RIS: no fused fix, said why
             fused, error = None, " ".join(str(exc).split())
         nan3 = (math.nan,) * 3
