@@ -109,3 +109,25 @@ def test_size_errors_give_expected_actual_and_cause(tmp_path, make_config, make_
         open_raw(em.files[0], three_rx, expected_frames=2)
     with pytest.raises(MeasuredFormatError, match="does not exist"):
         open_raw(tmp_path / "nope.bin", em.layout)
+
+
+@pytest.mark.parametrize("size", [1 << 20, 720 * 1456])
+def test_a_missing_last_split_file_is_named(tmp_path, size):
+    """Regression: the check for a missing *last* split file compared the bytes read with the frames
+    expected (``total < expected``), so it never fired and a capture cut at a recorder's size limit read
+    as "stopped early". A file of exactly 1 MiB (mmWave Studio's limit) or of the last whole 1456-byte
+    packet under it (720 × 1456 = 1048320 bytes: TI's DCA1000 CLI with ``maxRecFileSize_MB`` = 1) with
+    fewer frames than configured says a split file is missing."""
+    layout = RawLayout(num_samples=256, num_rx=1, chirps_per_loop=1, num_loops=16)     # 16384 bytes per frame
+    raw = tmp_path / "adc_data_Raw_0.bin"
+    raw.write_bytes(np.random.default_rng(0).integers(-300, 300, size // 2, dtype=np.int16).tobytes())
+    with pytest.raises(MeasuredFormatError, match=r"a split file after adc_data_Raw_0\.bin is missing"):
+        read_raw(raw, layout, expected_frames=100, form="raw")
+
+
+def test_a_capture_stopped_early_is_not_a_missing_split_file(tmp_path):
+    layout = RawLayout(num_samples=256, num_rx=1, chirps_per_loop=1, num_loops=16)
+    raw = tmp_path / "adc_data_Raw_0.bin"
+    raw.write_bytes(np.random.default_rng(0).integers(-300, 300, 40 * 16384 // 2, dtype=np.int16).tobytes())
+    cap = read_raw(raw, layout, expected_frames=100, form="raw")
+    assert cap.info.num_frames == 40 and any("stopped early" in n for n in cap.info.notes)

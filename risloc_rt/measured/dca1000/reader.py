@@ -136,10 +136,12 @@ class RawCapture:
         return sum(d.count for d in self.dropped if d.probable)
 
 
-def _split_missing(files: Sequence[Path], total: int, expected: int | None) -> bool:
-    """The data stops short and the last file is exactly k MiB: a recorder's size limit, not a stop."""
+def _split_missing(files: Sequence[Path], total: int, expected_bytes: int | None) -> bool:
+    """The data stops short of ``expected_bytes`` and the last file ends at a recorder's size limit, not a stop:
+    exactly k MiB (mmWave Studio) or the last whole 1456-byte packet under k MiB (TI's DCA1000 CLI,
+    ``maxRecFileSize_MB``)."""
     size = Path(files[-1]).stat().st_size
-    return bool(expected) and total < expected and size > 0 and size % _MIB == 0
+    return bool(expected_bytes) and total < expected_bytes and size > 0 and (-size) % _MIB < MAX_PAYLOAD
 
 
 def _likely_causes(total: int, layout: RawLayout, files: Sequence[Path], expected: int | None) -> str:
@@ -157,10 +159,11 @@ def _likely_causes(total: int, layout: RawLayout, files: Sequence[Path], expecte
         if (r, c) != (R, C) and total * R * C == ref * r * c:
             hints.append(f"{r} rx x {c} chirps/loop were recorded, not {R} x {C} (channelCfg, chirpCfg, frameCfg)")
             break
-    if _split_missing(files, total, expected):
+    if _split_missing(files, total, expected * fb if expected else None):
         last = Path(files[-1])
-        hints.append(f"a split file after {last.name} is missing ({last.name} is exactly "
-                     f"{last.stat().st_size // _MIB} MiB, a size limit)")
+        size = last.stat().st_size
+        hints.append(f"a split file after {last.name} is missing ({last.name} ends at a size limit: {size} bytes, "
+                     f"{'exactly' if size % _MIB == 0 else 'the last whole packet under'} {-(-size // _MIB)} MiB)")
     if not hints:
         hints.append("check numAdcSamples, channelCfg masks, chirps per loop and numLoops against the capture, "
                       "and that no split file is missing")
@@ -267,7 +270,7 @@ def open_raw(path: str | Path | Sequence[str | Path], layout: RawLayout, *, form
             f"{layout.describe()}); likely cause: {_likely_causes(total, layout, files, expected)}")
     notes = []
     if expected is not None and total < expected * fb:
-        if _split_missing(files, total, expected):
+        if _split_missing(files, total, expected * fb):
             hint = _likely_causes(total, layout, files, expected)
             raise MeasuredFormatError(f"{where}: {total} bytes of samples, expected {expected * fb} "
                                       f"({expected} frames x {fb} bytes); likely cause: {hint}")
