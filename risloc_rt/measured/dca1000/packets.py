@@ -23,7 +23,7 @@ from ..errors import MeasuredFormatError
 from .split_files import SplitWriter
 
 __all__ = ["HEADER_BYTES", "MAX_PAYLOAD", "DroppedPackets", "PacketIssue", "PacketRecorder",
-           "detect_payload_size", "iter_packet_stream", "pack_header", "packet_stream_length"]
+           "detect_payload_size", "iter_packet_stream", "pack_header", "packet_stream_length", "unpack_header"]
 
 HEADER_BYTES = 10
 MAX_PAYLOAD = 1456
@@ -89,8 +89,20 @@ def pack_header(sequence: int, byte_count: int) -> bytes:
     return int(sequence).to_bytes(4, "little") + int(byte_count).to_bytes(6, "little")
 
 
-def _unpack(header: bytes) -> tuple[int, int]:
-    return int.from_bytes(header[:4], "little"), int.from_bytes(header[4:10], "little")
+def unpack_header(header: bytes | memoryview) -> tuple[int, int]:
+    """The 10-byte header's (sequence number, byte count) (:func:`pack_header`'s inverse).
+
+    Parameters
+    ----------
+    header : bytes
+        At least :data:`HEADER_BYTES` bytes; the first ten are read.
+
+    Returns
+    -------
+    (int, int)
+        Sequence number and bytes of ADC data sent before the packet [bytes].
+    """
+    return int.from_bytes(header[:4], "little"), int.from_bytes(header[4:HEADER_BYTES], "little")
 
 
 def detect_payload_size(head: bytes) -> int | None:
@@ -113,7 +125,7 @@ def detect_payload_size(head: bytes) -> int | None:
     """
     if len(head) < HEADER_BYTES:
         return None
-    seq0, bc0 = _unpack(head)
+    seq0, bc0 = unpack_header(head)
     if seq0 < 1:
         return None
     for p in range(2, 1464, 2):
@@ -124,7 +136,7 @@ def detect_payload_size(head: bytes) -> int | None:
             at = k * (HEADER_BYTES + p)
             if at + HEADER_BYTES > len(head):
                 break
-            seq, bc = _unpack(head[at:at + HEADER_BYTES])
+            seq, bc = unpack_header(head[at:at + HEADER_BYTES])
             if seq <= seq0 or bc != (seq - 1) * p:
                 ok = False
                 break
@@ -167,7 +179,7 @@ def packet_stream_length(files: Sequence[Path], payload_size: int) -> int:
         raise MeasuredFormatError(f"{last} is empty")
     with open(last, "rb") as fh:
         fh.seek(at)
-        seq, bc = _unpack(fh.read(HEADER_BYTES))
+        seq, bc = unpack_header(fh.read(HEADER_BYTES))
     if bc != (seq - 1) * payload_size:
         raise MeasuredFormatError(f"{last}: last packet header (sequence {seq}, byte count {bc}) does not match "
                                   f"{payload_size}-byte payloads; the payload size is not constant or the file is "
@@ -194,7 +206,7 @@ def _records(path: Path, payload_size: int, block_packets: int) -> Iterator[tupl
             if rem:                                   # the capture's final, shorter packet
                 if rem <= HEADER_BYTES:
                     raise MeasuredFormatError(f"{path} ends inside a packet header at byte {offset + full * rec}")
-                s, b = _unpack(bytes(buf[full * rec:full * rec + HEADER_BYTES]))
+                s, b = unpack_header(bytes(buf[full * rec:full * rec + HEADER_BYTES]))
                 seq, bc = np.append(seq, s), np.append(bc, b)
                 payloads.append(np.frombuffer(buf, np.uint8, rem - HEADER_BYTES, full * rec + HEADER_BYTES)[None])
             yield offset, seq, bc, payloads

@@ -31,12 +31,11 @@ packet seen twice is counted ``duplicates`` and dropped.
 from __future__ import annotations
 
 import os
-import struct
 import time
 from bisect import bisect_right
 from pathlib import Path
 
-from ..dca1000.packets import HEADER_BYTES, MAX_PAYLOAD, DroppedPackets
+from ..dca1000.packets import HEADER_BYTES, MAX_PAYLOAD, DroppedPackets, unpack_header
 from ..dca1000.split_files import split_name
 from ..errors import MeasuredFormatError
 
@@ -50,8 +49,6 @@ LOG_SUFFIX = "_Raw_LogFile.csv"
 #: The machine-readable list of lost packets.
 LOST_PACKETS_NAME = "lost_packets.csv"
 
-_HEADER = struct.Struct("<IIH")           # sequence, byte count low 32 bits, high 16 bits (10 bytes)
-assert _HEADER.size == HEADER_BYTES
 _FLUSH_BYTES = 1 << 20
 _FLUSH_INTERVAL = 0.05
 
@@ -222,8 +219,7 @@ class RecordingWriter:
         if len(datagram) <= HEADER_BYTES:
             self.malformed += 1
             return
-        seq, lo, hi = _HEADER.unpack_from(datagram)
-        offset = lo | (hi << 32)
+        seq, offset = unpack_header(datagram)
         if self.full:
             return
         if self.last_sequence is None:
