@@ -144,6 +144,15 @@ def _command(args: argparse.Namespace | None) -> str:
     return " ".join(["risloc", verb] + ([sub] if sub else []))
 
 
+def _interrupted_outputs(args: argparse.Namespace | None) -> str:
+    """What an interrupted verb left on disk, for its one-line Ctrl-C message."""
+    recording = getattr(args, "capture_command", None) == "record" or getattr(args, "live", False)
+    if recording:  # written in place as it arrived (measured.live.recording_writer), not atomically
+        return ("the recording in --out holds what arrived, readable as it is, its lost packets zero-filled and "
+                "listed in lost_packets.csv")
+    return "each file it wrote is complete (atomic writes), a multi-file output may lack some: run it again"
+
+
 def _classify(exc: BaseException) -> tuple[int, str]:
     """Exit status and one-line message of an exception escaping a verb."""
     from ..hall.raytrace.backend import BackendError
@@ -240,8 +249,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         state["interrupted"] = True
         if program:  # the one line below must not be cut by a second Ctrl-C
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-        print(f"{_command(state['args'])}: interrupted; each file it wrote is complete (atomic writes), "
-              "a multi-file output may lack some: run it again", file=sys.stderr)
+        print(f"{_command(state['args'])}: interrupted; {_interrupted_outputs(state['args'])}", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
         if program:  # Ctrl-C while the interpreter shuts down would print a traceback

@@ -262,6 +262,7 @@ def test_ctrl_c_in_the_cli_exits_130_with_the_recording_complete(experiment, end
         lines = cli.lines
     assert proc.returncode == 130, stderr
     assert "stopped: interrupted" in stderr
+    assert "the recording in --out holds what arrived" in stderr and "atomic writes" not in stderr
     data = recorded(out)
     assert 3 * 8192 <= len(data) < 61 * 8192 and data == experiment.raw_path.read_bytes()[:len(data)]
     assert lines[-1] == "sensorStop"
