@@ -21,7 +21,9 @@ How (sionna-rt 2.2.0, Mitsuba 3.9.1, Dr.Jit 1.5.0)
 - Dr.Jit refuses to keep the AD graph of a solve for a second traversal (``ad_traverse(): tried to
   forward-propagate derivatives across edge ... outside of the current dr.isolate_grad() scope``),
   so each of the 2·Q parameters gets its own deterministic solve followed by one
-  ``dr.forward_to(a)``. The solves are bit-identical apart from the derivative, which is checked.
+  ``dr.forward_to(a)``. Each solve is sorted as the tracer sorts (sionna-rt's raw order of
+  diffuse paths changes from solve to solve; the set does not), and the sorted paths and gains of
+  all solves are checked to be identical.
 - Dr.Jit computes in float32 (``*_mono_polarized`` variants): the gains and their derivatives
   carry float32 rounding (relative ~1e-6 of the largest terms).
 
@@ -313,6 +315,26 @@ class _Numpy:
         return self._value
 
 
+def _sorted(paths: Any, value: tuple[np.ndarray, np.ndarray], loaded: LoadedScene,
+            kwargs: dict[str, Any]) -> tuple[TracedPaths, np.ndarray]:
+    """The monostatic paths of one solve as the tracer sorts them, and each one's raw index.
+
+    sionna-rt's raw path order is not reproducible for diffuse reflection (the set is), so every
+    solve is sorted on its own: the same conversion with each raw path's index as its "gain"
+    gives the permutation.
+    """
+    (traced,) = paths_to_traced(_Arrays(paths, value), loaded, **kwargs)
+    index = np.broadcast_to(np.arange(value[0].shape[-1], dtype=np.float64), value[0].shape)
+    (order,) = paths_to_traced(_Arrays(paths, (index, np.zeros_like(index))), loaded, **kwargs)
+    return traced, np.rint(order.amplitude.real).astype(np.int64)
+
+
+def _same(a: TracedPaths, b: TracedPaths) -> bool:
+    """Two solves found the same paths with the same gains."""
+    return (len(a) == len(b) and np.array_equal(a.delay, b.delay) and np.array_equal(a.interactions, b.interactions)
+            and np.array_equal(a.objects, b.objects) and np.array_equal(a.amplitude, b.amplitude))
+
+
 def material_jacobian(
     scene: str | os.PathLike[str],
     radar_position: Any,
@@ -399,9 +421,11 @@ def material_jacobian(
     solver.loop_mode = "evaluated"  # "symbolic" cannot carry forward derivatives (see module notes)
 
     saved_s = {}
-    raw_a = None
-    ref = None
+    traced: TracedPaths | None = None
     grads: dict[tuple[str, str], np.ndarray] = {}
+    kwargs = dict(radar_position=radar, ris_positions=np.zeros((0, 3)), radar_velocity=np.zeros(3),
+                  max_depth=settings.max_depth)
+    t_convert = 0.0
     try:
         for name in own:
             _set_material(mats[name], *asked.get(name, own[name]))
@@ -421,40 +445,29 @@ def material_jacobian(
                     dr.set_grad(param, 1.0)
                     dr.forward_to(a_re, a_im)
                     g = np.asarray(dr.grad(a_re).numpy(), np.float64) + 1j * np.asarray(dr.grad(a_im).numpy(), np.float64)
-                    this = (np.asarray(paths.tau.numpy()), np.asarray(paths.valid.numpy()),
-                            np.asarray(paths.interactions.numpy()), np.asarray(paths.objects.numpy()))
                     value = (np.asarray(dr.detach(a_re).numpy()), np.asarray(dr.detach(a_im).numpy()))
                 finally:
                     dr.disable_grad(param)
-                if ref is None:
-                    ref, raw_a, first = this, value, paths
-                elif not all(np.array_equal(x, y) for x, y in zip(this, ref)) or not all(
-                        np.array_equal(x, y) for x, y in zip(value, raw_a)):
+                t = time.perf_counter()
+                this, order = _sorted(paths, value, loaded, kwargs)
+                t_convert += time.perf_counter() - t
+                if traced is None:
+                    traced = this
+                elif not _same(this, traced):
                     raise RuntimeError("sionna-rt returned different paths for two solves of the same scene and "
-                                       "position (the deterministic solver should make them bit-identical)")
-                grads[(name, kind)] = g
-        t_solve = time.perf_counter() - t1
-
-        t2 = time.perf_counter()
-        zeros = np.zeros(3)
-        none = np.zeros((0, 3))
-        kwargs = dict(radar_position=radar, ris_positions=none, radar_velocity=zeros, max_depth=settings.max_depth)
-        (traced,) = paths_to_traced(_Arrays(first, raw_a), loaded, **kwargs)
-        # The sorted order: the same conversion with each raw path's index as its "gain".
-        index = np.broadcast_to(np.arange(raw_a[0].shape[-1], dtype=np.float64), raw_a[0].shape)
-        (order_paths,) = paths_to_traced(_Arrays(first, (index, np.zeros_like(index))), loaded, **kwargs)
+                                       "position (the deterministic solver should make them identical)")
+                grads[(name, kind)] = g[0, 0, 0, 0, :][order]
+        t_solve = time.perf_counter() - t1 - t_convert
     finally:
         for name, value in saved_s.items():
             mats[name].scattering_coefficient = value
         for name in own:
             _set_material(mats[name], *own[name])
-    order = np.rint(order_paths.amplitude.real).astype(np.int64)
-
-    def column(name: str, kind: str) -> np.ndarray:
-        return grads[(name, kind)][0, 0, 0, 0, :][order]
-
-    d_eps = np.stack([column(n, "relative_permittivity") for n in names], axis=1).reshape(len(order), len(names))
-    d_sigma = np.stack([column(n, "conductivity") for n in names], axis=1).reshape(len(order), len(names))
+    assert traced is not None  # names is never empty
+    t2 = time.perf_counter()
+    p_count = len(traced)
+    d_eps = np.stack([grads[(n, "relative_permittivity")] for n in names], axis=1).reshape(p_count, len(names))
+    d_sigma = np.stack([grads[(n, "conductivity")] for n in names], axis=1).reshape(p_count, len(names))
     objects_of = material_objects(loaded)
     index_of = {obj: i for i, obj in enumerate(traced.object_names)}
     touches = np.zeros((len(traced), len(names)), dtype=bool)
@@ -462,7 +475,7 @@ def material_jacobian(
     for q, name in enumerate(names):
         ids = [index_of[o] for o in objects_of.get(name, ())]
         touches[:, q] = (np.isin(traced.objects, ids) & used).any(axis=1)
-    t_convert = time.perf_counter() - t2
+    t_convert += time.perf_counter() - t2
     return MaterialJacobian(
         paths=traced, materials=names, relative_permittivity=at[:, 0], conductivity=at[:, 1],
         d_eps=d_eps, d_sigma=d_sigma, touches=touches,
