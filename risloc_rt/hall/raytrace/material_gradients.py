@@ -32,8 +32,9 @@ Conventions
 SI units. ``a`` is sionna-rt's ``Paths.a`` (V-polarised isotropic antennas at both ends, V-V),
 *without* the propagation phase ``exp(-j2π f τ)``: ``|a|² = (λ/(4π L))² Π|Γ|²`` for a specular
 path of unfolded length L. The complex relative permittivity is ``η = ε_r − jσ/(ε0 ω)``, so for
-every path whose gain is a holomorphic function of η (specular reflection, refraction)
-``∂a/∂σ = −j/(ε0 ω) · ∂a/∂ε_r``; both are computed independently here.
+every path whose gain is a holomorphic function of η (specular reflection, refraction and
+diffraction, measured to 3e-5) ``∂a/∂σ = −j/(ε0 ω) · ∂a/∂ε_r``; a diffusely reflected path's gain
+is not (the identity fails by more than the derivative itself), so both are computed by AD.
 """
 
 from __future__ import annotations
