@@ -54,7 +54,7 @@ from dsp.validation import as_finite_array, positive
 from ..traced import TracedPaths
 from .result import TraceSettings
 from .scene import LoadedScene, load_scene, scene_content_hash
-from .tracer import paths_to_traced
+from .tracer import paths_to_traced, solver_options
 
 __all__ = ["MaterialJacobian", "material_jacobian", "material_objects", "DEFAULT_FREQUENCY"]
 
@@ -281,22 +281,6 @@ def _set_material(mat: Any, eps: float, sigma: float) -> None:
     dr.make_opaque(mat.relative_permittivity, mat.conductivity)
 
 
-def _solver_call(solver: Any, scene: Any, settings: TraceSettings) -> Any:
-    return solver(
-        scene,
-        max_depth=settings.max_depth,
-        max_num_paths_per_src=settings.max_num_paths_per_src,
-        samples_per_src=settings.samples_per_src,
-        synthetic_array=True,
-        los=True,
-        specular_reflection=settings.specular_reflection,
-        diffuse_reflection=settings.diffuse_reflection,
-        refraction=settings.refraction,
-        diffraction=settings.diffraction,
-        seed=settings.seed,
-    )
-
-
 class _Arrays:
     """Stand-in for ``sionna.rt.Paths`` handing :func:`paths_to_traced` numpy arrays."""
 
@@ -441,7 +425,7 @@ def material_jacobian(
                 param = getattr(mats[name], kind)
                 dr.enable_grad(param)
                 try:
-                    paths = _solver_call(solver, sc, settings)
+                    paths = solver(sc, **solver_options(settings))
                     a_re, a_im = paths.a
                     dr.set_grad(param, 1.0)
                     dr.forward_to(a_re, a_im)

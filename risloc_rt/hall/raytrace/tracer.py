@@ -26,7 +26,7 @@ from .scene import LoadedScene, load_scene, scene_content_hash
 if TYPE_CHECKING:  # pragma: no cover
     from .cache import TraceCache
 
-__all__ = ["TraceResult", "TraceSettings", "paths_to_traced", "r_hat", "solve_paths", "trace_scene"]
+__all__ = ["TraceResult", "TraceSettings", "paths_to_traced", "r_hat", "solve_paths", "solver_options", "trace_scene"]
 
 #: Name of the transmitter and of the monostatic receiver added to the scene.
 RADAR_TX, RADAR_RX = "radar_tx", "radar_rx"
@@ -156,21 +156,28 @@ def solve_paths(
             scene.radio_materials[name].scattering_coefficient = value
 
 
+def solver_options(settings: TraceSettings) -> dict[str, Any]:
+    """The keyword arguments of sionna-rt's ``PathSolver`` call for ``settings`` (every solve of the project's).
+
+    Parameters
+    ----------
+    settings : TraceSettings
+
+    Returns
+    -------
+    dict
+        ``max_depth``, ``max_num_paths_per_src``, ``samples_per_src``, ``synthetic_array=True``,
+        ``los=True``, the interaction switches and ``seed``.
+    """
+    return dict(max_depth=settings.max_depth, max_num_paths_per_src=settings.max_num_paths_per_src,
+                samples_per_src=settings.samples_per_src, synthetic_array=True, los=True,
+                specular_reflection=settings.specular_reflection, diffuse_reflection=settings.diffuse_reflection,
+                refraction=settings.refraction, diffraction=settings.diffraction, seed=settings.seed)
+
+
 def _solve(solver: Any, scene: Any, settings: TraceSettings) -> Any:
     """One deterministic solve, evaluated before returning (materials may change afterwards)."""
-    paths = solver(
-        scene,
-        max_depth=settings.max_depth,
-        max_num_paths_per_src=settings.max_num_paths_per_src,
-        samples_per_src=settings.samples_per_src,
-        synthetic_array=True,
-        los=True,
-        specular_reflection=settings.specular_reflection,
-        diffuse_reflection=settings.diffuse_reflection,
-        refraction=settings.refraction,
-        diffraction=settings.diffraction,
-        seed=settings.seed,
-    )
+    paths = solver(scene, **solver_options(settings))
     paths.tau.numpy()  # Dr.Jit is lazy: evaluate while the materials are the ones asked for
     return paths
 
