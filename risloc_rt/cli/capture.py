@@ -242,10 +242,8 @@ class _RecordProgress:
     """The ``capture record`` progress line (tqdm on stderr): MB/s, frames, lost packets, socket high-water."""
 
     def __init__(self, total_bytes: int | None) -> None:
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=total_bytes, unit="B", unit_scale=True, desc="record", file=sys.stderr,
-                        dynamic_ncols=True, leave=True)
+        self.total = total_bytes
+        self.bar = None             # drawn at the first report: a refused .cfg or a dead link show no empty bar
         self.shown = 0
         self.warned = False
 
@@ -257,6 +255,11 @@ class _RecordProgress:
         progress : RecordingProgress
             The recording's state.
         """
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, unit="B", unit_scale=True, desc="record", file=sys.stderr,
+                            dynamic_ncols=True, leave=True)
         if not self.warned and progress.socket_buffer is not None and progress.socket_buffer.hint():
             self.bar.write(f"warning: {progress.socket_buffer.hint()}", file=sys.stderr)
         self.warned = True
@@ -267,8 +270,19 @@ class _RecordProgress:
                                  f"{progress.socket_high_water / 1e6:.2f} MB", refresh=False)
 
     def close(self) -> None:
-        """Close the bar."""
-        self.bar.close()
+        """Close the bar (if one was drawn)."""
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _print_summary(summary, stream) -> None:
+    """The ``recorded …`` line and the first 20 runs of lost packets (the rest: ``lost_packets.csv``)."""
+    print(f"recorded {summary.describe()}", file=stream)
+    for run in summary.lost[:20]:
+        print(f"  lost packets {run.first_sequence}..{run.first_sequence + run.count - 1}: {run.num_bytes} B "
+              f"zero-filled at byte {run.stream_offset}", file=stream)
+    if len(summary.lost) > 20:
+        print(f"  ... {len(summary.lost) - 20} more runs in {summary.folder / 'lost_packets.csv'}", file=stream)
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -294,19 +308,11 @@ def _record(args: argparse.Namespace) -> int:
     except BaseException as exc:
         bar.close()
         done = recording_summary(exc)
-        if done is not None:
-            print(f"recorded {done.describe()}", file=sys.stderr)
-            for run in done.lost[:20]:
-                print(f"  lost packets {run.first_sequence}..{run.first_sequence + run.count - 1}: "
-                      f"{run.num_bytes} B zero-filled at byte {run.stream_offset}", file=sys.stderr)
+        if done is not None and done.bytes > 0:      # nothing arrived: the folder was removed, nothing to report
+            _print_summary(done, sys.stderr)
         raise
     bar.close()
-    print(f"recorded {summary.describe()}")
-    for run in summary.lost[:20]:
-        print(f"  lost packets {run.first_sequence}..{run.first_sequence + run.count - 1}: {run.num_bytes} B "
-              f"zero-filled at byte {run.stream_offset}")
-    if len(summary.lost) > 20:
-        print(f"  ... {len(summary.lost) - 20} more runs in {summary.folder / 'lost_packets.csv'}")
+    _print_summary(summary, sys.stdout)
     if summary.kernel_drops:
         print(f"warning: the kernel dropped {summary.kernel_drops} datagram(s) for a full socket buffer (listed as "
               "lost packets): raise net.core.rmem_max (docs/live-capture.md)", file=sys.stderr)

@@ -32,7 +32,7 @@ from ..dca1000.packets import MAX_PAYLOAD, DroppedPackets
 from ..errors import MeasuredFormatError
 from .addresses import Endpoints
 from .receiver import DEFAULT_RCVBUF, DatagramReceiver, SocketBuffer
-from .recording_writer import DEFAULT_SPLIT_SIZE, RecordingWriter, existing_recording
+from .recording_writer import DEFAULT_SPLIT_SIZE, LOST_PACKETS_NAME, RecordingWriter, existing_recording, log_name
 
 __all__ = ["CONFIG_NAME", "SCHEDULE_NAME", "STOP_REASONS", "RecordPlan", "RecordingError", "RecordingProgress",
            "RecordingSummary", "record", "recording_summary"]
@@ -276,8 +276,9 @@ def _check(plan: RecordPlan) -> _Setup:
                   lanes=check.lanes, fpga=FpgaConfig.from_chirp_config(cfg, lanes=check.lanes))
 
 
-def _prepare_folder(plan: RecordPlan) -> None:
-    """Refuse a folder holding a recording (or its ``.cfg``/schedule copies); copy the ``.cfg`` and schedule."""
+def _prepare_folder(plan: RecordPlan) -> bool:
+    """Refuse a folder holding a recording (or its ``.cfg``/schedule copies); copy the ``.cfg`` and schedule.
+    Whether the folder was made here (:func:`_undo_folder` removes it again when nothing was recorded)."""
     out = plan.out
     if out.exists() and not out.is_dir():
         raise MeasuredFormatError(f"--out {out} is a file: give a folder (new or empty) for the recording")
@@ -289,12 +290,32 @@ def _prepare_folder(plan: RecordPlan) -> None:
         from ..sweep.schedule import read_sweep_schedules
 
         read_sweep_schedules(plan.sweep)                     # a bad schedule: one line, before the hardware
+    made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     with open(plan.config, "rb") as src, open(out / CONFIG_NAME, "xb") as dst:
         shutil.copyfileobj(src, dst)
     if plan.sweep is not None:
         with open(plan.sweep, "rb") as src, open(out / SCHEDULE_NAME, "xb") as dst:
             shutil.copyfileobj(src, dst)
+    return made
+
+
+def _undo_folder(plan: RecordPlan, made: bool) -> None:
+    """A session that failed before any data arrived leaves nothing: the files this run wrote into ``--out``
+    (the ``.cfg`` and schedule copies, the empty log, lost-packet list and raw files; the folder was refused
+    if any of them was there before, so none is the user's) and the folder itself when this run made it.
+    Then the same command can simply be run again."""
+    out = plan.out
+    ours = {CONFIG_NAME, SCHEDULE_NAME, log_name(PREFIX), LOST_PACKETS_NAME}
+    for name in sorted(ours | set(existing_recording(out, PREFIX))):
+        path = out / name
+        if path.is_file() and (name in ours or path.stat().st_size == 0):   # raw files: only empty ones
+            path.unlink()
+    if made:
+        try:
+            out.rmdir()                          # only when empty: anything else stays
+        except OSError:
+            pass
 
 
 class _Session:
@@ -458,13 +479,15 @@ def record(plan: RecordPlan, on_progress: Callable[[RecordingProgress], None] | 
         A bad plan, ``.cfg`` or folder (before any device is touched), a radar that refuses a line
         (its own error text), a DCA1000 that does not answer, :class:`RecordingError` (no data, a
         lost link); ``KeyboardInterrupt`` on Ctrl-C. Once the devices were started, the exception
-        carries the summary (:func:`recording_summary`) and the recording is complete and readable.
+        carries the summary (:func:`recording_summary`) and the recording is complete and readable; when
+        no data had arrived, what this run wrote into ``--out`` (and the folder, if it made it) is removed,
+        so the same command can be run again.
     """
     unknown = set(options) - set(_DEFAULTS)
     if unknown:
         raise TypeError(f"record() got unknown options {sorted(unknown)}; known: {sorted(_DEFAULTS)}")
     setup = _check(plan)
-    _prepare_folder(plan)
+    made = _prepare_folder(plan)
     session = _Session(plan, setup, {**_DEFAULTS, **options})
     try:
         with ExitStack() as stack:
@@ -489,5 +512,7 @@ def record(plan: RecordPlan, on_progress: Callable[[RecordingProgress], None] | 
         summary = session.summary()
         if summary is not None:
             exc.recording_summary = summary
+        if session.writer is None or session.writer.received_bytes == 0:
+            _undo_folder(plan, made)             # nothing arrived: no half-made folder blocks the next try
         raise
     return session.summary()

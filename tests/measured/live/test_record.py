@@ -159,6 +159,20 @@ def test_a_dead_dca1000_stops_the_radar(experiment, endpoints, tmp_path):
     assert "sensorStart" not in lines and lines[-1] == "sensorStop"
     assert saw(dca, RECORD_STOP)                       # sent without waiting: the board never answers
     assert recording_summary(err.value).stopped == "error"
+    assert not (tmp_path / "rec").exists()               # nothing arrived: the folder this run made is removed
+
+
+def test_a_start_that_fails_can_be_run_again(experiment, endpoints, tmp_path):
+    """Regression: a wrong serial port failed after the folder got its adc_data.cfg copy, and the next try was
+    refused ("already holds a recording"). Nothing arrived, so the run removes what it wrote; a folder the
+    user made stays, with the user's own files."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("bench log")
+    for _ in range(2):                                 # the same error twice, not "already holds a recording"
+        with pytest.raises(MeasuredFormatError, match="does not exist"):
+            record(plan(experiment, str(tmp_path / "no-such-port"), out, endpoints), **FAST)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
 
 
 def test_a_link_that_dies_mid_stream(experiment, endpoints, tmp_path):
