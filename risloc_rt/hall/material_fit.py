@@ -1,0 +1,676 @@
+"""Fit the hall's materials (ε_r, σ at the carrier) to observed peak powers, by gradients through the tracer.
+
+The engine of ``risloc calibrate --materials`` (issue 23); there is no CLI and no scene writing
+here. Every gain and derivative comes from
+:func:`risloc_rt.hall.raytrace.material_gradients.material_jacobian` (no sionna import here).
+
+Model
+-----
+An :class:`Observation` is one radar position [m] and its observed peaks, each a round-trip delay
+[s] (as the tracer reports delays), a power [dB] and its 1σ [dB]. A peak is *explained* by the
+traced monostatic paths whose delay lies within ``window`` of it (default: half the radar's
+Rayleigh delay resolution, ``RadarConfig().delay_resolution / 2`` = 0.121 ns for Table I, i.e.
+the paths one beat peak merges); a path within the window of two peaks goes to the nearer one.
+The model power of peak k is
+
+    P_k [dB] = 10 log10( Σ_{p ∈ k} |a_p|² ) + offset_db
+
+with ``a_p`` sionna-rt's gain (``Paths.a``, V-V, without the propagation phase) and
+``offset_db`` the observation's known radar/RIS constant (0 for powers in units of |a|²).
+**Incoherent** sum: the paths that share one beat peak are distinct legs (A→B and B→A, or
+different bounce sequences of nearly the same length) whose relative phase is 2π f_c Δτ; at
+60 GHz a 1 mm difference in path length is 72° of phase, far below what the hall's geometry is
+known to, so their phases are effectively random and the expected power is the sum of powers.
+(A→B and B→A of the same bounce pair are exactly equal in length and would add coherently, a
+constant +3 dB that a measured radar/RIS constant absorbs; the incoherent model is kept so a
+fitted material does not depend on sub-mm geometry.)
+
+Parameters are (ε_r, s = ln σ) per material (σ in S/m): σ > 0 by construction, ε_r ≥ 1 by
+projection of every step (what sionna-rt accepts). The fit is Levenberg–Marquardt on the
+residuals (observed − model) [dB] weighted by 1/σ_dB, with the Jacobian of each peak's dB power
+
+    ∂P_k[dB]/∂θ = 10/ln 10 · Σ_{p∈k} 2 Re(a_p* ∂a_p/∂θ) / Σ_{p∈k} |a_p|²,   ∂/∂s = σ ∂/∂σ,
+
+from one ``material_jacobian`` per radar position and evaluation. The 1σ and correlations are
+those of the Fisher information at the solution, (JᵀWJ)⁻¹, W = diag(1/σ_dB²).
+
+Identifiability (reported, not guessed)
+---------------------------------------
+- A material that no *explained* peak touches (no path within the windows interacts with its
+  objects) is refused before fitting: one-line ``ValueError`` naming it and why.
+- The weighted Jacobian's columns are scaled to unit norm and decomposed (SVD); the report holds
+  its singular values and condition number. A direction whose singular value is below
+  ``threshold`` (default 1e-3) times the largest is **not identifiable**: every parameter whose
+  component in it is ≥ 0.1 is flagged with its reason — "only a combination of ε_r and σ of M is
+  seen" (e.g. powers at normal incidence: |Γ|² is one number for two parameters), "collinear
+  with X" (two materials that only appear together) or "does not change any peak".
+- **Choice**: the fit then does not refuse; its steps are taken in the identifiable subspace only
+  (truncated SVD), a flagged parameter keeps its start value with an **infinite σ** and NaN
+  correlations, and :meth:`MaterialFit.value` refuses it with its reason. It is never returned as
+  a bare number.
+
+Tests (``tests/hall/test_material_fit.py``) are the engine's self-consistency check: the
+"measured" peaks are made by :func:`synthetic_observations` from the same traced paths the model
+uses, at changed material values, with Gaussian dB noise; the physics oracle is the tracer at the
+true values.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dsp import RadarConfig
+from dsp.validation import as_finite_array
+
+from .raytrace.material_gradients import MaterialJacobian, material_jacobian
+from .raytrace.result import TraceSettings
+
+__all__ = ["Observation", "MaterialFit", "IdentifiabilityReport", "fit_materials", "synthetic_observations",
+           "assign_paths", "DEFAULT_WINDOW", "DEFAULT_THRESHOLD"]
+
+#: Default delay window [s]: half Table I's Rayleigh delay resolution (the paths one beat peak merges).
+DEFAULT_WINDOW: float = RadarConfig().delay_resolution / 2.0
+#: Default identifiability threshold: smallest singular value of the column-scaled weighted
+#: Jacobian, relative to its largest, below which a direction is not identifiable (condition 1e3).
+DEFAULT_THRESHOLD: float = 1e-3
+#: A parameter takes part in a flagged direction when its component there is at least this.
+_COMPONENT = 0.1
+_DB = 10.0 / math.log(10.0)
+_LOG_SIGMA_BOUNDS = (-40.0, 40.0)  # ln σ [ln(S/m)]: keeps σ a finite float32
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One radar position and the peaks observed there.
+
+    Parameters
+    ----------
+    radar_position : float array [3]
+        Radar position, world frame [m].
+    delay : float array [K]
+        Round-trip delay of each observed peak [s] (as the tracer reports path delays).
+    power_db : float array [K]
+        Observed power of each peak [dB], in units of |a|² plus ``offset_db``.
+    sigma_db : float array [K] or float
+        1σ of each observed power [dB], > 0 (a scalar applies to every peak).
+    offset_db : float
+        Known constant added to every model power of this position (radar/RIS link budget) [dB].
+    """
+
+    radar_position: np.ndarray
+    delay: np.ndarray
+    power_db: np.ndarray
+    sigma_db: np.ndarray
+    offset_db: float = 0.0
+
+    def __post_init__(self) -> None:
+        pos = as_finite_array(self.radar_position, "radar_position", shape=(3,))
+        delay = np.array(self.delay, dtype=float).reshape(-1)
+        k = delay.size
+        power = np.array(self.power_db, dtype=float).reshape(-1)
+        sigma = np.broadcast_to(np.array(self.sigma_db, dtype=float), (k,)).copy() if np.ndim(self.sigma_db) == 0 \
+            else np.array(self.sigma_db, dtype=float).reshape(-1)
+        if k == 0:
+            raise ValueError("an Observation needs at least one peak (delay is empty)")
+        if power.size != k or sigma.size != k:
+            raise ValueError(f"delay, power_db and sigma_db must have one entry per peak; got {k}, {power.size}, "
+                             f"{sigma.size}")
+        if not (np.all(np.isfinite(delay)) and np.all(delay > 0)):
+            raise ValueError("delay must be finite and > 0 [s]")
+        if not np.all(np.isfinite(power)):
+            raise ValueError("power_db must be finite [dB]")
+        if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
+            raise ValueError("sigma_db must be finite and > 0 [dB]")
+        if not math.isfinite(float(self.offset_db)):
+            raise ValueError(f"offset_db={self.offset_db!r} must be finite [dB]")
+        for name, value in (("radar_position", pos), ("delay", delay), ("power_db", power), ("sigma_db", sigma)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "offset_db", float(self.offset_db))
+
+    def __len__(self) -> int:
+        return int(self.delay.size)
+
+
+@dataclass(frozen=True)
+class IdentifiabilityReport:
+    """What the explained peaks can tell about each material.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+        The 2Q parameter names, ``"<material>:eps_r"`` [unitless] and ``"<material>:ln_sigma"``
+        [ln(S/m)], in the order of the Jacobian's columns.
+    peaks : tuple of (int, int)
+        (observation index, peak index) of every explained peak, in the order of the rows.
+    unexplained : tuple of (int, int)
+        The observed peaks no traced path lies within the window of (left out of the fit).
+    constrains : bool array [K, Q]
+        Explained peak k has a path touching material q.
+    jacobian_db : float array [K, 2Q]
+        ∂P_k[dB]/∂θ at the solution (unweighted) [dB per unit ε_r, dB per unit ln σ].
+    singular_values : float array [2Q]
+        Of the weighted Jacobian with unit-norm columns, descending [unitless].
+    condition : float
+        Largest over smallest singular value (inf when the smallest is 0).
+    threshold : float
+        Relative singular value below which a direction is not identifiable.
+    not_identifiable : dict
+        ``{parameter name: reason}`` for every flagged parameter (empty when all are identifiable).
+    """
+
+    parameters: tuple[str, ...]
+    peaks: tuple[tuple[int, int], ...]
+    unexplained: tuple[tuple[int, int], ...]
+    constrains: np.ndarray
+    jacobian_db: np.ndarray
+    singular_values: np.ndarray
+    condition: float
+    threshold: float
+    not_identifiable: dict[str, str]
+
+    @property
+    def identifiable(self) -> bool:
+        """True when no parameter is flagged."""
+        return not self.not_identifiable
+
+    def summary(self) -> str:
+        """One line per material: the peaks constraining it and any flag.
+
+        Returns
+        -------
+        str
+            Human-readable report (multi-line).
+        """
+        lines = [f"condition {self.condition:.3g} (threshold {1 / self.threshold:.3g}); singular values "
+                 + ", ".join(f"{s:.3g}" for s in self.singular_values)]
+        materials = [p.split(":")[0] for p in self.parameters[::2]]
+        for q, m in enumerate(materials):
+            n = int(self.constrains[:, q].sum())
+            flags = [f"{p.split(':')[1]}: {r}" for p, r in self.not_identifiable.items() if p.split(":")[0] == m]
+            lines.append(f"{m}: {n} peak(s)" + ("; " + "; ".join(flags) if flags else "; identifiable"))
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class MaterialFit:
+    """Result of :func:`fit_materials`.
+
+    Attributes
+    ----------
+    materials : tuple of str
+        The fitted radio materials (sionna-rt names).
+    relative_permittivity : float array [Q]
+        Fitted ε_r [unitless] (the start value for a flagged parameter).
+    conductivity : float array [Q]
+        Fitted σ [S/m] (the start value for a flagged parameter).
+    relative_permittivity_sigma : float array [Q]
+        1σ of ε_r from the Fisher information [unitless]; inf when not identifiable.
+    log_conductivity_sigma : float array [Q]
+        1σ of ln σ [unitless]; inf when not identifiable.
+    covariance : float array [2Q, 2Q]
+        (JᵀWJ)⁻¹ in the parameters (ε_r, ln σ) per material [unit ε_r², ln σ²]; inf/NaN where
+        not identifiable.
+    correlation : float array [2Q, 2Q]
+        The correlation matrix (NaN rows/columns for flagged parameters).
+    start : dict
+        ``{material: (ε_r, σ [S/m])}`` the fit started from.
+    residuals_start_db, residuals_db : float array [K]
+        Observed − model power of every explained peak at the start and at the solution [dB].
+    rms_start_db, rms_db : float
+        Their root mean square [dB].
+    chi2 : float
+        Σ (residual/σ_dB)² at the solution [unitless].
+    iterations : int
+        Levenberg–Marquardt iterations (accepted or not).
+    evaluations : int
+        Calls of ``material_jacobian`` per radar position (traces of the whole set of positions).
+    converged : bool
+        The last accepted step changed the cost by less than its tolerance.
+    seconds : float
+        Wall-clock time of the fit [s].
+    identifiability : IdentifiabilityReport
+        Which peaks constrain which material, singular values, flags.
+    history : tuple of float
+        Cost ½χ² after each iteration.
+    """
+
+    materials: tuple[str, ...]
+    relative_permittivity: np.ndarray
+    conductivity: np.ndarray
+    relative_permittivity_sigma: np.ndarray
+    log_conductivity_sigma: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    start: dict[str, tuple[float, float]]
+    residuals_start_db: np.ndarray
+    residuals_db: np.ndarray
+    chi2: float
+    iterations: int
+    evaluations: int
+    converged: bool
+    seconds: float
+    identifiability: IdentifiabilityReport
+    history: tuple[float, ...] = field(default=())
+
+    @property
+    def conductivity_sigma(self) -> np.ndarray:
+        """1σ of σ by the delta method, σ · σ_lnσ [S/m] (inf when not identifiable)."""
+        return self.conductivity * self.log_conductivity_sigma
+
+    @property
+    def rms_start_db(self) -> float:
+        """RMS of the start residuals [dB]."""
+        return float(np.sqrt(np.mean(self.residuals_start_db ** 2)))
+
+    @property
+    def rms_db(self) -> float:
+        """RMS of the residuals at the solution [dB]."""
+        return float(np.sqrt(np.mean(self.residuals_db ** 2)))
+
+    @property
+    def seconds_per_iteration(self) -> float:
+        """Wall-clock seconds per evaluation (all positions traced and differentiated once) [s]."""
+        return self.seconds / max(self.evaluations, 1)
+
+    def value(self, material: str) -> tuple[float, float, float, float]:
+        """One material's fitted values and 1σ; refuses a flagged one.
+
+        Parameters
+        ----------
+        material : str
+            One of ``materials``.
+
+        Returns
+        -------
+        tuple of float
+            (ε_r [unitless], σ [S/m], 1σ of ε_r [unitless], 1σ of σ [S/m]).
+
+        Raises
+        ------
+        ValueError
+            Unknown material, or one of its parameters is not identifiable (the reason).
+        """
+        if material not in self.materials:
+            raise ValueError(f"material {material!r} was not fitted; fitted: {', '.join(self.materials)}")
+        flags = {p: r for p, r in self.identifiability.not_identifiable.items() if p.split(":")[0] == material}
+        if flags:
+            raise ValueError(f"material {material!r} is not identifiable from these peaks: "
+                             + "; ".join(f"{p}: {r}" for p, r in flags.items()))
+        q = self.materials.index(material)
+        return (float(self.relative_permittivity[q]), float(self.conductivity[q]),
+                float(self.relative_permittivity_sigma[q]), float(self.conductivity_sigma[q]))
+
+
+def assign_paths(path_delay: np.ndarray, peak_delay: np.ndarray, window: float) -> np.ndarray:
+    """The peak that explains each traced path: the nearest one within ``window``, else -1.
+
+    Parameters
+    ----------
+    path_delay : float array [P]
+        Round-trip delays of the traced paths [s].
+    peak_delay : float array [K]
+        Round-trip delays of the observed peaks [s].
+    window : float
+        Largest |path delay − peak delay| that explains the path [s].
+
+    Returns
+    -------
+    int array [P]
+        Peak index per path, -1 for a path no peak explains.
+    """
+    path_delay = np.asarray(path_delay, dtype=float).reshape(-1)
+    peak_delay = np.asarray(peak_delay, dtype=float).reshape(-1)
+    if path_delay.size == 0 or peak_delay.size == 0:
+        return np.full(path_delay.size, -1, dtype=np.int64)
+    dist = np.abs(path_delay[:, None] - peak_delay[None, :])
+    best = np.argmin(dist, axis=1)
+    return np.where(dist[np.arange(path_delay.size), best] <= window, best, -1).astype(np.int64)
+
+
+def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-peak power [dB, without offset], its Jacobian [K, 2Q] w.r.t. (ε_r, ln σ), and touches [K, Q]."""
+    q = len(jac.materials)
+    power = np.zeros(k)
+    d_power = np.zeros((k, 2 * q))
+    touches = np.zeros((k, q), dtype=bool)
+    a = jac.a
+    sig = jac.conductivity
+    for i in range(k):
+        m = assign == i
+        if not m.any():
+            continue
+        power[i] = float(np.sum(np.abs(a[m]) ** 2))
+        conj = np.conj(a[m])[:, None]
+        d_power[i, 0::2] = np.sum(2.0 * np.real(conj * jac.d_eps[m]), axis=0)
+        d_power[i, 1::2] = np.sum(2.0 * np.real(conj * jac.d_sigma[m]), axis=0) * sig
+        touches[i] = jac.touches[m].any(axis=0)
+    explained = power > 0
+    db = np.full(k, np.nan)
+    jdb = np.zeros((k, 2 * q))
+    db[explained] = _DB * np.log(power[explained])
+    jdb[explained] = _DB * d_power[explained] / power[explained, None]
+    return db, jdb, touches, explained
+
+
+def _values_of(materials: Sequence[str], theta: np.ndarray) -> dict[str, tuple[float, float]]:
+    return {m: (float(theta[2 * q]), float(math.exp(theta[2 * q + 1]))) for q, m in enumerate(materials)}
+
+
+def synthetic_observations(
+    scene: str | os.PathLike[str],
+    positions: Any,
+    values: Mapping[str, tuple[float, float]],
+    *,
+    sigma_db: float,
+    rng: np.random.Generator | None,
+    settings: TraceSettings | None = None,
+    window: float = DEFAULT_WINDOW,
+    offset_db: float = 0.0,
+) -> tuple[list[Observation], list[np.ndarray]]:
+    """Observations made by the tracer itself at given material values (the fit's self-consistency oracle).
+
+    The traced paths of each position are grouped into peaks (a group starts at the first path
+    not yet grouped and takes every path up to ``window`` later); a peak's delay is its paths'
+    power-weighted mean delay; its power is the model's (:func:`assign_paths` then the incoherent
+    sum) plus Gaussian noise of 1σ ``sigma_db``.
+
+    Parameters
+    ----------
+    scene : path-like
+        Scene folder or its ``scene.xml``.
+    positions : float array [N, 3]
+        Radar positions [m].
+    values : mapping
+        ``{material: (ε_r [unitless], σ [S/m])}`` the "true" hall is traced with (at least one).
+    sigma_db : float
+        1σ of the Gaussian power noise and the stated σ of every peak [dB], > 0.
+    rng : numpy.random.Generator or None
+        Noise source; None for noise-free powers.
+    settings : TraceSettings, optional
+        Solver options (as for the fit).
+    window : float
+        Delay window [s] (as for the fit).
+    offset_db : float
+        Constant added to every power [dB] (stored as each observation's ``offset_db``).
+
+    Returns
+    -------
+    observations : list of Observation
+        One per position.
+    truth_db : list of float array
+        The noise-free powers of each observation's peaks [dB].
+    """
+    if not values:
+        raise ValueError("values is empty: name at least one material with its (eps_r, sigma [S/m])")
+    if not (isinstance(sigma_db, (int, float)) and math.isfinite(sigma_db) and sigma_db > 0):
+        raise ValueError(f"sigma_db={sigma_db!r} must be finite and > 0 [dB]")
+    pos = np.asarray(positions, dtype=float).reshape(-1, 3)
+    observations, truths = [], []
+    for p in pos:
+        jac = material_jacobian(scene, p, [next(iter(values))], values=values, settings=settings)
+        d = jac.delay
+        order = np.argsort(d, kind="stable")
+        groups: list[list[int]] = []
+        for i in order:
+            if groups and d[i] - d[groups[-1][0]] <= window:
+                groups[-1].append(int(i))
+            else:
+                groups.append([int(i)])
+        power = np.abs(jac.a) ** 2
+        delays = np.array([np.sum(d[g] * power[g]) / np.sum(power[g]) for g in groups])
+        assign = assign_paths(d, delays, window)
+        db, _, _, explained = _peak_model(jac, assign, delays.size)
+        delays, db = delays[explained], db[explained] + offset_db
+        noisy = db + (rng.normal(0.0, sigma_db, db.size) if rng is not None else 0.0)
+        observations.append(Observation(p, delays, noisy, sigma_db, offset_db=offset_db))
+        truths.append(db)
+    return observations, truths
+
+
+def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian) -> np.ndarray:
+    theta = np.empty(2 * len(materials))
+    start = {} if start is None else start
+    if not isinstance(start, Mapping):
+        raise TypeError(f"start must be a mapping {{material: (eps_r, sigma [S/m])}}, got {type(start).__name__}")
+    for name in start:
+        if name not in materials:
+            raise ValueError(f"start names {name!r}, which is not among the fitted materials {', '.join(materials)}")
+    for q, m in enumerate(materials):
+        eps, sigma = start.get(m, (own.relative_permittivity[q], own.conductivity[q]))
+        if not (math.isfinite(eps) and eps >= 1.0):
+            raise ValueError(f"start[{m!r}] eps_r={eps!r} must be finite and >= 1")
+        if not (math.isfinite(sigma) and sigma > 0.0):
+            raise ValueError(f"start[{m!r}] sigma={sigma!r} must be finite and > 0 S/m (the fit works in ln sigma)")
+        theta[2 * q], theta[2 * q + 1] = float(eps), math.log(float(sigma))
+    return theta
+
+
+def _flags(vt: np.ndarray, s: np.ndarray, threshold: float, names: tuple[str, ...]) -> dict[str, str]:
+    """Reasons for every parameter taking part in a direction below the threshold."""
+    out: dict[str, str] = {}
+    top = s[0] if s.size and s[0] > 0 else 0.0
+    for i in range(s.size):
+        if top > 0 and s[i] >= threshold * top:
+            continue
+        v = vt[i]
+        part = [j for j in range(v.size) if abs(v[j]) >= _COMPONENT]
+        mats = sorted({names[j].split(":")[0] for j in part})
+        combo = " + ".join(f"{v[j]:+.2f}·{names[j]}" for j in part)
+        rel = s[i] / top if top > 0 else 0.0
+        for j in part:
+            m, kind = names[j].split(":")
+            if len(part) == 1:
+                reason = f"{kind} of {m} does not change any explained peak's power (relative singular value {rel:.1e})"
+            elif len(mats) == 1:
+                reason = (f"only a combination of eps_r and sigma of {m} is seen ({combo} unresolved, relative "
+                          f"singular value {rel:.1e}): e.g. powers at one incidence angle give one |Gamma|^2 for two "
+                          f"parameters")
+            else:
+                others = ", ".join(x for x in mats if x != m)
+                reason = f"collinear with {others} ({combo} unresolved, relative singular value {rel:.1e})"
+            out.setdefault(names[j], reason)
+    return out
+
+
+def fit_materials(
+    scene: str | os.PathLike[str],
+    observations: Sequence[Observation],
+    materials: str | Sequence[str],
+    *,
+    start: Mapping[str, tuple[float, float]] | None = None,
+    settings: TraceSettings | None = None,
+    window: float = DEFAULT_WINDOW,
+    threshold: float = DEFAULT_THRESHOLD,
+    max_iter: int = 30,
+    tolerance: float = 1e-6,
+    progress: Callable[[int, float], None] | None = None,
+) -> MaterialFit:
+    """Fit the named materials' ε_r and σ to the observed peak powers (Levenberg–Marquardt, dB residuals).
+
+    Parameters
+    ----------
+    scene : path-like
+        Scene folder (``scenes/<name>/``) or its ``scene.xml``.
+    observations : sequence of Observation
+        Radar positions [m] with their peaks (delay [s], power [dB], 1σ [dB]).
+    materials : str or sequence of str
+        Radio materials to fit (sionna-rt names, e.g. ``"concrete-200mm"``): a list or ``"a,b"``.
+    start : mapping, optional
+        ``{material: (ε_r [unitless], σ [S/m])}``; materials not given start from the scene's own
+        values (ITU-R P.2040 at 60 GHz). Other materials keep the scene's values throughout.
+    settings : TraceSettings, optional
+        Solver options (default ``TraceSettings()``); depth ≥ 3 is what makes ε_r and σ
+        separable (``docs/calibration-materials.md``).
+    window : float
+        Delay window explaining a peak [s] (default half Table I's delay resolution, 0.121 ns).
+    threshold : float
+        Identifiability threshold on the relative singular values (default 1e-3), in (0, 1).
+    max_iter : int
+        Most Levenberg–Marquardt iterations (default 30).
+    tolerance : float
+        Convergence: an accepted step lowering the cost by less than ``tolerance`` × cost (+1e-9).
+    progress : callable, optional
+        ``progress(iteration, cost)`` after every iteration (cost = ½χ² [unitless]).
+
+    Returns
+    -------
+    MaterialFit
+        Values, 1σ, correlations, residuals before/after [dB], identifiability report, timing.
+
+    Raises
+    ------
+    ValueError
+        No observations; a material that no explained peak touches (named, with why); no peak
+        explained at all; a bad start, window, threshold or max_iter. Errors of
+        ``material_jacobian`` (unknown material, bad settings) pass through.
+    """
+    t0 = time.perf_counter()
+    obs = list(observations) if isinstance(observations, Sequence) else None
+    if not obs:
+        raise ValueError("observations is empty: give at least one Observation")
+    for i, o in enumerate(obs):
+        if not isinstance(o, Observation):
+            raise TypeError(f"observations[{i}] must be an Observation, got {type(o).__name__}")
+    if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
+        raise ValueError(f"window={window!r} must be finite and > 0 [s]")
+    if not (isinstance(threshold, (int, float)) and 0 < threshold < 1):
+        raise ValueError(f"threshold={threshold!r} must lie in (0, 1)")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 0:
+        raise ValueError(f"max_iter={max_iter!r} must be an int >= 0")
+    settings = TraceSettings() if settings is None else settings
+
+    evaluations = 0
+
+    def evaluate(theta: np.ndarray | None) -> dict[str, Any]:
+        nonlocal evaluations
+        evaluations += 1
+        values = None if theta is None else _values_of(names, theta)
+        rows, jrows, wrows, touch, peaks, unexplained, model = [], [], [], [], [], [], []
+        jacs = []
+        for i, o in enumerate(obs):
+            jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings)
+            jacs.append(jac)
+            db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o))
+            for k in range(len(o)):
+                if explained[k]:
+                    peaks.append((i, k))
+                    model.append(db[k] + o.offset_db)
+                    rows.append(o.power_db[k] - db[k] - o.offset_db)
+                    jrows.append(jdb[k])
+                    wrows.append(1.0 / o.sigma_db[k])
+                    touch.append(t[k])
+                else:
+                    unexplained.append((i, k))
+        q2 = 2 * len(names)
+        return dict(residual=np.array(rows), jdb=np.array(jrows).reshape(-1, q2), w=np.array(wrows),
+                    touches=np.array(touch, dtype=bool).reshape(-1, len(names)), peaks=tuple(peaks),
+                    unexplained=tuple(unexplained), jacs=jacs)
+
+    if isinstance(materials, str):
+        names = tuple(m.strip() for m in materials.split(","))
+    else:
+        names = tuple(materials)
+    first = evaluate(None)
+    names = first["jacs"][0].materials
+    theta = _check_start(names, start, first["jacs"][0])
+    params = tuple(f"{m}:{k}" for m in names for k in ("eps_r", "ln_sigma"))
+    if not first["peaks"]:
+        raise ValueError(f"no observed peak is explained: no traced path lies within {window * 1e9:.3g} ns of any of "
+                         f"the {sum(len(o) for o in obs)} peaks")
+    for q, m in enumerate(names):
+        if not first["touches"][:, q].any():
+            seen = any(j.touches[:, q].any() for j in first["jacs"])
+            why = ("its traced paths fall in no observed peak's window" if seen
+                   else "no traced path from these radar positions interacts with its objects")
+            raise ValueError(f"material {m!r} cannot be fitted: no explained peak touches it ({why})")
+    cur = first if start is None else evaluate(theta)
+    start_values = _values_of(names, theta)
+    residual_start = cur["residual"].copy()
+
+    def cost_of(ev: dict[str, Any]) -> float:
+        r = ev["residual"] * ev["w"]
+        return 0.5 * float(r @ r)
+
+    cost = cost_of(cur)
+    lam = 1e-3
+    history: list[float] = []
+    converged = False
+    iterations = 0
+    for it in range(1, max_iter + 1):
+        iterations = it
+        jw = cur["jdb"] * cur["w"][:, None]
+        rw = cur["residual"] * cur["w"]
+        norm = np.linalg.norm(jw, axis=0)
+        norm[norm == 0] = 1.0
+        u, s, vt = np.linalg.svd(jw / norm, full_matrices=False)
+        keep = s >= threshold * s[0] if s.size and s[0] > 0 else np.zeros(s.size, bool)
+        accepted = False
+        while not accepted and lam < 1e12:
+            damp = s[keep] / (s[keep] ** 2 + lam * s[0] ** 2)
+            step = (vt[keep].T @ (damp * (u[:, keep].T @ rw))) / norm
+            trial = theta + step
+            trial[0::2] = np.maximum(trial[0::2], 1.0)
+            trial[1::2] = np.clip(trial[1::2], *_LOG_SIGMA_BOUNDS)
+            if np.allclose(trial, theta, rtol=0, atol=1e-12):
+                break
+            ev = evaluate(trial)
+            new = cost_of(ev)
+            if new < cost:
+                accepted = True
+                converged = cost - new <= tolerance * cost + 1e-9
+                theta, cur, cost = trial, ev, new
+                lam = max(lam / 3.0, 1e-9)
+            else:
+                lam *= 4.0
+        history.append(cost)
+        if progress is not None:
+            progress(it, cost)
+        if not accepted or converged:
+            converged = True if not accepted else converged
+            break
+
+    # Fisher information at the solution, in column-scaled coordinates.
+    jw = cur["jdb"] * cur["w"][:, None]
+    norm = np.linalg.norm(jw, axis=0)
+    safe = np.where(norm == 0, 1.0, norm)
+    _, s, vt = np.linalg.svd(jw / safe, full_matrices=False)
+    flags = _flags(vt, s, threshold, params)
+    keep = s >= threshold * s[0] if s.size and s[0] > 0 else np.zeros(s.size, bool)
+    cov_scaled = (vt[keep].T / s[keep] ** 2) @ vt[keep]
+    cov = cov_scaled / np.outer(safe, safe)
+    bad = np.array([p in flags for p in params])
+    cov[bad, :] = np.nan
+    cov[:, bad] = np.nan
+    cov[bad, bad] = np.inf
+    sd = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    corr[bad, :] = np.nan
+    corr[:, bad] = np.nan
+    condition = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+    report = IdentifiabilityReport(
+        parameters=params, peaks=cur["peaks"], unexplained=cur["unexplained"], constrains=cur["touches"],
+        jacobian_db=cur["jdb"], singular_values=s, condition=condition, threshold=float(threshold),
+        not_identifiable=flags)
+    for arr in (cov, corr, sd, s, cur["jdb"], cur["touches"]):
+        arr.setflags(write=False)
+    eps = theta[0::2].copy()
+    sigma = np.exp(theta[1::2])
+    residual = cur["residual"].copy()
+    for arr in (eps, sigma, residual, residual_start):
+        arr.setflags(write=False)
+    r = residual * cur["w"]
+    return MaterialFit(
+        materials=names, relative_permittivity=eps, conductivity=sigma, relative_permittivity_sigma=sd[0::2].copy(),
+        log_conductivity_sigma=sd[1::2].copy(), covariance=cov, correlation=corr, start=start_values,
+        residuals_start_db=residual_start, residuals_db=residual, chi2=float(r @ r), iterations=iterations,
+        evaluations=evaluations, converged=converged, seconds=time.perf_counter() - t0, identifiability=report,
+        history=tuple(history))
