@@ -49,9 +49,10 @@ from .sweep.alignment import RisPowerSeries, SweepAlignment, fit_alignment, manu
 from .sweep.importer import default_processing, import_capture, import_captures
 from .sweep.leakage import LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .sweep.ris_timing import RisProgram, chirp_states
-from .sweep.schedule import (SweepSchedule, SweepSchedules, format_sweep_schedule, format_sweep_schedules,
-                             parse_sweep_schedule, parse_sweep_schedules, read_sweep_schedule, read_sweep_schedules,
-                             write_sweep_schedule, write_sweep_schedules)
+from .sweep.schedule import (SweepSchedule, format_sweep_schedule, parse_sweep_schedule, read_sweep_schedule,
+                             write_sweep_schedule)
+from .sweep.schedules import (SweepSchedules, format_sweep_schedules, parse_sweep_schedules, read_sweep_schedules,
+                              write_sweep_schedules)
 from .ti.chirp_config import TiChirp, TiChirpConfig, device_steps, slope_step, start_frequency_step
 from .ti.config_file import load_config
 from .ti.sdk_cfg import ParsedSdkCfg, format_sdk_cfg, parse_sdk_cfg, read_sdk_cfg

@@ -29,7 +29,7 @@ from ...model.ris import RisConfig
 from ...model.scenario import Scenario
 from ...model.time_division import TimeDivision
 from ..errors import MeasuredFormatError
-from ..sweep.schedule import SweepSchedules, write_sweep_schedules
+from ..sweep.schedules import SweepSchedules, write_sweep_schedules
 from .experiment import (PREFIX, SCHEDULE_NAME, check_folder, schedule_fields, sweep_schedule_of, write_frames)
 from .raw_files import EmulatedCapture
 

@@ -66,7 +66,7 @@ from ..errors import MeasuredFormatError
 from ..sweep.alignment import DEFAULT_ASSEMBLE, manual_alignment
 from ..sweep.importer import import_capture
 from ..sweep.ris_timing import chirp_fractions
-from ..sweep.schedule import SweepSchedules, read_sweep_schedules
+from ..sweep.schedules import SweepSchedules, read_sweep_schedules
 from ..ti.chirp_config import TiChirpConfig
 from ..ti.config_file import load_config
 

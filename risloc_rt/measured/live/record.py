@@ -287,7 +287,7 @@ def _prepare_folder(plan: RecordPlan) -> bool:
         raise MeasuredFormatError(f"--out {out} already holds a recording ({', '.join(sorted(taken)[:3])}); risloc "
                                   "does not overwrite one: give a new or empty folder")
     if plan.sweep is not None:
-        from ..sweep.schedule import read_sweep_schedules
+        from ..sweep.schedules import read_sweep_schedules
 
         read_sweep_schedules(plan.sweep)                     # a bad schedule: one line, before the hardware
     made = not out.exists()

@@ -47,7 +47,8 @@ from .alignment import (DEFAULT_ASSEMBLE, ScheduleCheck, SweepAlignment, check_f
                         manual_alignment, ris_power_series)
 from .leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS, apply_range_gate, range_gate_basis, subtract_background
 from .ris_timing import chirp_fractions
-from .schedule import SweepSchedule, SweepSchedules, format_sweep_schedule, read_sweep_schedules
+from .schedule import SweepSchedule, format_sweep_schedule
+from .schedules import SweepSchedules, read_sweep_schedules
 
 __all__ = ["DEFAULT_LEAKAGE", "default_processing", "import_capture", "import_captures", "import_memory"]
 
