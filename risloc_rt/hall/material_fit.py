@@ -45,9 +45,15 @@ Identifiability (reported, not guessed)
   seen" (e.g. powers at normal incidence: |Γ|² is one number for two parameters), "collinear
   with X" (two materials that only appear together) or "does not change any peak".
 - **Choice**: the fit then does not refuse; its steps are taken in the identifiable subspace only
-  (truncated SVD), a flagged parameter keeps its start value with an **infinite σ** and NaN
-  correlations, and :meth:`MaterialFit.value` refuses it with its reason. It is never returned as
-  a bare number.
+  (truncated SVD), so it still fits what is seen (e.g. the combination of ε_r and σ that sets
+  |Γ|² at normal incidence). A flagged parameter's value is wherever those steps left it and
+  means nothing on its own: it carries an **infinite σ** and NaN correlations, and
+  :meth:`MaterialFit.value` refuses it with its reason. It is never returned as a bare number.
+- **Profile check** (``profile_check=True``, 4Q more evaluations): every identifiable parameter
+  is re-traced at ±1σ along its linear profile direction; the cost ½χ² should rise by 0.5 on both
+  sides. A rise outside [0.25, 1.0] (``PROFILE_RATIO`` = 2) marks the parameter **weak**: its 1σ
+  is a local figure (measured: a 0.2 m concrete wall's σ at 60 GHz, whose |Γ|² moves by < 0.05 dB
+  rms between 0.2 and 1.1 S/m and climbs steeply below 0.2 S/m where the wall turns transparent).
 
 Tests (``tests/hall/test_material_fit.py``) are the engine's self-consistency check: the
 "measured" peaks are made by :func:`synthetic_observations` from the same traced paths the model
@@ -202,7 +208,7 @@ class IdentifiabilityReport:
         str
             Human-readable report (multi-line).
         """
-        lines = [f"condition {self.condition:.3g} (threshold {1 / self.threshold:.3g}); singular values "
+        lines = [f"condition {self.condition:.3g} (limit {1 / self.threshold:.3g}); singular values "
                  + ", ".join(f"{s:.3g}" for s in self.singular_values)]
         materials = [p.split(":")[0] for p in self.parameters[::2]]
         for q, m in enumerate(materials):
@@ -223,9 +229,9 @@ class MaterialFit:
     materials : tuple of str
         The fitted radio materials (sionna-rt names).
     relative_permittivity : float array [Q]
-        Fitted ε_r [unitless] (the start value for a flagged parameter).
+        Fitted ε_r [unitless] (meaningless alone for a flagged parameter: see its σ and the report).
     conductivity : float array [Q]
-        Fitted σ [S/m] (the start value for a flagged parameter).
+        Fitted σ [S/m] (meaningless alone for a flagged parameter).
     relative_permittivity_sigma : float array [Q]
         1σ of ε_r from the Fisher information [unitless]; inf when not identifiable.
     log_conductivity_sigma : float array [Q]
@@ -478,7 +484,7 @@ def _flags(vt: np.ndarray, s: np.ndarray, threshold: float, names: tuple[str, ..
         v = vt[i]
         part = [j for j in range(v.size) if abs(v[j]) >= _COMPONENT]
         mats = sorted({names[j].split(":")[0] for j in part})
-        combo = " + ".join(f"{v[j]:+.2f}·{names[j]}" for j in part)
+        combo = " ".join(f"{v[j]:+.2f}*{names[j]}" for j in part)
         rel = s[i] / top if top > 0 else 0.0
         for j in part:
             m, kind = names[j].split(":")
