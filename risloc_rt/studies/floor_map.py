@@ -36,7 +36,8 @@ the floor cells with ``detection_probability >= 0.99`` and ``peb < peb_bound`` (
 also the share whose RMSE is under the bound too). ``points.json`` keeps every point's bounds, so a
 finished map reopened (e.g. with another ``peb_bound``) prepares nothing again.
 Outputs: ``map.json`` (one entry per mapped cell, and ``coverage``), ``map.parquet`` and ``map.png``
-(:func:`risloc_rt.studies.figures.plot_map`).
+(:func:`risloc_rt.studies.figures.plot_map`). The per-cell and per-run functions live in
+:mod:`risloc_rt.studies.floor_cells` (re-exported here).
 """
 
 from __future__ import annotations
@@ -54,13 +55,14 @@ from typing import Any
 
 import numpy as np
 
-from dsp.fusion import KNOWN_HEIGHT_STD
 from dsp.validation import integer, non_negative, one_of, positive
 
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
 from .engine import choose_workers, default_workers, execute
 from .figures import plot_map
+from .floor_cells import (COVERED_PD, HEIGHT_STD, cell_run_position, coverage, folded_return, fuse_at_height,
+                          multi_ris_peb, usable_run)
 from .kernel import PreparedPoint, point_bound
 from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
 
@@ -71,9 +73,6 @@ __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "g
 #: More grid points than this (before the cells are chosen) are refused unless ``force_long``: each
 #: cell is a trace and ``runs`` runs (≈ 14 s of one core at 20 runs), so 10⁵ cells are weeks.
 MAX_GRID_POINTS = 100_000
-#: A floor cell is covered when its detection probability is at least this (n/n runs for n < 100)
-#: and its PEB is below the map's ``peb_bound``.
-COVERED_PD = 0.99
 #: The default PEB bound of the coverage [m] (``--peb-bound``; docs/studies.md, "Coverage").
 DEFAULT_PEB_BOUND = 0.05
 
@@ -379,222 +378,6 @@ def prepare_cell(params: dict[str, Any]) -> PreparedPoint:
                          floor_height=FLOOR_HEIGHT)
 
 
-def _num(value: Any) -> float:
-    """A run row's float (None, as the run log writes NaN, is NaN)."""
-    return float("nan") if value is None else float(value)
-
-
-def multi_ris_peb(bounds: Any, position: Any) -> float:
-    """The PEB of several RISs at one radar position with its height known: from the summed Fisher information.
-
-    Each RIS i measures the radar's distance dᵢ and azimuth azᵢ (its frame) with the 1σ of its
-    Cramér–Rao bound at that position (the fixed-phase ``distance`` [m] and ``angle`` [rad] of
-    :func:`risloc_rt.studies.kernel.point_bound`, which the map's cell preparer computes from the
-    RIS's own noiseless return; a 1-D sweep measures no elevation). With ``h(x, y)`` the
-    measurements at height z = ``position[2]`` (known), the information on (x, y) is
-    ``J = Σᵢ Hᵢᵀ diag(1/σ_d,ᵢ², 1/σ_az,ᵢ²) Hᵢ``, ``Hᵢ = ∂(dᵢ, azᵢ)/∂(x, y)`` (``dsp.fusion.central_jacobian``
-    of ``dsp.RisFix.residuals`` at the truth), and the PEB is ``sqrt(trace(J⁻¹))``. For one RIS at
-    the radar's height this is its own PEB, ``sqrt(σ_d² + d² σ_az²)`` (a test checks it against the
-    bound's ``position``).
-
-    Parameters
-    ----------
-    bounds : sequence of (dsp.RisPose, dict)
-        Each RIS's pose and its bounds (``distance`` [m], ``angle`` [rad]) at ``position``.
-    position : float array [3]
-        The true radar position [m], world frame.
-
-    Returns
-    -------
-    float
-        PEB [m] (inf when the RISs cannot determine the position, e.g. no bound given).
-    """
-    from dsp import RisFix
-    from dsp.fusion import central_jacobian
-
-    x = np.asarray(position, dtype=float)
-    fixes = []
-    for i, (pose, crb) in enumerate(bounds):
-        d = float(np.linalg.norm(x - pose.position))
-        if not (np.isfinite(crb["distance"]) and np.isfinite(crb["angle"]) and crb["distance"] > 0 and crb["angle"] > 0):
-            continue
-        fixes.append(RisFix(name=f"ris{i}", pose=pose, distance=d, std_distance=float(crb["distance"]),
-                            aod=np.asarray(pose.angles_to(x), dtype=float), std_aod=[float(crb["angle"]), np.nan]))
-    if not fixes:
-        return float("inf")
-    jac = central_jacobian(lambda q: np.concatenate([f.residuals(np.array([q[0], q[1], x[2]])) for f in fixes]), x[:2])
-    info = jac.T @ jac
-    if np.linalg.cond(info) > 1e12:
-        return float("inf")
-    return float(np.sqrt(np.trace(np.linalg.inv(info))))
-
-
-#: The 1σ of the map's known radar height in the fusion [m] (``dsp.fusion.KNOWN_HEIGHT_STD``): the cell's
-#: height is exact, as the single-RIS fix assumes it (``elevation-assumed``).
-HEIGHT_STD = KNOWN_HEIGHT_STD
-
-
-def fuse_at_height(fixes: Any, height: float, *, pfa: float = 1e-3) -> tuple[np.ndarray, Any]:
-    """Fuse RIS fixes into one position at a known radar height.
-
-    ``dsp.fuse_fixes`` with the height as one more measurement (``height=(height, HEIGHT_STD)``): its
-    χ² test decides which fixes agree (an inconsistent one is left out and flagged) with the height
-    known, and the position is returned at z = ``height``. RISs at one height cannot see the height
-    (1-D sweeps), and the map's radar height is known, as the single-RIS fix assumes it.
-
-    Parameters
-    ----------
-    fixes : sequence of dsp.RisFix
-        One per detected RIS.
-    height : float
-        The radar's height z [m], world frame.
-    pfa : float
-        The χ² test's false-alarm probability (``dsp.fuse_fixes``).
-
-    Returns
-    -------
-    position : float array [3]
-        The fused position [m], z = ``height``.
-    fused : dsp.FusedFix
-        What ``dsp.fuse_fixes`` said (used, excluded, flags).
-    """
-    from dsp import fuse_fixes
-
-    fused = fuse_fixes(fixes, pfa=pfa, height=(float(height), HEIGHT_STD))
-    return np.array([fused.position[0], fused.position[1], float(height)]), fused
-
-
-def cell_run_position(entries: Any, truth: Any,
-                      height: float) -> tuple[float, tuple[str, ...], tuple[str, ...], tuple[str, ...]] | None:
-    """One run of one cell: the position error of what its RISs gave (one fix as it is, several fused).
-
-    Parameters
-    ----------
-    entries : sequence of (str, dsp.RisPose, dict)
-        Each RIS that sees the cell: its name, pose and this run's row
-        (:func:`risloc_rt.studies.kernel.run_once`: ``detected``, ``distance`` [m], ``aod_az`` [rad],
-        ``std_distance`` [m], ``std_aod_az`` [rad], ``x``, ``y``, ``z`` [m], ``position_error`` [m], ``flags``;
-        ``folded``: True when the link-budget check found the return folded, :func:`folded_return`:
-        such a fix counts as no detection).
-    truth : float array [3]
-        The radar's true position [m].
-    height : float
-        Its known height [m] (:func:`fuse_at_height`).
-
-    Returns
-    -------
-    (float, tuple of str, tuple of str, tuple of str) or None
-        The position error [m], the RISs used, those left out as inconsistent and the fusion's flag
-        codes (``inconsistent-ris`` also when the fixes disagree and the χ² test cannot say which is
-        wrong: the position is their compromise; ``unobservable``: the height); None when no RIS
-        detected the radar (or every detection was folded). One detection: that RIS's own ``position_error``; several: the error of
-        :func:`fuse_at_height` over the fixes with a stated 1σ and a positive distance.
-    """
-    from dsp import RisFix, angles_from_direction
-
-    found = [(name, pose, row) for name, pose, row in entries if _usable(row)]
-    if not found:
-        return None
-    fixes = []
-    for name, pose, row in found:
-        sd, sa, d = _num(row.get("std_distance")), _num(row.get("std_aod_az")), _num(row.get("distance"))
-        if not (np.isfinite(sd) and sd > 0 and np.isfinite(sa) and sa > 0 and np.isfinite(d) and d > 0):
-            continue  # no stated 1σ, or a distance at or below zero (a return before the loop-back delay)
-        rel = np.array([_num(row["x"]), _num(row["y"]), _num(row["z"])]) - pose.position
-        el = float(angles_from_direction(pose.to_local(rel / np.linalg.norm(rel)))[1])
-        fixes.append(RisFix(name=name, pose=pose, distance=_num(row["distance"]), std_distance=sd,
-                            aod=[_num(row["aod_az"]), el], std_aod=[sa, np.nan],
-                            flags=tuple(f for f in (row.get("flags") or "").split(",") if f)))
-    if len(fixes) < 2:  # one fix (or one that can be fused): that RIS's own position
-        name, _, row = next(((n, p, r) for n, p, r in found if fixes and n == fixes[0].name), found[0])
-        return _num(row["position_error"]), (name,), (), ()
-    position, fused = fuse_at_height(fixes, height)
-    return (float(np.linalg.norm(position - np.asarray(truth, dtype=float))), tuple(fused.used),
-            tuple(n for n, _ in fused.excluded), tuple(f.code for f in fused.flags))
-
-
-def _usable(row: dict[str, Any]) -> bool:
-    """A run row that gives a position: detected, its return not found folded (:func:`folded_return`) and its
-    distance above zero (a return folded to just before the loop-back delay is no fix either)."""
-    return bool(row["detected"]) and not row.get("folded", False) and _num(row.get("distance")) > 0
-
-
-def folded_return(row: dict[str, Any], scenario: Any, pose: Any, peak_snr_db: float) -> Any:
-    """The link-budget check for range aliasing of ``risloc locate`` on one run of a map point.
-
-    A radar beyond a RIS's unambiguous range (21.8 m less τ_RB·c/2 at Table I) sees that RIS's
-    return folded to ``d - R_max`` and localizes it there without a flag of the DSP's own;
-    ``risloc_rt.io.report.process_capture`` checks the power
-    (:func:`risloc_rt.model.power_check.range_alias_flag`: more than 10 dB below the link budget at
-    d̂ and closer to it at d̂ + k·R_max raises ``aliased``). The map's runs go through
-    ``dsp.self_localize`` alone, so the map applies the same check here, with the point's true
-    post-integration SNR (its bound's ``peak_snr_db``, from the noiseless cube: what the estimate's
-    fitted SNR estimates, within a fraction of a dB at a detectable SNR against the 10 dB margin) in
-    place of the run's fitted one, and the run's own d̂ and azimuth.
-
-    Parameters
-    ----------
-    row : dict
-        A detected run row (``distance`` [m], ``aod_az`` [rad], ``x``, ``y``, ``z`` [m]).
-    scenario : risloc_rt.model.Scenario
-        The point's scenario (radar, RIS, sweep: ``hall_scenario(...).base``).
-    pose : dsp.RisPose
-        The RIS's pose.
-    peak_snr_db : float
-        The point's true post-integration SNR at the pattern peak [dB].
-
-    Returns
-    -------
-    dsp.Flag or None
-        The ``aliased`` flag when the power points to a folded return.
-    """
-    from types import SimpleNamespace
-
-    from dsp import angles_from_direction
-
-    from ..model.power_check import range_alias_flag
-
-    if not row["detected"] or not np.isfinite(_num(row.get("distance"))) or not np.isfinite(peak_snr_db):
-        return None
-    rel = np.array([_num(row["x"]), _num(row["y"]), _num(row["z"])]) - pose.position
-    el = float(angles_from_direction(pose.to_local(rel / np.linalg.norm(rel)))[1])
-    loc = SimpleNamespace(detection=True, detected=True, distance=_num(row["distance"]),
-                          aod=np.array([_num(row["aod_az"]), el]), std=SimpleNamespace(peak_snr_db=float(peak_snr_db)))
-    capture = SimpleNamespace(radar=scenario.radar, ris=scenario.ris, sweep=scenario.sweep,
-                              provenance={"source": "simulation"})
-    return range_alias_flag(loc, capture)
-
-
-def coverage(cells: list[dict[str, Any]], floor_cells: int, peb_bound: float) -> dict[str, Any]:
-    """The share of the floor a map covers: cells with Pd >= :data:`COVERED_PD` and PEB below ``peb_bound``.
-
-    Parameters
-    ----------
-    cells : list of dict
-        The mapped cells (``detection_probability``, ``peb`` [m]).
-    floor_cells : int
-        Every floor cell, mapped or not (a cell no RIS sees counts as not covered).
-    peb_bound : float
-        The PEB bound [m].
-
-    Returns
-    -------
-    dict
-        ``peb_bound`` [m], ``detection_probability`` (:data:`COVERED_PD`), ``floor_cells``,
-        ``mapped_cells``, ``covered`` (cells) and ``share`` (covered / floor cells): the issue's
-        coverage; ``accurate`` and ``share_accurate``: covered cells whose position RMSE is below the
-        bound too (a detection whose fix is wrong, e.g. a grating lobe or a path taken for the
-        return, counts in Pd; this share says how much of the coverage the fixes deliver).
-    """
-    covered = [c for c in cells if c["detection_probability"] >= COVERED_PD and c["peb"] is not None
-               and c["peb"] < peb_bound]
-    accurate = sum(1 for c in covered if c["rmse_position"] is not None and c["rmse_position"] < peb_bound)
-    share = (lambda n: n / floor_cells if floor_cells else 0.0)
-    return {"peb_bound": float(peb_bound), "detection_probability": COVERED_PD, "floor_cells": int(floor_cells),
-            "mapped_cells": len(cells), "covered": len(covered), "share": share(len(covered)),
-            "accurate": accurate, "share_accurate": share(accurate)}
-
-
 @dataclass(frozen=True)
 class _MapPlan:
     """A floor map as the study engine sees it: one point per (cell, RIS that sees it), ``runs`` runs each."""
@@ -848,11 +631,11 @@ def _cells(settings: MapSettings, spec: Any, cells: np.ndarray, pairs: tuple[tup
                         if f and f != "elevation-assumed")
         own: dict[str, dict[str, Any]] = {}
         for p, k in points:
-            err = np.array([x["position_error"] for x in runs[p] if _usable(x) and x["position_error"] is not None],
+            err = np.array([x["position_error"] for x in runs[p] if usable_run(x) and x["position_error"] is not None],
                            float)
             crb = info["crb"][p]
             own[spec.ris[k].name] = {
-                "detection_probability": sum(_usable(x) for x in runs[p]) / len(runs[p]),
+                "detection_probability": sum(usable_run(x) for x in runs[p]) / len(runs[p]),
                 "rmse_position": float(np.sqrt(np.mean(err**2))) if err.size else None,
                 "peb": crb["position"], "peak_snr_db": crb["peak_snr_db"]}
         if len(points) == 1:  # one RIS sees the cell: its own numbers (as before issue 22)
