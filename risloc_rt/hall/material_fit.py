@@ -297,9 +297,14 @@ class MaterialFit:
         return float(np.sqrt(np.mean(self.residuals_db ** 2)))
 
     @property
-    def seconds_per_iteration(self) -> float:
+    def seconds_per_evaluation(self) -> float:
         """Wall-clock seconds per evaluation (all positions traced and differentiated once) [s]."""
         return self.seconds / max(self.evaluations, 1)
+
+    @property
+    def seconds_per_iteration(self) -> float:
+        """Wall-clock seconds per Levenberg–Marquardt iteration, rejected trials and profile check included [s]."""
+        return self.seconds / max(self.iterations, 1)
 
     def value(self, material: str) -> tuple[float, float, float, float]:
         """One material's fitted values and 1σ; refuses a flagged one.
