@@ -372,7 +372,7 @@ def _migrated(inp: SweepInputs, est: RefinedEstimate) -> RefinedEstimate:
         a = weights[sel]
 
         def cost(x: float) -> float:
-            return -float(a @ np.abs(np.sum(rows * dtft_phasors_rows(x + shift, n_idx), axis=1)))
+            return -float(a @ np.abs(np.sum(rows * _phasor_rows(x + shift, n_idx), axis=1)))
 
         f1 = float(scipy.optimize.minimize_scalar(cost, bounds=(f1 - 0.5 / n, f1 + 0.5 / n), method="bounded",
                                                   options={"xatol": 1e-6 / n}).x)
@@ -387,7 +387,7 @@ def _migrated(inp: SweepInputs, est: RefinedEstimate) -> RefinedEstimate:
                                beam_magnitude=magnitudes / kn, amplitude=fit.amplitude / kn)
 
 
-def dtft_phasors_rows(freqs: np.ndarray, idx: np.ndarray) -> np.ndarray:
+def _phasor_rows(freqs: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """exp(j2π f_m idx) for one frequency per row, phases reduced modulo 1 cycle first [M', L].
 
     Parameters
