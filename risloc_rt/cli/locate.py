@@ -296,8 +296,11 @@ class _LiveLoop:
             raise self.error
         self.inbox.put(("update", progress.final_bytes, progress.final_time))
 
-    def _emit(self, events: list[Any], out) -> None:
+    def _emit(self, events: list[Any], files: dict[str, Any]) -> None:
         for e in events:
+            if "out" not in files:  # made at the first fix: a run that fixes nothing leaves no file behind
+                files["out"] = open(self.jsonl, "x", encoding="utf-8")
+            out = files["out"]
             print(fix_line(e, time.monotonic() - e.final_time), flush=True)
             line = {**e.to_dict(), "latency_printed": time.monotonic() - e.final_time, "time": time.time()}
             out.write(json.dumps(line, allow_nan=False) + "\n")
@@ -307,22 +310,25 @@ class _LiveLoop:
 
     def _run(self) -> None:
         watcher = None
+        files: dict[str, Any] = {}
         try:
-            with open(self.jsonl, "a", encoding="utf-8") as out:
-                while True:
+            while True:
+                kind, final, when = self.inbox.get()
+                while kind == "update" and not self.inbox.empty():     # only the newest prefix matters
                     kind, final, when = self.inbox.get()
-                    while kind == "update" and not self.inbox.empty():     # only the newest prefix matters
-                        kind, final, when = self.inbox.get()
-                    if kind == "stop" or (kind == "finish" and not final):
-                        return
-                    if not final:
-                        continue
-                    watcher = watcher or self.make_watcher()
-                    self._emit(watcher.finish(final, when) if kind == "finish" else watcher.update(final, when), out)
-                    if kind == "finish":
-                        return
+                if kind == "stop" or (kind == "finish" and not final):
+                    return
+                if not final:
+                    continue
+                watcher = watcher or self.make_watcher()
+                self._emit(watcher.finish(final, when) if kind == "finish" else watcher.update(final, when), files)
+                if kind == "finish":
+                    return
         except BaseException as exc:  # noqa: BLE001 - handed to the recording's thread, which stops and reports it
             self.error = exc
+        finally:
+            if "out" in files:
+                files["out"].close()
 
     def close(self, final_bytes: int | None, timeout: float = 600.0) -> None:
         """Localize what ``final_bytes`` completes (None: stop at once), then end the thread.
@@ -360,6 +366,9 @@ def _run_live(args: argparse.Namespace, backend: Any) -> int:
     if args.capture:
         raise CliError("--live records its own sweeps; leave out the capture files (localize them without --live)")
     plan = _record_plan(args)
+    if (plan.out / LIVE_FIXES).exists():
+        raise CliError(f"--out {plan.out} already holds {LIVE_FIXES} of an earlier run; risloc does not append to or "
+                       "overwrite it: give a new or empty folder")
     options = _import_options(args)
     first = _first_frame(args.first_frame)
 
@@ -386,7 +395,7 @@ def _run_live(args: argparse.Namespace, backend: Any) -> int:
         done = recording_summary(exc)
         if "loop" in holder:
             holder["loop"].close(None if done is None else done.bytes)
-        if done is not None:
+        if done is not None and done.bytes > 0:      # nothing arrived: record() removed what it wrote
             print(f"recorded {done.describe()}", file=sys.stderr)
         raise
     loop = holder.get("loop") or _LiveLoop(watcher, plan.out / LIVE_FIXES)
@@ -394,7 +403,8 @@ def _run_live(args: argparse.Namespace, backend: Any) -> int:
     if loop.error is not None:
         raise loop.error
     print(f"recorded {summary.describe()}")
-    print(f"wrote {plan.out / LIVE_FIXES}: {loop.fixes} fix(es), {loop.detected} with a position")
+    print(f"wrote {plan.out / LIVE_FIXES}: {loop.fixes} fix(es), {loop.detected} with a position" if loop.fixes else
+          f"no complete sweep: no {LIVE_FIXES} written")
     return 0 if loop.detected else EXIT_NO_DETECTION
 
 

@@ -108,6 +108,28 @@ def test_bad_live_input_is_one_line(argv, says, capsys):
     assert err.count("\n") == 0 and says in err and err.startswith("risloc locate: error: ")
 
 
+def test_a_dead_dca1000_leaves_nothing_and_an_earlier_run_is_not_appended_to(two_sweeps, loopback_endpoints, tmp_path,
+                                                                             capsys):
+    """A start that fails leaves no folder behind; and (regression) live_fixes.jsonl was opened for appending,
+    so a run into a folder holding an earlier run's file appended to it: it is now made at the first fix,
+    exclusively, and a folder holding one is refused before anything starts, the file untouched."""
+    host, fpga, config_port, data_port = loopback_endpoints
+    out = tmp_path / "live"
+    argv = ["locate", "--live", "--config", str(two_sweeps / "adc_data.cfg"), "--out", str(out), "--sweep",
+            str(two_sweeps / "sweep.toml"), "--host-ip", host, "--fpga-ip", fpga, "--config-port", str(config_port),
+            "--data-port", str(data_port)]
+    with EmulatedRadarCli() as cli, EmulatedDca1000(two_sweeps / "adc_data_Raw_0.bin", config=two_sweeps / "adc_data.cfg",
+                                                    host_ip=host, fpga_ip=fpga, config_port=config_port,
+                                                    data_port=data_port, dead=True):
+        assert main([*argv, "--serial", cli.port]) == 2
+    assert "no answer from the DCA1000" in capsys.readouterr().err and not out.exists()
+    out.mkdir()
+    (out / "live_fixes.jsonl").write_text('{"kind": "fix", "sweep": 0}\n')
+    assert main([*argv, "--serial", "/dev/null"]) == 2
+    assert "already holds live_fixes.jsonl" in capsys.readouterr().err
+    assert (out / "live_fixes.jsonl").read_text() == '{"kind": "fix", "sweep": 0}\n'
+
+
 def test_ctrl_c_exits_130_and_leaves_complete_lines(two_sweeps, loopback_endpoints, tmp_path):
     """SIGINT once sweep 0's line is out, while recording slowly (1/100 of the real rate: 62 frames take 5 s): exit
     130, one line on stderr, the recording readable from its start, sweep 0's JSON line whole, no sweep 1."""
