@@ -10,11 +10,9 @@ import sys
 
 import numpy as np
 
-from ..measured.sweep.importer import DEFAULT_LEAKAGE
-from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
 from .._outputs import check_output_file, output_file
 from .common import CliError, add_force_flag, npz_target
-from .connection import add_connection_flags, record_plan
+from .connection import add_connection_flags, add_sweep_import_flags, record_plan, sweep_import_options
 
 __all__ = ["add_parser"]
 
@@ -105,27 +103,7 @@ def _import_options(args: argparse.Namespace) -> dict:
         ``lanes``, ``iq_swap``, ``form``, ``first_frame`` (int, ``"auto"`` or None), ``leakage``,
         ``gate_range`` [m], ``channels``, ``min_confidence``.
     """
-    first = None
-    if args.first_frame is not None:
-        if args.first_frame == "auto":
-            first = "auto"
-        else:
-            try:
-                first = int(args.first_frame)
-            except ValueError:
-                raise CliError(f"--first-frame {args.first_frame!r} must be 'auto' or a frame index >= 0") from None
-            if first < 0:
-                raise CliError(f"--first-frame {first} must be >= 0 (the recorded frame of the first beam), or 'auto'")
-    channels = None
-    if args.channels is not None:
-        try:
-            channels = [int(c) for c in args.channels.split(",")]
-        except ValueError:
-            raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
-                           "e.g. 0,1,2,3") from None
-    return {"lanes": args.lanes, "iq_swap": args.iq_swap, "form": args.form, "first_frame": first,
-            "leakage": args.leakage, "gate_range": args.gate_range, "channels": channels,
-            "min_confidence": args.min_confidence}
+    return {"lanes": args.lanes, "iq_swap": args.iq_swap, "form": args.form, **sweep_import_options(args)}
 
 
 def _wrote_line(path, capture) -> str:
@@ -384,20 +362,9 @@ def add_parser(sub) -> None:
                      help="the file stores Q before I (default: a Studio .json's iqSwapSel, else I first)")
     imp.add_argument("--form", choices=["auto", "raw", "packets"], default="auto",
                      help="plain samples or packet-recorded UDP payloads (default: detect)")
-    imp.add_argument("--first-frame", metavar="N|auto",
-                     help="override the schedule's first_frame: the recorded frame of the first beam (checked "
-                          "against the recording: a contradiction is a one-line warning and the flag "
-                          "schedule-mismatch), or 'auto' to find the sweep from the RIS's sync code and "
-                          "beam-dependent power")
-    imp.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
-                     help="self-interference (Tx-Rx leakage, DC) removal: gate (range gate), background (subtract "
-                          "the RIS-off frames) or none (default: %(default)s; docs/measured-captures.md)")
-    imp.add_argument("--gate-range", type=float, default=DEFAULT_GATE_RANGE, metavar="M",
-                     help="range gate [m] (default: %(default)s)")
-    imp.add_argument("--channels", metavar="V,V,...",
-                     help="virtual channels to combine (maximal-ratio on the RIS return; default: the schedule's "
-                          "channel)")
-    imp.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
-                     help="refuse an automatic alignment less sure than this (default: %(default)s)")
+    add_sweep_import_flags(imp, first_frame_help="override the schedule's first_frame: the recorded frame of the "
+                                                 "first beam (checked against the recording: a contradiction is a "
+                                                 "one-line warning and the flag schedule-mismatch), or 'auto' to "
+                                                 "find the sweep from the RIS's sync code and beam-dependent power")
     imp.set_defaults(func=_import)
     _add_record_parser(verbs)

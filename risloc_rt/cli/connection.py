@@ -1,7 +1,10 @@
-"""The radar and DCA1000 connection options shared by ``risloc capture record`` and ``risloc locate --live``.
+"""Options shared by the verbs that record or import a RIS sweep: ``capture record``, ``capture import``, ``locate --live``.
 
-:func:`add_connection_flags` adds them to a parser (or an argument group); :func:`record_plan` turns the
-parsed options into the :class:`~risloc_rt.measured.live.record.RecordPlan` both verbs record with.
+:func:`add_connection_flags` adds the radar and DCA1000 connection options to a parser (or an argument
+group) and :func:`record_plan` turns them into the :class:`~risloc_rt.measured.live.record.RecordPlan`
+both ``capture record`` and ``locate --live`` record with; :func:`add_sweep_import_flags` and
+:func:`sweep_import_options` are the sweep import's options (``--first-frame``, ``--leakage``,
+``--gate-range``, ``--channels``, ``--min-confidence``) of ``capture import`` and ``locate --live``.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from typing import Any
 
 from .common import CliError
 
-__all__ = ["add_connection_flags", "record_plan"]
+__all__ = ["add_connection_flags", "add_sweep_import_flags", "record_plan", "sweep_import_options"]
 
 
 def add_connection_flags(p: Any, *, required: bool, device_flag: str = "--device") -> None:
@@ -85,3 +88,67 @@ def record_plan(args: argparse.Namespace) -> Any:
                       endpoints=Endpoints(host_ip=args.host_ip, fpga_ip=args.fpga_ip, config_port=args.config_port,
                                           data_port=args.data_port),
                       device=args.radar_device, split_size=args.split_size, baudrate=args.baudrate)
+
+
+def add_sweep_import_flags(p: Any, *, first_frame_help: str) -> None:
+    """Add ``--first-frame``, ``--leakage``, ``--gate-range`` [m], ``--channels`` and ``--min-confidence``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser or argument group
+        Where the options go.
+    first_frame_help : str
+        The verb's words for ``--first-frame`` (one recording, or a sweep of a live recording).
+    """
+    from ..measured.sweep.importer import DEFAULT_LEAKAGE
+    from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
+
+    p.add_argument("--first-frame", metavar="N|auto", help=first_frame_help)
+    p.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
+                   help="self-interference (Tx-Rx leakage, DC) removal: gate (range gate), background (subtract "
+                        "the RIS-off frames) or none (default: %(default)s; docs/measured-captures.md)")
+    p.add_argument("--gate-range", type=float, default=DEFAULT_GATE_RANGE, metavar="M",
+                   help="range gate [m] (default: %(default)s)")
+    p.add_argument("--channels", metavar="V,V,...",
+                   help="virtual channels to combine (maximal-ratio on the RIS return; default: the schedule's "
+                        "channel)")
+    p.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
+                   help="refuse an automatic alignment less sure than this (default: %(default)s)")
+
+
+def sweep_import_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``import_capture`` keywords of :func:`add_sweep_import_flags`'s options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``first_frame``, ``leakage``, ``gate_range``, ``channels``, ``min_confidence``.
+
+    Returns
+    -------
+    dict
+        ``first_frame`` (int ≥ 0, ``"auto"`` or None), ``leakage``, ``gate_range`` [m], ``channels`` (list of
+        int or None), ``min_confidence``.
+
+    Raises
+    ------
+    CliError
+        A ``--first-frame`` or ``--channels`` that is not one (one line).
+    """
+    first = args.first_frame
+    if first is not None and first != "auto":
+        try:
+            first = int(first)
+        except ValueError:
+            raise CliError(f"--first-frame {args.first_frame!r} must be 'auto' or a frame index >= 0") from None
+        if first < 0:
+            raise CliError(f"--first-frame {first} must be >= 0 (the recorded frame of the first beam), or 'auto'")
+    channels = None
+    if args.channels is not None:
+        try:
+            channels = [int(c) for c in args.channels.split(",")]
+        except ValueError:
+            raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
+                           "e.g. 0,1,2,3") from None
+    return {"first_frame": first, "leakage": args.leakage, "gate_range": args.gate_range, "channels": channels,
+            "min_confidence": args.min_confidence}

@@ -18,7 +18,7 @@ from ..io.fused import check_distinct_ris, common_truth, format_fused, fuse_case
 from ..io.report import format_case, format_environment, report_capture, run_environment, write_result
 from .common import (EXIT_NO_DETECTION, CliError, add_device_flag, add_estimator_flags, add_force_flag,
                      add_processing_flags, device_backend, estimator_options, processing_overrides)
-from .connection import add_connection_flags, record_plan
+from .connection import add_connection_flags, add_sweep_import_flags, record_plan, sweep_import_options
 
 __all__ = ["add_parser"]
 
@@ -189,52 +189,6 @@ def _record_plan(args: argparse.Namespace):
     return record_plan(args)
 
 
-def _first_frame(text: str | None) -> int | str | None:
-    """``--first-frame``: None, ``"auto"`` or a frame index >= 0.
-
-    Parameters
-    ----------
-    text : str or None
-        The flag's value.
-
-    Returns
-    -------
-    int, "auto" or None
-    """
-    if text is None or text == "auto":
-        return text
-    try:
-        first = int(text)
-    except ValueError:
-        raise CliError(f"--first-frame {text!r} must be 'auto' or a frame index >= 0") from None
-    if first < 0:
-        raise CliError(f"--first-frame {first} must be >= 0 (the recorded frame of the first beam), or 'auto'")
-    return first
-
-
-def _import_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The ``import_capture`` keywords of ``--live`` (``--leakage``, ``--gate-range``, ``--channels``, ...).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    dict
-    """
-    channels = None
-    if args.channels is not None:
-        try:
-            channels = [int(c) for c in args.channels.split(",")]
-        except ValueError:
-            raise CliError(f"--channels {args.channels!r} must be comma-separated virtual channel indices, "
-                           "e.g. 0,1,2,3") from None
-    return {"leakage": args.leakage, "gate_range": args.gate_range, "channels": channels,
-            "min_confidence": args.min_confidence}
-
-
 def fix_line(event: Any, latency: float) -> str:
     """One console line of a live fix: time, sweep, RIS, ``x y z ± σ`` [m], flags, latency [ms].
 
@@ -369,8 +323,8 @@ def _run_live(args: argparse.Namespace, backend: Any) -> int:
     if (plan.out / LIVE_FIXES).exists():
         raise CliError(f"--out {plan.out} already holds {LIVE_FIXES} of an earlier run; risloc does not append to or "
                        "overwrite it: give a new or empty folder")
-    options = _import_options(args)
-    first = _first_frame(args.first_frame)
+    options = sweep_import_options(args)
+    first = options.pop("first_frame")
 
     def watcher() -> SweepWatcher:
         return SweepWatcher(plan.out, plan.out / "adc_data.cfg", plan.out / "sweep.toml", first_frame=first,
@@ -447,9 +401,6 @@ def _add_live_flags(loc: argparse.ArgumentParser) -> None:
     loc : argparse.ArgumentParser
         The ``locate`` verb's parser.
     """
-    from ..measured.sweep.importer import DEFAULT_LEAKAGE
-    from ..measured.sweep.leakage import DEFAULT_GATE_RANGE, LEAKAGE_METHODS
-
     live = loc.add_argument_group("--live", "record from a TI radar and a DCA1000 (as 'risloc capture record') and "
                                             "print a position for every complete RIS sweep (docs/live-locate.md)")
     live.add_argument("--live", action="store_true",
@@ -458,16 +409,9 @@ def _add_live_flags(loc: argparse.ArgumentParser) -> None:
     live.add_argument("--sweep", metavar="SWEEP.toml", help="the sweep schedule (first frame or auto, one RIS or "
                                                              "several [[ris]] slots), copied into --out")
     add_connection_flags(live, required=False, device_flag="--radar-device")
-    live.add_argument("--first-frame", metavar="N|auto",
-                      help="override the schedule's first_frame (one RIS): the first sweep's first beam frame, or "
-                           "'auto' (found from the sync code and the RIS's power)")
+    add_sweep_import_flags(live, first_frame_help="override the schedule's first_frame (one RIS): the first sweep's "
+                                                  "first beam frame, or 'auto' (found from the sync code and the "
+                                                  "RIS's power)")
     live.add_argument("--period-frames", type=float, metavar="F",
                       help="frames from one sweep's start to the next (default: the time-division cycle, else the "
                            "RIS's program: sync code, gap, beams)")
-    live.add_argument("--leakage", choices=list(LEAKAGE_METHODS), default=DEFAULT_LEAKAGE,
-                      help="self-interference removal, as capture import (default: %(default)s)")
-    live.add_argument("--gate-range", type=float, default=DEFAULT_GATE_RANGE, metavar="M",
-                      help="range gate [m] (default: %(default)s)")
-    live.add_argument("--channels", metavar="V,V,...", help="virtual channels to combine (default: the schedule's)")
-    live.add_argument("--min-confidence", type=float, default=0.5, metavar="P",
-                      help="'auto': refuse an alignment less sure than this (default: %(default)s)")
