@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import dsp
-from dsp.floor_bounce import MAX_RUNG_DROP_DB, RUNGS, floor_ladder, rung_spacing
+from dsp.floor_bounce import RUNGS, floor_ladder, rung_spacing
 
 C = dsp.SPEED_OF_LIGHT
 TAU_RB = 1.78e-9
@@ -82,10 +82,11 @@ def test_the_ladder_says_which_rung_the_estimate_is_on():
     on = {r: floor_ladder(cube, RADAR, delay=tau0 + 2 * r * delta / C, delay_rate=2 * 0.2 / C, weights=weights,
                           spacing=delta, noise_power=1.0) for r in (0, 1, 2)}
     assert [on[r].steps_down for r in (0, 1, 2)] == [0, 1, 2]
-    # the straight leg's own ladder: nothing earlier but the Hann leakage of the later rungs (more than
-    # MAX_RUNG_DROP_DB below it), its two later rungs above the test, the middle one the strongest
+    # the straight leg's own ladder: nothing earlier but the Hann leakage of the later rungs (the Hann window's
+    # response 1.8 bins off a tone is -29 dB; with the noise, more than 15 dB below it), its two later rungs
+    # above the test, the middle one the strongest
     levels = dict(zip(RUNGS, on[0].levels_db))
-    assert max(levels[-1], levels[-2]) < levels[0] - MAX_RUNG_DROP_DB
+    assert max(levels[-1], levels[-2]) < levels[0] - 15.0
     assert levels[1] > levels[0] > on[0].threshold_db and levels[2] > on[0].threshold_db
 
 

@@ -25,6 +25,7 @@ import pytest
 import dsp.estimators
 
 RIS0 = np.array([17.0, 3.0, 1.2])
+FLOOR = 0.0                                     # the hall's floor plane (its spec's footprint lies at z = 0)
 
 
 def _capture(position, velocity):
@@ -47,16 +48,14 @@ def _locate(capture, **kw):
 
 
 def test_the_first_arrival_not_the_floor_leg():
-    from risloc_rt.hall.scenario import FLOOR_HEIGHT
-
     position = np.array([5.0, 20.0, 1.2])
     capture = _capture(position, (0.0, 0.0, 0.0))
     truth = float(np.linalg.norm(position - RIS0))
-    delta = dsp.rung_spacing(RIS0, position, FLOOR_HEIGHT)
+    delta = dsp.rung_spacing(RIS0, position, FLOOR)
     assert delta == pytest.approx(0.069, abs=0.001)
     without = _locate(capture)
     assert without.distance - truth == pytest.approx(delta, abs=0.25 * delta)        # the floor leg
-    with_floor = _locate(capture, floor_height=FLOOR_HEIGHT)
+    with_floor = _locate(capture, floor_height=FLOOR)
     error = with_floor.distance - truth
     assert "first-arrival" in with_floor.flag_codes
     assert abs(error) < 0.01 and abs(error) <= 2 * with_floor.std.distance             # 1 cm, inside 2σ
@@ -80,22 +79,21 @@ def test_the_floor_map_cells_read_the_floor():
     floor leg); the map's cells now carry the hall's floor to the DSP (``PreparedPoint.floor_height``)."""
     import dataclasses
 
-    from risloc_rt.hall.scenario import FLOOR_HEIGHT
     from risloc_rt.studies.floor_map import MapSettings, prepare_cell
     from risloc_rt.studies.kernel import run_once
 
     ue = np.array([11.0, 9.0, 1.2])
     prep = prepare_cell({"cell": 0, "ue": ue.tolist(), "ris": 1,
                          "settings": dataclasses.asdict(MapSettings(scene="paper_hall_2ris"))})
-    assert prep.floor_height == FLOOR_HEIGHT
-    delta = dsp.rung_spacing([29.5, 0.5, 1.2], ue, FLOOR_HEIGHT)
+    assert prep.floor_height == FLOOR                        # the cell carries the hall's floor to the DSP
+    delta = dsp.rung_spacing([29.5, 0.5, 1.2], ue, FLOOR)
 
     def errors(floor):
         p = dataclasses.replace(prep, floor_height=floor)
         return np.array([run_once(p, study_seed=1, point=0, run=r)["position_error"] for r in range(5)])
 
     assert np.median(errors(None)) > 0.8 * delta             # the floor leg: about one rung (6.6 cm) too far
-    assert np.median(errors(FLOOR_HEIGHT)) < 0.3 * delta
+    assert np.median(errors(FLOOR)) < 0.3 * delta
 
 
 def test_a_migrating_return_keeps_its_reference_time(monkeypatch):
