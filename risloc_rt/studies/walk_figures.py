@@ -101,12 +101,12 @@ def plot_error(result: Any, path: str | Path) -> Path:
         ax.semilogy(t[sel], _column(result, "fix_error")[sel], ls="none", marker=".", ms=4, label=f"fix ({name})")
     ax.semilogy(t, _column(result, "track_error"), color="#d62728", lw=1.2, label="track")
     ax.semilogy(t, _column(result, "track_sigma"), color="#d62728", lw=0.8, ls=":", label="track 1σ (sqrt trace)")
-    coast = np.array([r["update"] in ("coast", "gated") for r in result.rows])
+    coast = np.array([r["update"] in ("coast", "flagged", "gated") for r in result.rows])  # predicted only
     for tc in t[coast]:
         ax.axvline(tc, color="#cccccc", lw=0.5, zorder=0)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("position error [m]")
-    ax.set_title("error against time (grey: coasted or gated sweeps)", fontsize=9)
+    ax.set_title("error against time (grey: sweeps predicted only: coasted, flagged or gated)", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return save_figure(fig, path)
 
