@@ -213,8 +213,16 @@ def _blas() -> str:
 
 
 def is_host_array(x: Any) -> bool:
-    """Whether ``x`` is host data (a NumPy array, a scalar, a sequence), not an array of a device library."""
-    return isinstance(x, (np.ndarray, np.generic, list, tuple, int, float, complex)) or not hasattr(x, "__array_namespace__")
+    """Whether ``x`` is host data (a NumPy array, a scalar, a sequence), not an array of a device library.
+
+    A CuPy array is a device array although it has no ``__array_namespace__`` (CuPy 14 leaves that to
+    ``array_api_compat``): the array libraries are recognised by ``array_api_compat.is_array_api_obj``.
+    """
+    if isinstance(x, (np.ndarray, np.generic, list, tuple, int, float, complex)):
+        return True
+    import array_api_compat
+
+    return not array_api_compat.is_array_api_obj(x)
 
 
 def backend_of(x: Any) -> ArrayBackend:

@@ -439,3 +439,27 @@ def test_detect_memory_bounds_what_numpy_allocates():
         tracemalloc.stop()
     estimate = b * detect_memory(prep.cube.shape, whole_cells=False)
     assert cubes.nbytes < peak <= estimate, (peak, estimate)
+
+
+def test_a_cupy_array_is_a_device_array_without_array_namespace(monkeypatch):
+    """Regression (found on an H200): CuPy 14's ndarray has no ``__array_namespace__``, and ``is_host_array``
+    took it for host data, so ``self_localize`` called ``np.asarray`` on it (CuPy refuses: 'use .get()').
+    Here a stand-in module named ``cupy`` whose ndarray, like CuPy's, has no ``__array_namespace__``."""
+    import sys
+    import types
+
+    from dsp.xp import is_host_array
+
+    fake = types.ModuleType("cupy")
+
+    class ndarray:  # noqa: N801 - CuPy's class name
+        def __array__(self, *args, **kwargs):
+            raise TypeError("Implicit conversion to a NumPy array is not allowed. Please use `.get()`")
+
+    fake.ndarray = ndarray
+    monkeypatch.setitem(sys.modules, "cupy", fake)
+    assert not hasattr(ndarray(), "__array_namespace__")
+    assert not is_host_array(ndarray())
+    for host in (np.zeros(3), np.complex64(1), [1.0, 2.0], (1, 2), 3, 2.5, 1j):
+        assert is_host_array(host)
+    assert not is_host_array(dsp.strict_backend("device1").asarray(np.zeros(2)))
