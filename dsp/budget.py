@@ -142,8 +142,10 @@ def dsp_memory(shape: Any, *, n_dft: int, k_dft: int, itemsize: int = 16) -> int
 #: paper's: benchmarks/bench_device.py, docs/benchmarks.md, "Devices and batches"): batching buys nothing on a
 #: CPU, whose transforms are not launch-bound, and costs B cubes of memory. A GPU batches (DEVICE_BATCH).
 HOST_BATCH = 1
-#: Largest batch on a GPU (beyond it a kernel call is long enough that launch costs are nothing).
-DEVICE_BATCH = 64
+#: Largest batch on a GPU: measured on an H200 (CuPy 14.2, Table I, refined estimator, one process), B = 8
+#: ran 19-20 % under B = 1 and B = 64 13-19 % over it (docs/benchmarks.md, "Devices and batches");
+#: a B of 0.98 GB realizations beyond 8 only adds memory traffic.
+DEVICE_BATCH = 8
 
 
 def detect_memory(shape: Any, *, whole_cells: bool) -> int:

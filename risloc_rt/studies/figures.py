@@ -16,7 +16,7 @@ import numpy as np
 from ..plotting import new_figure, save_figure
 from .params import PARAMETERS, ris_size
 
-__all__ = ["plot_summary", "plot_map", "x_value"]
+__all__ = ["dsp_caption", "plot_summary", "plot_map", "x_value"]
 
 _PANELS = (("distance", "distance MAE [m]", 1.0), ("angle", "angle MAE [deg]", 180 / math.pi),
            ("position", "position MAE [m]", 1.0))
@@ -53,6 +53,32 @@ def _label(name: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
+def dsp_caption(devices: Any) -> str:
+    """The figure title's device part: what ran the DSP of a study's runs.
+
+    Parameters
+    ----------
+    devices : list of dict or None
+        A summary's ``devices`` (each ``{"dsp": ArrayBackend.describe(), "trace": ...}``).
+
+    Returns
+    -------
+    str
+        ``"; DSP on NVIDIA H200 (cupy 14.2.0)"`` for a GPU (its model), ``"; DSP on CPU (numpy 2.4.6)"``
+        for the host, several joined by commas; ``""`` when none is listed.
+    """
+    names = []
+    for env in devices or ():
+        dsp_env = env.get("dsp") if isinstance(env, dict) else None
+        if not dsp_env:
+            continue
+        where = dsp_env.get("hardware", "?") if str(dsp_env.get("device", "")).startswith("cuda") else "CPU"
+        name = f"{where.split(',')[0]} ({dsp_env.get('library', '?')})"
+        if name not in names:
+            names.append(name)
+    return f"; DSP on {', '.join(names)}" if names else ""
+
+
 def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None = None) -> Path:
     """Three panels (distance, angle, position): MAE with 95 % intervals and CRB (dashed) vs the x parameter.
 
@@ -66,7 +92,8 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
     path : path-like
         The PNG to write (atomically).
     title : str, optional
-        The figure's title (default: study name, runs per point and estimator).
+        The figure's title (default: study name, runs per point, estimator and the DSP's device:
+        a GPU's model or "CPU", with its array library, from the summary's ``devices``).
 
     Returns
     -------
@@ -113,7 +140,8 @@ def plot_summary(summary: dict[str, Any], path: str | Path, *, title: str | None
     axes[0].legend(fontsize=7)
     runs = summary["points"][0]["runs"] if summary["points"] else 0
     fig.suptitle(title or f"{summary['study']['name']}: {runs} runs per point, "
-                 f"estimator {summary['points'][0]['params']['estimator'] if summary['points'] else '?'}")
+                 f"estimator {summary['points'][0]['params']['estimator'] if summary['points'] else '?'}"
+                 f"{dsp_caption(summary.get('devices'))}")
     return save_figure(fig, path, tight=False, dpi=110)
 
 

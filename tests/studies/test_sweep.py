@@ -137,3 +137,16 @@ def test_an_aod_spread_draws_each_runs_angle_within_it(small_spec, tmp_path):
     assert np.all(np.abs(az - 10.3) <= 3.0 + 1e-9) and len(set(np.round(az, 9))) == 4
     # the estimate follows each run's own angle: within 0.2° (≈ 10σ of the bound at ~37 dB), not 3°
     assert np.all(np.degrees(np.abs(t["aod_az_error"])) < 0.2)
+
+
+def test_the_figure_title_names_what_ran_the_dsp():
+    """Issue 21: a study's figure says where its runs' DSP ran (the GPU's model, or the CPU) and with which library."""
+    from risloc_rt.studies.figures import dsp_caption
+
+    gpu = {"dsp": {"device": "cuda:0", "library": "cupy 14.2.0", "hardware": "NVIDIA H200, 140 GiB",
+                   "detail": "CUDA runtime 13.2, driver 13.0"}, "trace": None}
+    cpu = {"dsp": {"device": "cpu", "library": "numpy 2.4.6", "hardware": "AMD EPYC, 2 cores", "detail": "BLAS x"},
+           "trace": None}
+    assert dsp_caption([gpu]) == "; DSP on NVIDIA H200 (cupy 14.2.0)"
+    assert dsp_caption([cpu, gpu, cpu]) == "; DSP on CPU (numpy 2.4.6), NVIDIA H200 (cupy 14.2.0)"
+    assert dsp_caption([]) == dsp_caption(None) == dsp_caption([{"dsp": None, "trace": "x"}]) == ""
