@@ -57,6 +57,9 @@ def main() -> None:
     ap.add_argument("--estimators", default="paper,refined")
     ap.add_argument("--batches", default="1,2,4", help="realizations per detector call, comma-separated")
     ap.add_argument("--device", default="cpu", choices=("cpu", "cuda", "strict"))
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="after the table, profile the first row's timed runs again (cProfile) and print the N "
+                         "functions of largest own time: where a run's time goes on this device")
     args = ap.parse_args()
     try:
         backend = _backend(args.device)
@@ -92,6 +95,26 @@ def main() -> None:
                           f"{100 * s['cover1']:7.0f}%")
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process {rss:.0f} MiB")
+    if args.profile:
+        _profile(args, backend, powers[0], batches[0])
+
+
+def _profile(args: argparse.Namespace, backend: dsp.ArrayBackend, tx: float, b: int) -> None:
+    """cProfile of ``args.runs`` runs of the first estimator at ``tx`` dBm and batch ``b``: the top functions
+    by own time (a GPU's kernels are asynchronous: their time lands where the host waits for them)."""
+    import cProfile
+    import pstats
+
+    est = args.estimators.split(",")[0]
+    prep = prepare_point(complete_point({"aod_deg": 10.3, "estimator": est, "tx_power_dbm": tx}))
+    with dsp.limit_threads(1), threadpool_limits(limits=1, user_api="blas"):
+        run_runs(prep, study_seed=args.seed, point=0, runs=range(b), backend=backend, batch=b)
+        prof = cProfile.Profile()
+        prof.enable()
+        run_runs(prep, study_seed=args.seed, point=0, runs=range(args.runs), backend=backend, batch=b)
+        prof.disable()
+    print(f"\nprofile: {est}, {tx:g} dBm, B = {b}, {args.runs} runs (own time, s, all runs)")
+    pstats.Stats(prof).sort_stats("tottime").print_stats(args.profile)
 
 
 if __name__ == "__main__":

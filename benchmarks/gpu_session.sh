@@ -1,10 +1,16 @@
 #!/usr/bin/env bash
 # Issue 21's GPU checks in one call, for a session that is lent a GPU machine by the device tool.
 #
-# Prepared so that the checks fit the session's 15 minutes of device time after the smoke call
-# (benchmarks/gpu_smoke.sh, ~75 s): the GPU tests, the speed-against-error benchmark on the GPU and on its host CPU (the
-# baseline on the same machine), and the paper's Fig. 6 study file on the GPU. Every result lands
-# in $OUT (8 files: text, and the study's summary.json, study.png and runs.parquet).
+# Stages, named as arguments (default: "profile outliers fig7", what the 2026-11-27 H200 session left):
+#   tests     the GPU tests (tests/gpu, ~75 s)
+#   bench     bench_device.py on the GPU at B = 1, 8, 64 and on the same machine's CPU (~60 s)
+#   profile   cProfile of refined and paper runs on the GPU: where a run's time goes (~40 s)
+#   fig6 fig6r fig8 fig7   the paper's figures with their files' 1000 runs per point, 14 host workers
+#             (measured on an H200: 198, 52, 132 s; fig7 not yet, expect 5-8 min)
+#   outliers  4000 paper runs at 0 dBm: the gross-outlier rate, GPU against CPU (~2-3 min)
+# Run benchmarks/gpu_smoke.sh first (~75 s of device time): it finds a broken CuPy path cheaply. The whole
+# call runs under BUDGET seconds (default 570), each stage under its own cap. Results land in $OUT (at most
+# 8 files come back: name few stages per call).
 #
 # The device image has numpy, scipy, CuPy (cupy-cuda13x), pyarrow, matplotlib, tqdm, threadpoolctl
 # and pytest, not array-api-compat: carry it as a wheel. Here, once, in the repository root:
@@ -15,7 +21,7 @@
 #
 # then call the device tool's run with carry [".whl"], timeout_s 600 and the command
 #
-#   bash benchmarks/gpu_session.sh
+#   BUDGET=540 bash benchmarks/gpu_session.sh profile outliers fig7
 #
 # and record what comes back in docs/benchmarks.md ("Devices and batches"), docs/studies.md (Fig. 6
 # regenerated on a GPU) and the issue's note, with the device the reply names.
@@ -26,6 +32,8 @@ mkdir -p "$OUT"
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
   && export PYTHONPATH="/tmp/site:$PWD" || { echo "gpu_session.sh: carry .whl (see the header)"; exit 2; }
 export PYTHONUNBUFFERED=1
+# the stages to run (arguments; default: what the 2026-11-27 H200 session left: profile, outliers, fig7)
+STAGES=${*:-profile outliers fig7}
 # one budget for the whole call (BUDGET seconds, default 570): each stage runs under its own cap and never past it
 BUDGET=${BUDGET:-570}
 t0=$(date +%s)
@@ -37,31 +45,61 @@ deadline() {  # deadline CAP command...: the command under min(CAP, what is left
 }
 stamp() { echo "== $1 at $(( $(date +%s) - t0 )) s" | tee -a "$OUT/stages.txt"; }
 
-stamp device
+stage() { [[ " $STAGES " == *" $1 "* ]]; }
+study() {  # study NAME FILE CAP [extra args]: a study on the GPU, 14 host workers; its summary, figure, table and log back
+  stamp "$1 on the GPU"; local start=$(date +%s)
+  deadline "$3" python3 -m risloc_rt study sweep --study "$2" --device cuda --workers 14 --out "/tmp/$1" --quiet "${@:4}" \
+    2>&1 | tee "$OUT/$1.txt"
+  echo "$1 wall: $(( $(date +%s) - start )) s" | tee -a "$OUT/$1.txt"
+  for f in summary.json study.png; do cp "/tmp/$1/$f" "$OUT/$1_$f" 2>/dev/null; done
+}
+
+stamp "device; stages: $STAGES"
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee -a "$OUT/stages.txt"
 python3 -c "import dsp; print(dsp.backend_for('cuda').summary()); print(dsp.backend_for('cpu').summary())" | tee -a "$OUT/stages.txt"
 
-# 1. the GPU tests (CuPy against NumPy; the GPU noise law; rows independent of B; CPU vs GPU statistics)
-stamp "GPU tests"
-deadline 200 python3 -m pytest -q -m gpu tests/gpu -p no:cacheprovider --durations=6 -rA 2>&1 \
-  | tee "$OUT/gpu_tests.txt" | tail -30
+# the GPU tests (CuPy against NumPy; the GPU noise law; rows independent of B; CPU vs GPU statistics)
+if stage tests; then
+  stamp "GPU tests"
+  deadline 200 python3 -m pytest -q -m gpu tests/gpu -p no:cacheprovider --durations=6 -rA 2>&1 \
+    | tee "$OUT/gpu_tests.txt" | tail -30
+fi
 
-# 2. speed beside error: the GPU at several batch sizes, then this machine's CPU (one core) as the baseline
-stamp "bench, GPU"
-deadline 60 python3 benchmarks/bench_device.py --device cuda --estimators refined --runs 32 --tx-powers 0,20 \
-  --batches 1,8,64 2>&1 | tee "$OUT/bench_cuda.txt"
-deadline 30 python3 benchmarks/bench_device.py --device cuda --estimators paper --runs 16 --tx-powers 10 \
-  --batches 1,16 2>&1 | tail -n +3 | tee -a "$OUT/bench_cuda.txt"
-stamp "bench, host CPU"
-deadline 40 python3 benchmarks/bench_device.py --device cpu --runs 6 --tx-powers 10 --batches 1 2>&1 \
-  | tee "$OUT/bench_cpu.txt"
+# speed beside error: the GPU at several batch sizes, then this machine's CPU (one core) as the baseline
+if stage bench; then
+  stamp "bench, GPU"
+  deadline 60 python3 benchmarks/bench_device.py --device cuda --estimators refined --runs 32 --tx-powers 0,20 \
+    --batches 1,8,64 2>&1 | tee "$OUT/bench_cuda.txt"
+  deadline 30 python3 benchmarks/bench_device.py --device cuda --estimators paper --runs 16 --tx-powers 10 \
+    --batches 1,16 2>&1 | tail -n +3 | tee -a "$OUT/bench_cuda.txt"
+  stamp "bench, host CPU"
+  deadline 40 python3 benchmarks/bench_device.py --device cpu --runs 6 --tx-powers 10 --batches 1 2>&1 \
+    | tee "$OUT/bench_cpu.txt"
+fi
 
-# 3. the paper's Fig. 6 with its study file's 1000 runs per point, on the GPU (14 host workers share it: the
-#    estimators' steps after the detection run on the host)
-stamp "Fig. 6 on the GPU"
-start=$(date +%s)
-deadline 300 python3 -m risloc_rt study sweep --study studies/fig6_tx_power.toml --device cuda --workers 14 \
-  --out /tmp/fig6 --quiet 2>&1 | tee "$OUT/fig6.txt"
-echo "fig6 wall: $(( $(date +%s) - start )) s" | tee -a "$OUT/fig6.txt"
-for f in summary.json study.png runs.parquet; do cp "/tmp/fig6/$f" "$OUT/fig6_$f"; done  # 8 files come back at most
+# where a run's time goes on the GPU machine (cProfile of the host; the GPU's kernels land where it waits)
+if stage profile; then
+  stamp "profile"
+  deadline 60 python3 benchmarks/bench_device.py --device cuda --estimators refined --runs 32 --tx-powers 10 \
+    --batches 8 --profile 25 2>&1 | tee "$OUT/profile_refined.txt" | tail -40
+  deadline 60 python3 benchmarks/bench_device.py --device cuda --estimators paper --runs 16 --tx-powers 10 \
+    --batches 8 --profile 25 2>&1 | tee "$OUT/profile_paper.txt" | tail -40
+fi
+
+# the paper's figures with their study files' 1000 runs per point (measured 2026-11-27 on an H200: fig6 198 s,
+# fig6r 52 s, fig8 132 s; fig7's 181-beam sweeps not yet run there)
+if stage fig6; then study fig6 studies/fig6_tx_power.toml 300; fi
+if stage fig6r; then study fig6r studies/fig6_tx_power_refined.toml 120; fi
+if stage fig8; then study fig8 studies/fig8_ris_size.toml 240; fi
+if stage fig7; then study fig7 studies/fig7_sweep_step.toml 480; fi
+
+# the paper's gross outliers at 0 dBm, GPU against CPU: 26 of 1000 on the H200 against 13 of 1000 (seed 6) on the
+# CPU (Fisher p = 0.05); 4000 more GPU runs at 0 dBm settle whether the GPU's rate differs
+if stage outliers; then
+  printf '[study]\nname = "outliers_0dbm"\nruns = 4000\nseed = 61\n[fixed]\nestimator = "paper"\naod_deg = 10.3\n[vary]\ntx_power_dbm = [0.0]\n' \
+    > /tmp/outliers.toml
+  study outliers /tmp/outliers.toml 240
+  python3 -c "import pyarrow.parquet as pq, numpy as np; e = np.abs(np.array(pq.read_table('/tmp/outliers/runs.parquet').column('distance_error').to_pylist(), float)); print('gross (> 0.1 m):', int((e > 0.1).sum()), 'of', e.size)" \
+    2>&1 | tee -a "$OUT/outliers.txt"
+fi
 stamp done
