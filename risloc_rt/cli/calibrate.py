@@ -1,5 +1,13 @@
-"""``risloc calibrate CAPTURE --scene HALL -o calibration.toml``: the radar's range offset, the RIS's τ_RB and ζ,
-the noise floor and the power offset, fitted against the ray-traced hall (``docs/formats.md``, "Calibration files")."""
+"""``risloc calibrate``: the radar/RIS constants of one capture, or the hall's materials from several.
+
+- ``risloc calibrate CAPTURE --scene HALL -o calibration.toml``: the radar's range offset, the
+  RIS's τ_RB and ζ, the noise floor and the power offset, fitted against the ray-traced hall
+  (``docs/formats.md``, "Calibration files").
+- ``risloc calibrate CAPTURE [CAPTURE...] --scene HALL --materials NAME,... --out DIR``: the named
+  materials' ε_r and σ [S/m] at the carrier, fitted to the explained peak powers of captures at
+  known radar positions by gradients through the ray tracer, written as a new scene folder with
+  the fit's provenance (:mod:`risloc_rt.cli.calibrate_materials`, ``docs/calibration-materials.md``).
+"""
 
 from __future__ import annotations
 
@@ -18,7 +26,8 @@ def _run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line (CAPTURE, --scene, --ue [m], -o, --force, --max-range-offset [m], trace flags).
+        The parsed command line (CAPTURE..., --scene, --ue [m], -o, --force, --max-range-offset [m], trace flags;
+        with --materials: --out, --calibration, --fixed, --max-iter, --model-sigma [dB], --peak-prominence/--peak-floor [dB]).
 
     Returns
     -------
@@ -26,6 +35,21 @@ def _run(args: argparse.Namespace) -> int:
         The exit status: 0 when the file is written;
         bad input raises ``CliError`` or ``MeasuredFormatError`` (exit 2).
     """
+    if args.materials is not None:
+        from .calibrate_materials import run_materials
+
+        return run_materials(args)
+    if args.out is not None:
+        raise CliError("--out names the fitted scene folder of a material fit: give --materials NAME,... with it, or "
+                       "-o FILE for the radar/RIS calibration")
+    if args.output is None:
+        raise CliError("give -o calibration.toml (radar/RIS constants of one capture) or --materials NAME,... --out DIR "
+                       "(the hall's materials)")
+    if len(args.capture) != 1 or args.calibration or (args.ue is not None and len(args.ue) > 1):
+        raise CliError("-o calibrates one capture (one CAPTURE, at most one --ue, no --calibration); several captures "
+                       "are for --materials")
+    args.capture = args.capture[0]
+    args.ue = None if args.ue is None else args.ue[0]
     from ..io.capture_file import load_capture
     from ..measured.compare.calibration_file import write_calibration
     from ..measured.compare.calibration_fit import calibrate_capture
@@ -67,12 +91,38 @@ def add_parser(sub) -> None:
                          description="Fit the radar's internal range offset, the RIS's loop-back delay and "
                                      "amplification, the noise floor and the receiver's power offset to a measured "
                                      "capture of a static radar at a known position, with 1-sigma uncertainties; "
-                                     "'risloc simulate/locate/compare --calibration FILE' use the file.")
-    cal.add_argument("capture", help="capture file (.npz) from 'risloc capture import'")
+                                     "'risloc simulate/locate/compare --calibration FILE' use the file. With "
+                                     "--materials NAME,... --out DIR: fit those materials' eps_r and sigma to the "
+                                     "explained peak powers of one or more captures at known radar positions and "
+                                     "write a new scene folder (docs/calibration-materials.md).")
+    cal.add_argument("capture", nargs="+", help="capture file(s) (.npz) from 'risloc capture import' (one for -o, "
+                                                "one or more for --materials)")
     cal.add_argument("--scene", required=True, help="the hall (name in scenes/ or folder) the capture was made in")
-    cal.add_argument("--ue", metavar="X,Y,Z", help="the radar's position [m] (default: the capture's truth)")
-    cal.add_argument("-o", "--output", required=True, help="calibration file to write (.toml or .json)")
-    add_force_flag(cal, "an existing -o file")
+    cal.add_argument("--ue", metavar="X,Y,Z", action="append",
+                     help="the radar's position [m] (default: the capture's truth); with --materials once per capture")
+    cal.add_argument("-o", "--output", help="calibration file to write (.toml or .json)")
+    add_force_flag(cal, "an existing -o file (with --out: an earlier fitted scene folder)")
+    cal.add_argument("--materials", metavar="NAME,NAME",
+                     help="fit these materials' eps_r and sigma (names as in the scene XML without 'mat-', e.g. "
+                          "concrete-200mm) instead of the radar/RIS constants; needs --out")
+    cal.add_argument("--out", metavar="DIR", help="with --materials: the new scene folder (spec with the fitted "
+                                                  "materials, scene files, material-fit.json); must not exist")
+    cal.add_argument("--calibration", metavar="FILE", action="append",
+                     help="with --materials: a capture's radar/RIS calibration from 'risloc calibrate -o'; once for "
+                          "all captures or once per capture")
+    cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma", action="append", default=[],
+                     help="with --materials: hold this parameter at the scene's value (e.g. eps_r known from elsewhere "
+                          "when the peaks see only |Gamma|^2 at normal incidence); repeatable")
+    cal.add_argument("--max-iter", type=int, default=30, metavar="N",
+                     help="with --materials: most Levenberg-Marquardt iterations (default: %(default)s)")
+    cal.add_argument("--model-sigma", type=float, default=0.3, metavar="DB",
+                     help="with --materials: the ray tracer's model error per peak power [dB], in quadrature with "
+                          "each peak's noise (default: %(default)s)")
+    cal.add_argument("--peak-prominence", type=float, default=6.0, metavar="DB",
+                     help="with --materials: a measured peak's prominence [dB] (default: %(default)s)")
+    cal.add_argument("--peak-floor", type=float, default=12.0, metavar="DB",
+                     help="with --materials: a measured peak's height above the profile's median [dB] "
+                          "(default: %(default)s)")
     cal.add_argument("--max-range-offset", type=float, default=0.3, metavar="M",
                      help="range offsets searched, +-M metres (default: %(default)s)")
     add_trace_flags(cal)

@@ -109,15 +109,20 @@ class Observation:
         Observed power of each peak [dB], in units of |a|² plus ``offset_db``.
     sigma_db : float array [K] or float
         1σ of each observed power [dB], > 0 (a scalar applies to every peak).
-    offset_db : float
-        Known constant added to every model power of this position (radar/RIS link budget) [dB].
+    offset_db : float or float array [K]
+        Known constant added to the model power of this position's peaks (radar/RIS link budget)
+        [dB]: one number for every peak, or one per peak (e.g. a measured capture's link budget
+        from |a|² to the peak's power in the range profile, which includes the antenna gains
+        toward that path and the coherent merging of the peak's paths:
+        :mod:`risloc_rt.measured.compare.material_peaks`). Stored as given (a float, or a
+        read-only array); :meth:`offsets` gives it per peak.
     """
 
     radar_position: np.ndarray
     delay: np.ndarray
     power_db: np.ndarray
     sigma_db: np.ndarray
-    offset_db: float = 0.0
+    offset_db: float | np.ndarray = 0.0
 
     def __post_init__(self) -> None:
         pos = as_finite_array(self.radar_position, "radar_position", shape=(3,))
@@ -137,15 +142,33 @@ class Observation:
             raise ValueError("power_db must be finite [dB]")
         if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
             raise ValueError("sigma_db must be finite and > 0 [dB]")
-        if not math.isfinite(float(self.offset_db)):
-            raise ValueError(f"offset_db={self.offset_db!r} must be finite [dB]")
+        if np.ndim(self.offset_db) == 0:
+            if not math.isfinite(float(self.offset_db)):
+                raise ValueError(f"offset_db={self.offset_db!r} must be finite [dB]")
+            offset: float | np.ndarray = float(self.offset_db)
+        else:
+            offset = np.array(self.offset_db, dtype=float).reshape(-1)
+            if offset.size != k or not np.all(np.isfinite(offset)):
+                raise ValueError(f"offset_db must be one finite number or one per peak ({k}) [dB]; got "
+                                 f"{offset.size} value(s)")
+            offset.setflags(write=False)
         for name, value in (("radar_position", pos), ("delay", delay), ("power_db", power), ("sigma_db", sigma)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "offset_db", float(self.offset_db))
+        object.__setattr__(self, "offset_db", offset)
 
     def __len__(self) -> int:
         return int(self.delay.size)
+
+    def offsets(self) -> np.ndarray:
+        """The offset of every peak [dB].
+
+        Returns
+        -------
+        float array [K]
+            ``offset_db`` broadcast to one value per peak [dB].
+        """
+        return np.broadcast_to(np.asarray(self.offset_db, dtype=float), (len(self),))
 
 
 @dataclass(frozen=True)
@@ -181,6 +204,9 @@ class IdentifiabilityReport:
     weak : dict
         ``{parameter name: reason}`` for identifiable parameters whose profile check rose outside
         [``0.5/PROFILE_RATIO``, ``0.5·PROFILE_RATIO``] on either side: the stated 1σ is a local figure.
+    fixed : tuple of str
+        Parameters held at their start value (``fit_materials(fixed=...)``): not fitted, 1σ 0,
+        their correlations NaN; the others' 1σ are conditional on them.
     """
 
     parameters: tuple[str, ...]
@@ -194,6 +220,7 @@ class IdentifiabilityReport:
     not_identifiable: dict[str, str]
     profile_cost: dict[str, tuple[float, float]] = field(default_factory=dict)
     weak: dict[str, str] = field(default_factory=dict)
+    fixed: tuple[str, ...] = ()
 
     @property
     def identifiable(self) -> bool:
@@ -215,7 +242,9 @@ class IdentifiabilityReport:
             n = int(self.constrains[:, q].sum())
             flags = [f"{p.split(':')[1]}: {r}" for p, r in self.not_identifiable.items() if p.split(":")[0] == m]
             weak = [f"{p.split(':')[1]}: {r}" for p, r in self.weak.items() if p.split(":")[0] == m]
+            held = [p.split(":")[1] for p in self.fixed if p.split(":")[0] == m]
             lines.append(f"{m}: {n} peak(s)" + ("; " + "; ".join(flags) if flags else "; identifiable")
+                         + ("; held at its start value (not fitted): " + ", ".join(held) if held else "")
                          + ("; weak: " + "; ".join(weak) if weak else ""))
         return "\n".join(lines)
 
@@ -479,6 +508,21 @@ def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian) 
     return theta
 
 
+def _fixed_parameters(fixed: Any, names: tuple[str, ...]) -> set[str]:
+    """The held parameters as column names (``"m:eps_r"``, ``"m:ln_sigma"``); one-line ValueError for a bad one."""
+    items = [fixed] if isinstance(fixed, str) else list(fixed)
+    out = set()
+    for item in items:
+        m, _, kind = str(item).rpartition(":")
+        if m not in names or kind not in ("eps_r", "sigma"):
+            raise ValueError(f"fixed parameter {item!r} must be MATERIAL:eps_r or MATERIAL:sigma with MATERIAL one of "
+                             f"the fitted materials ({', '.join(names)})")
+        out.add(f"{m}:{'eps_r' if kind == 'eps_r' else 'ln_sigma'}")
+    if len(out) == 2 * len(names):
+        raise ValueError("every parameter is fixed: nothing is left to fit")
+    return out
+
+
 def _flags(vt: np.ndarray, s: np.ndarray, threshold: float, names: tuple[str, ...]) -> dict[str, str]:
     """Reasons for every parameter taking part in a direction below the threshold."""
     out: dict[str, str] = {}
@@ -519,6 +563,7 @@ def fit_materials(
     tolerance: float = 1e-6,
     progress: Callable[[int, float], None] | None = None,
     profile_check: bool = True,
+    fixed: Sequence[str] = (),
 ) -> MaterialFit:
     """Fit the named materials' ε_r and σ to the observed peak powers (Levenberg–Marquardt, dB residuals).
 
@@ -549,6 +594,10 @@ def fit_materials(
     profile_check : bool
         Re-trace at ±1σ of every identifiable parameter along its profile direction (4Q more
         evaluations) and report the cost's rise (``IdentifiabilityReport.profile_cost``/``weak``).
+    fixed : sequence of str
+        Parameters held at their start value, ``"<material>:eps_r"`` or ``"<material>:sigma"``
+        (e.g. ε_r known from elsewhere when the peaks see only one combination of ε_r and σ): their
+        Jacobian columns are set to 0, their 1σ is 0 and the others' 1σ are conditional on them.
 
     Returns
     -------
@@ -589,11 +638,12 @@ def fit_materials(
             jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings)
             jacs.append(jac)
             db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o))
+            offsets = o.offsets()
             for k in range(len(o)):
                 if explained[k]:
                     peaks.append((i, k))
-                    model.append(db[k] + o.offset_db)
-                    rows.append(o.power_db[k] - db[k] - o.offset_db)
+                    model.append(db[k] + offsets[k])
+                    rows.append(o.power_db[k] - db[k] - offsets[k])
                     jrows.append(jdb[k])
                     wrows.append(1.0 / o.sigma_db[k])
                     touch.append(t[k])
@@ -612,6 +662,8 @@ def fit_materials(
     names = first["jacs"][0].materials
     theta = _check_start(names, start, first["jacs"][0])
     params = tuple(f"{m}:{k}" for m in names for k in ("eps_r", "ln_sigma"))
+    held = _fixed_parameters(fixed, names)
+    mask = np.array([p in held for p in params], dtype=bool)
     if not first["peaks"]:
         raise ValueError(f"no observed peak is explained: no traced path lies within {window * 1e9:.3g} ns of any of "
                          f"the {sum(len(o) for o in obs)} peaks")
@@ -637,6 +689,7 @@ def fit_materials(
     for it in range(1, max_iter + 1):
         iterations = it
         jw = cur["jdb"] * cur["w"][:, None]
+        jw[:, mask] = 0.0
         rw = cur["residual"] * cur["w"]
         norm = np.linalg.norm(jw, axis=0)
         norm[norm == 0] = 1.0
@@ -669,28 +722,38 @@ def fit_materials(
 
     # Fisher information at the solution, in column-scaled coordinates.
     jw = cur["jdb"] * cur["w"][:, None]
+    jw[:, mask] = 0.0
     norm = np.linalg.norm(jw, axis=0)
     safe = np.where(norm == 0, 1.0, norm)
-    _, s, vt = np.linalg.svd(jw / safe, full_matrices=False)
+    free = jw[:, ~mask] / safe[~mask]
+    # Fewer peaks than free parameters: pad with zero rows, so that the directions no peak sees get their
+    # singular value 0 (and are flagged) instead of being left out of the decomposition.
+    free = np.vstack([free, np.zeros((max(0, free.shape[1] - free.shape[0]), free.shape[1]))])
+    _, s, vt = np.linalg.svd(free, full_matrices=False)
+    vt_full = np.zeros((vt.shape[0], len(params)))
+    vt_full[:, ~mask] = vt
+    vt = vt_full
     flags = _flags(vt, s, threshold, params)
     keep = s >= threshold * s[0] if s.size and s[0] > 0 else np.zeros(s.size, bool)
     cov_scaled = (vt[keep].T / s[keep] ** 2) @ vt[keep]
     cov = cov_scaled / np.outer(safe, safe)
     bad = np.array([p in flags for p in params])
+    cov[mask, :] = 0.0
+    cov[:, mask] = 0.0
     cov[bad, :] = np.nan
     cov[:, bad] = np.nan
     cov[bad, bad] = np.inf
     sd = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
-    corr[bad, :] = np.nan
-    corr[:, bad] = np.nan
+    corr[bad | mask, :] = np.nan
+    corr[:, bad | mask] = np.nan
     condition = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     profile: dict[str, tuple[float, float]] = {}
     weak: dict[str, str] = {}
     if profile_check:
         for i, p in enumerate(params):
-            if p in flags:
+            if p in flags or p in held:
                 continue
             direction = np.where(np.isfinite(cov[:, i]), cov[:, i], 0.0) / sd[i]
             rise = []
@@ -706,7 +769,7 @@ def fit_materials(
     report = IdentifiabilityReport(
         parameters=params, peaks=cur["peaks"], unexplained=cur["unexplained"], constrains=cur["touches"],
         jacobian_db=cur["jdb"], singular_values=s, condition=condition, threshold=float(threshold),
-        not_identifiable=flags, profile_cost=profile, weak=weak)
+        not_identifiable=flags, profile_cost=profile, weak=weak, fixed=tuple(p for p in params if p in held))
     for arr in (cov, corr, sd, s, cur["jdb"], cur["touches"]):
         arr.setflags(write=False)
     eps = theta[0::2].copy()

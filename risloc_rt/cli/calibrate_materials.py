@@ -1,0 +1,211 @@
+"""``risloc calibrate CAPTURE... --scene HALL --materials NAME,... --out DIR``: the hall's materials from captures.
+
+Each capture (at its known radar position: ``--ue`` or its truth; with its ``--calibration`` if
+given) is compared with the traced hall; its explained, non-RIS peaks become the fit's observation
+(:mod:`risloc_rt.measured.compare.material_peaks`); the named materials' ε_r and σ [S/m] are fitted
+by Levenberg–Marquardt through the ray tracer's exact derivatives
+(:func:`risloc_rt.hall.material_fit.fit_materials`, progress per iteration on stderr). Printed: a
+table per material (ε_r ± 1σ, σ ± 1σ [S/m]), the correlation matrix and the identifiability
+report. A material that is not identifiable is never written as a number: the report names the
+reason and no scene is written (exit 2). Otherwise the fitted scene folder is written atomically
+(:func:`risloc_rt.authoring.fitted_scene.write_fitted_scene`) with ``material-fit.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .common import CliError, trace_cache, trace_settings, vector
+
+__all__ = ["run_materials", "material_names"]
+
+
+def material_names(text: str) -> list[str]:
+    """The ``--materials`` list: comma-separated, non-empty, no repeats.
+
+    Parameters
+    ----------
+    text : str
+        The flag's value, e.g. ``concrete-200mm,glass-6mm``.
+
+    Returns
+    -------
+    list of str
+        The names.
+
+    Raises
+    ------
+    CliError
+        An empty name or a repeated one.
+    """
+    names = [n.strip() for n in text.split(",")]
+    if not all(names):
+        raise CliError(f"--materials {text!r}: give comma-separated material names, e.g. concrete-200mm,glass-6mm")
+    if len(set(names)) != len(names):
+        raise CliError(f"--materials {text!r} names a material twice")
+    return names
+
+
+def _per_capture(values: list[str] | None, n: int, flag: str) -> list[str | None]:
+    """``values`` of a repeated flag as one entry per capture (none, one for all, or one each)."""
+    if not values:
+        return [None] * n
+    if len(values) == 1:
+        return values * n
+    if len(values) != n:
+        raise CliError(f"{flag} is given {len(values)} times for {n} captures: give it once for all or once per capture")
+    return list(values)
+
+
+def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tuple[list[Any], list[dict[str, Any]]]:
+    """Every capture's observation, and its provenance record (path, sha256, radar position, peaks)."""
+    from dataclasses import replace
+
+    from .._files import file_sha256
+    from ..io.capture_file import load_capture
+    from ..measured.compare.calibration_file import read_calibration
+    from ..measured.compare.material_peaks import capture_observation
+    from ..measured.compare.traced_hall import hall_model, ue_position_of
+
+    if args.ue is not None and len(args.ue) not in (len(args.capture),):
+        raise CliError(f"--ue is given {len(args.ue)} times for {len(args.capture)} captures: give it once per capture "
+                       "(in their order) or not at all (each capture's truth)")
+    ues = _per_capture(args.ue, len(args.capture), "--ue")
+    cals = _per_capture(args.calibration, len(args.capture), "--calibration")
+    settings = trace_settings(args)
+    observations, records = [], []
+    for path, ue_text, cal_path in zip(args.capture, ues, cals):
+        capture = load_capture(path)
+        ue, source = ue_position_of(capture, None if ue_text is None else vector(ue_text, "--ue"))
+        cal = None if cal_path is None else read_calibration(cal_path)
+        ris = None if cal is None else replace(capture.ris, loopback_delay=cal.loopback_delay,
+                                               amplification_db=cal.amplification_db)
+        model = hall_model(capture, scene, ue, ue_source=source, ris=ris, trace=settings, cache=trace_cache(args))
+        peaks = capture_observation(capture, model, names, calibration=cal, settings=settings,
+                                    model_sigma_db=args.model_sigma, prominence_db=args.peak_prominence,
+                                    floor_db=args.peak_floor)
+        print(f"{path}: radar at {[round(float(x), 3) for x in ue]} m ({source}); {len(peaks.used)} peak(s) used, "
+              f"{len(peaks.left_out)} left out; power residual rms at the scene's materials "
+              f"{_fmt(peaks.comparison.summary['power_residual_rms_db'])} dB")
+        for d, why in peaks.left_out:
+            print(f"  left out {d:.3f} m: {why}")
+        observations.append(peaks.observation)
+        records.append({"capture": str(path), "sha256": file_sha256(path), "radar_position_m": [float(x) for x in ue],
+                        "radar_position_source": source, "calibration": cal_path,
+                        "calibration_sha256": None if cal_path is None else file_sha256(cal_path),
+                        "peaks": [dict(p) for p in peaks.used],
+                        "left_out": [{"distance_m": d, "reason": r} for d, r in peaks.left_out]})
+    return observations, records
+
+
+def _fmt(x: Any) -> str:
+    return "n/a" if x is None else f"{x:.2f}"
+
+
+def _print_fit(fit: Any) -> None:
+    """The table per material, the correlation matrix and the identifiability report, on stdout."""
+    flagged = fit.identifiability.not_identifiable
+    print(f"{'material':24s} {'eps_r':>10s} {'1 sigma':>9s} {'sigma [S/m]':>12s} {'1 sigma':>9s}  (start eps_r, sigma)")
+    for q, m in enumerate(fit.materials):
+        start = fit.start[m]
+        if any(p.startswith(m + ":") for p in flagged):
+            print(f"{m:24s} {'not identifiable (see the report below)':>43s}  ({start[0]:.4g}, {start[1]:.4g})")
+            continue
+        eps, sig, d_eps, d_sig = fit.value(m)
+        held = fit.identifiability.fixed
+        e_txt = "     held" if f"{m}:eps_r" in held else f"{d_eps:9.4f}"
+        s_txt = "     held" if f"{m}:ln_sigma" in held else f"{d_sig:9.4f}"
+        print(f"{m:24s} {eps:10.4f} {e_txt} {sig:12.4f} {s_txt}  ({start[0]:.4g}, {start[1]:.4g})")
+    params = fit.identifiability.parameters
+    print("correlation (eps_r, ln sigma per material):")
+    for i, p in enumerate(params):
+        print(f"  {p:36s} " + " ".join("     nan" if not math.isfinite(c) else f"{c:+8.3f}" for c in fit.correlation[i]))
+    dof = len(fit.residuals_db) - len(params) + len(fit.identifiability.fixed)
+    print(f"{len(fit.residuals_db)} peak(s); power residual rms {fit.rms_start_db:.3f} dB at the start -> "
+          f"{fit.rms_db:.3f} dB; chi2 {fit.chi2:.3g} for {dof} degree(s) of freedom; {fit.iterations} iteration(s), "
+          f"{fit.evaluations} evaluation(s), {fit.seconds:.1f} s" + ("" if fit.converged else "; NOT converged"))
+    print("identifiability: " + fit.identifiability.summary().replace("\n", "\n  "))
+
+
+def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[dict[str, Any]]) -> dict[str, Any]:
+    """The ``material-fit.json`` document."""
+    from .._version import __version__
+
+    rep = fit.identifiability
+    return {
+        "format": "risloc-material-fit", "version": 1, "risloc_rt_version": __version__,
+        "source_scene": str(scene), "captures": records,
+        "trace": {k: getattr(trace_settings(args), k) for k in ("max_depth", "samples_per_src")},
+        "units": "eps_r unitless, sigma S/m, powers and residuals dB, positions m, delays s",
+        "materials": {m: {"eps_r": float(fit.relative_permittivity[q]), "eps_r_sigma": float(fit.relative_permittivity_sigma[q]),
+                          "sigma_s_per_m": float(fit.conductivity[q]), "sigma_sigma_s_per_m": float(fit.conductivity_sigma[q]),
+                          "ln_sigma_sigma": float(fit.log_conductivity_sigma[q]), "start": list(fit.start[m])}
+                      for q, m in enumerate(fit.materials)},
+        "fixed": list(rep.fixed), "parameters": list(rep.parameters), "correlation": np.asarray(fit.correlation).tolist(),
+        "iterations": fit.iterations, "evaluations": fit.evaluations, "converged": fit.converged,
+        "chi2": fit.chi2, "degrees_of_freedom": len(fit.residuals_db) - len(rep.parameters) + len(rep.fixed),
+        "power_residual_rms_start_db": fit.rms_start_db, "power_residual_rms_db": fit.rms_db, "seconds": fit.seconds,
+        "identifiability": {"condition": rep.condition, "singular_values": np.asarray(rep.singular_values).tolist(),
+                            "not_identifiable": dict(rep.not_identifiable), "weak": dict(rep.weak),
+                            "profile_cost": {k: list(v) for k, v in rep.profile_cost.items()},
+                            "peaks_per_material": {m: int(np.asarray(rep.constrains)[:, q].sum())
+                                                   for q, m in enumerate(fit.materials)}},
+    }
+
+
+def run_materials(args: argparse.Namespace) -> int:
+    """``risloc calibrate --materials``: fit, print the table/correlations/report, write the fitted scene folder.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (CAPTURE..., --scene, --materials, --out, --force, --ue [m] per capture,
+        --calibration, --fixed, --max-iter, --model-sigma [dB], --peak-prominence/--peak-floor [dB], trace flags).
+
+    Returns
+    -------
+    int
+        0 when the scene folder is written; a bad input or a material that is not identifiable raises
+        ``CliError`` (exit 2, nothing written).
+    """
+    from ..authoring.fitted_scene import check_fitted_target, write_fitted_scene
+    from ..authoring.scene_folder import scene_directory
+    from ..hall.material_fit import fit_materials
+
+    if args.output is not None:
+        raise CliError("-o writes a radar/RIS calibration file; a material fit writes a scene folder: give --out DIR "
+                       "instead of -o")
+    if args.out is None:
+        raise CliError("--materials needs --out DIR, the new scene folder to write the fitted hall to")
+    if isinstance(args.max_iter, bool) or args.max_iter < 1:
+        raise CliError(f"--max-iter {args.max_iter} must be >= 1")
+    if not (math.isfinite(args.model_sigma) and args.model_sigma >= 0):
+        raise CliError(f"--model-sigma {args.model_sigma} must be a finite number >= 0 [dB]")
+    names = material_names(args.materials)
+    scene = scene_directory(args.scene)
+    out = check_fitted_target(args.out, force=args.force)
+    observations, records = _observations(args, scene, names)
+
+    def progress(iteration: int, cost: float) -> None:
+        print(f"  iteration {iteration}: chi2/2 = {cost:.5g}", file=sys.stderr, flush=True)
+
+    fit = fit_materials(scene, observations, names, settings=trace_settings(args), max_iter=args.max_iter,
+                        progress=progress, fixed=args.fixed)
+    _print_fit(fit)
+    flagged = fit.identifiability.not_identifiable
+    if flagged:
+        first = next(iter(flagged.values())).split(": e.g.")[0]
+        raise CliError(f"no scene written: {', '.join(flagged)} not identifiable from these peaks ({first}); hold one "
+                       "with --fixed NAME:eps_r, add radar positions that see the material at other angles, or fit "
+                       "fewer materials")
+    values = {m: fit.value(m)[:2] for m in fit.materials}
+    write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records), force=args.force,
+                       note="captures: " + ", ".join(Path(c).name for c in args.capture))
+    print(f"wrote {out} (spec.toml, scene.xml, meshes/, material-fit.json): use it as --scene {out}")
+    return 0
