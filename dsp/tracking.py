@@ -59,7 +59,7 @@ from .fusion import RisFix, central_jacobian
 from .validation import finite, positive
 
 __all__ = ["RisMeasurement", "TrackState", "TrackUpdate", "predict", "update", "start_track", "nees", "HORIZONTAL",
-           "ALL_AXES", "nees_band"]
+           "ALL_AXES", "nees_band", "Manoeuvres", "ImmState", "imm_start", "imm_predict", "imm_update"]
 
 #: State indices of the horizontal position and velocity (x, y, vx, vy).
 HORIZONTAL = (0, 1, 3, 4)
@@ -290,6 +290,46 @@ def nees(state: TrackState, truth: Any, *, axes: Any = ALL_AXES) -> float:
 _ITERATIONS = 10
 
 
+def _innovation(prior: TrackState, measurement: RisMeasurement,
+                known: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """At the prediction: the normalised innovation r, its Jacobian H, its covariance S = H P Hᵀ + I and the NIS."""
+    r0, h0 = _linearised(measurement, prior.mean, known)
+    s_cov = h0 @ prior.covariance @ h0.T + np.eye(r0.size)
+    return r0, h0, s_cov, float(r0 @ np.linalg.solve(s_cov, r0))
+
+
+def _iterated(prior: TrackState, measurement: RisMeasurement, known: tuple[float, float] | None,
+              r0: np.ndarray, h0: np.ndarray) -> TrackState:
+    """The iterated EKF update of ``prior`` on ``measurement`` (module notes), Joseph-form covariance."""
+    # iterated update: relinearise h at the updated state (Gauss-Newton on the posterior); a prior metres wide
+    # against millimetre measurements is far outside one linearisation's reach (NEES 27 for 6 after one step)
+    x0, p0 = prior.mean, prior.covariance
+    x, r, h_jac = x0, r0, h0
+    for _ in range(_ITERATIONS):
+        s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
+        gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
+        x_new = x0 + gain @ (r - h_jac @ (x0 - x))
+        done = float(np.max(np.abs(x_new - x))) < 1e-9
+        x = x_new
+        r, h_jac = _linearised(measurement, x, known)
+        if done:
+            break
+    s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
+    gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
+    ikh = np.eye(6) - gain @ h_jac
+    cov = ikh @ p0 @ ikh.T + gain @ gain.T  # Joseph form (R = I in σ units)
+    cov = 0.5 * (cov + cov.T)
+    if not math.isfinite(float(np.sum(cov))):
+        raise ValueError(f"RIS {measurement.fix.name}: the update at t = {measurement.time} s is not finite")
+    return TrackState(time=prior.time, mean=x, covariance=cov)
+
+
+def _gate_pfa(gate_pfa: Any) -> float:
+    if not 0 < gate_pfa < 1:
+        raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
+    return float(gate_pfa)
+
+
 def update(state: TrackState, measurement: RisMeasurement, *, accel_density: float,
            gate_pfa: float = 1e-3, height: Any = None) -> TrackUpdate:
     """Predict to the measurement's time and update on it (or reject it at the gate).
@@ -310,38 +350,15 @@ def update(state: TrackState, measurement: RisMeasurement, *, accel_density: flo
     -------
     TrackUpdate
     """
-    if not 0 < gate_pfa < 1:
-        raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
+    gate_pfa = _gate_pfa(gate_pfa)
     known = _height(height)
     prior = predict(state, measurement.time, accel_density=accel_density)
-    x0, p0 = prior.mean, prior.covariance
-    r0, h0 = _linearised(measurement, x0, known)
-    s_cov = h0 @ p0 @ h0.T + np.eye(r0.size)
-    nis = float(r0 @ np.linalg.solve(s_cov, r0))
+    r0, h0, _, nis = _innovation(prior, measurement, known)
     dof = int(r0.size)
     gate = float(scipy.stats.chi2.isf(gate_pfa, dof))
     if not nis <= gate:
         return TrackUpdate(state=prior, nis=nis, dof=dof, gate=gate, accepted=False, ris=measurement.fix.name)
-    # iterated update: relinearise h at the updated state (Gauss-Newton on the posterior); a prior metres wide
-    # against millimetre measurements is far outside one linearisation's reach (NEES 27 for 6 after one step)
-    x, r, h_jac = x0, r0, h0
-    for _ in range(_ITERATIONS):
-        s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
-        gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
-        x_new = x0 + gain @ (r - h_jac @ (x0 - x))
-        done = float(np.max(np.abs(x_new - x))) < 1e-9
-        x = x_new
-        r, h_jac = _linearised(measurement, x, known)
-        if done:
-            break
-    s_cov = h_jac @ p0 @ h_jac.T + np.eye(r.size)
-    gain = p0 @ h_jac.T @ np.linalg.inv(s_cov)
-    ikh = np.eye(6) - gain @ h_jac
-    cov = ikh @ p0 @ ikh.T + gain @ gain.T  # Joseph form (R = I in σ units)
-    cov = 0.5 * (cov + cov.T)
-    if not math.isfinite(float(np.sum(cov))):
-        raise ValueError(f"RIS {measurement.fix.name}: the update at t = {measurement.time} s is not finite")
-    return TrackUpdate(state=TrackState(time=prior.time, mean=x, covariance=cov), nis=nis, dof=dof, gate=gate,
+    return TrackUpdate(state=_iterated(prior, measurement, known, r0, h0), nis=nis, dof=dof, gate=gate,
                        accepted=True, ris=measurement.fix.name)
 
 
@@ -363,3 +380,205 @@ def nees_band(dof: int, count: int, level: float = 0.95) -> tuple[float, float]:
     """
     lo, hi = scipy.stats.chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof * count) / count
     return float(lo), float(hi)
+
+
+@dataclass(frozen=True)
+class Manoeuvres:
+    """Two nearly-constant-velocity models for a walker who goes straight and turns (module notes, "Manoeuvres").
+
+    Model 0 is quiet (``quiet`` q, straight walking), model 1 manoeuvres (``turning`` q, a turn). The
+    walker switches between them as a Markov chain in continuous time: it leaves the quiet model at the
+    rate 1/``quiet_time`` and the turning one at 1/``turning_time`` (:meth:`transition`).
+
+    Attributes
+    ----------
+    quiet : float
+        q of the quiet model [m²/s³] (> 0).
+    turning : float
+        q of the turning model [m²/s³] (> ``quiet``).
+    quiet_time : float
+        Mean time spent in the quiet model, the mean time between turns [s] (> 0).
+    turning_time : float
+        Mean time spent turning [s] (> 0).
+    """
+
+    quiet: float
+    turning: float
+    quiet_time: float
+    turning_time: float
+
+    def __post_init__(self) -> None:
+        for name, unit in (("quiet", "m²/s³"), ("turning", "m²/s³"), ("quiet_time", "s"), ("turning_time", "s")):
+            object.__setattr__(self, name, positive(getattr(self, name), f"Manoeuvres {name}", unit))
+        if not self.turning > self.quiet:
+            raise ValueError(f"Manoeuvres turning={self.turning!r} must exceed quiet={self.quiet!r} [m²/s³] (the "
+                             "turning model is the looser one), e.g. Manoeuvres(1e-4, 2.6, 8.4, 0.39)")
+
+    @property
+    def densities(self) -> tuple[float, float]:
+        """(quiet, turning) q [m²/s³]."""
+        return (self.quiet, self.turning)
+
+    def transition(self, dt: float) -> np.ndarray:
+        """The model switching probabilities over ``dt`` [s]: p[i, j] = P(model j at t + dt | model i at t) [2, 2].
+
+        The two-state chain in continuous time (rates a = 1/τ₀ out of quiet, b = 1/τ₁ out of turning):
+        p₀₁ = a/(a+b) (1 − e^{−(a+b)Δt}), p₁₀ = b/(a+b) (1 − e^{−(a+b)Δt}); over a long coast the weights
+        tend to the stationary shares (τ₀, τ₁)/(τ₀ + τ₁).
+
+        Parameters
+        ----------
+        dt : float
+            The step [s] (negative counts as 0).
+
+        Returns
+        -------
+        float array [2, 2]
+        """
+        a, b = 1.0 / self.quiet_time, 1.0 / self.turning_time
+        moved = -math.expm1(-(a + b) * max(float(dt), 0.0)) / (a + b)
+        return np.array([[1.0 - a * moved, a * moved], [b * moved, 1.0 - b * moved]])
+
+
+@dataclass(frozen=True, eq=False)
+class ImmState:
+    """The two-model filter's estimate at one time: each model's state and its probability.
+
+    Attributes
+    ----------
+    time : float
+        [s].
+    models : tuple of TrackState
+        The quiet and the turning model's estimates [m, m/s].
+    weights : float array [2]
+        Their probabilities given the measurements so far [unitless, sum 1].
+    """
+
+    time: float
+    models: tuple[TrackState, TrackState]
+    weights: np.ndarray
+
+    @property
+    def mean(self) -> np.ndarray:
+        """The mixture's mean [x, y, z, vx, vy, vz] [6] [m, m/s]."""
+        return np.einsum("i,ij->j", self.weights, np.stack([m.mean for m in self.models]))
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The mixture's covariance, the models' spread included [6, 6] [m², m²/s, m²/s²]."""
+        x = self.mean
+        return sum(w * (m.covariance + np.outer(m.mean - x, m.mean - x)) for w, m in zip(self.weights, self.models))
+
+    @property
+    def position_std(self) -> np.ndarray:
+        """1σ of x, y, z [3] [m]."""
+        return np.sqrt(np.diag(self.covariance)[:3])
+
+
+def _mixed(state: ImmState, time: float, manoeuvres: Manoeuvres) -> tuple[list[TrackState], np.ndarray]:
+    """The IMM's mixing step: each model's starting state for the step to ``time`` and the models' predicted
+    probabilities (``c_j = Σᵢ p_ij μᵢ``)."""
+    p = manoeuvres.transition(time - state.time)
+    c = state.weights @ p
+    out = []
+    for j in range(2):
+        w = state.weights * p[:, j] / c[j]  # μ_{i|j}
+        x = sum(w[i] * state.models[i].mean for i in range(2))
+        cov = sum(w[i] * (state.models[i].covariance + np.outer(state.models[i].mean - x, state.models[i].mean - x))
+                  for i in range(2))
+        out.append(TrackState(time=state.time, mean=x, covariance=0.5 * (cov + cov.T)))
+    return out, c
+
+
+def imm_start(measurement: RisMeasurement, *, speed_std: float = 1.0, height: Any = None,
+              turning_share: float = 0.5) -> ImmState:
+    """A two-model track from one measurement (both models start as :func:`start_track`).
+
+    Parameters
+    ----------
+    measurement : RisMeasurement
+    speed_std : float
+        1σ of the unknown starting velocity per axis [m/s].
+    height : (float, float), optional
+        A known height ``(h, σ_h)`` [m].
+    turning_share : float
+        The starting probability of the turning model [unitless, in (0, 1)].
+
+    Returns
+    -------
+    ImmState
+    """
+    if not 0 < turning_share < 1:
+        raise ValueError(f"turning_share={turning_share!r} must lie in (0, 1), e.g. 0.5")
+    first = start_track(measurement, speed_std=speed_std, height=height)
+    return ImmState(time=first.time, models=(first, first), weights=np.array([1.0 - turning_share, turning_share]))
+
+
+def imm_predict(state: ImmState, time: float, manoeuvres: Manoeuvres) -> ImmState:
+    """The two-model state at ``time``: mixed, each model predicted with its q (no measurement: coasting).
+
+    Parameters
+    ----------
+    state : ImmState
+    time : float
+        [s], not before ``state.time``.
+    manoeuvres : Manoeuvres
+
+    Returns
+    -------
+    ImmState
+    """
+    t = finite(time, "time", "s")
+    if t < state.time:
+        raise ValueError(f"time {t} s is before the track's {state.time} s: measurements must come in time order")
+    mixed, c = _mixed(state, t, manoeuvres)
+    return ImmState(time=t, models=tuple(predict(m, t, accel_density=q) for m, q in zip(mixed, manoeuvres.densities)),
+                    weights=c)
+
+
+def imm_update(state: ImmState, measurement: RisMeasurement, manoeuvres: Manoeuvres, *, gate_pfa: float = 1e-3,
+               height: Any = None) -> TrackUpdate:
+    """Interacting multiple model step: mix, predict each model to the measurement, update each on it, reweigh.
+
+    Each model's probability is multiplied by the likelihood of the measurement under its prediction,
+    N(ν; 0, S), and renormalised. The NIS reported is that of the mixture's prediction (its mean and
+    covariance, the models' spread included), χ²(n) when the filter is consistent. The measurement is
+    rejected (a grating twin, a path taken for the return) when it lies beyond the gate of every model's
+    prediction — the turning model's included, so that a turn is not taken for an outlier; a model whose
+    own gate it is beyond keeps its prediction (and loses weight by the likelihood), so that an outlier the
+    turning model accepts does not drag the quiet model along.
+
+    Parameters
+    ----------
+    state : ImmState
+    measurement : RisMeasurement
+    manoeuvres : Manoeuvres
+        The two models and their switching.
+    gate_pfa : float
+        Probability that a consistent measurement is rejected (χ² gate on each model's NIS).
+    height : (float, float), optional
+        A known height ``(h, σ_h)`` [m] (:func:`update`).
+
+    Returns
+    -------
+    TrackUpdate
+        ``state`` is an :class:`ImmState` (the prediction when rejected).
+    """
+    gate_pfa = _gate_pfa(gate_pfa)
+    known = _height(height)
+    prior = imm_predict(state, measurement.time, manoeuvres)
+    parts = [_innovation(m, measurement, known) for m in prior.models]
+    dof = int(parts[0][0].size)
+    gate = float(scipy.stats.chi2.isf(gate_pfa, dof))
+    mixture = TrackState(time=prior.time, mean=prior.mean, covariance=prior.covariance)
+    nis = _innovation(mixture, measurement, known)[3]
+    if not min(p[3] for p in parts) <= gate:
+        return TrackUpdate(state=prior, nis=nis, dof=dof, gate=gate, accepted=False, ris=measurement.fix.name)
+    log_like = np.array([-0.5 * p[3] - 0.5 * np.linalg.slogdet(p[2])[1] for p in parts])
+    weights = prior.weights * np.exp(log_like - log_like.max())
+    # a model whose own gate the measurement is beyond keeps its prediction (its weight falls by the likelihood):
+    # an outlier the turning model accepts does not drag the quiet model, a turn re-seeds it at the next mixing
+    models = tuple(_iterated(m, measurement, known, p[0], p[1]) if p[3] <= gate else m
+                   for m, p in zip(prior.models, parts))
+    return TrackUpdate(state=ImmState(time=prior.time, models=models, weights=weights / weights.sum()), nis=nis,
+                       dof=dof, gate=gate, accepted=True, ris=measurement.fix.name)

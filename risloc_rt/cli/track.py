@@ -113,7 +113,8 @@ def add_parser(sub) -> None:
                    help="the radar's known height: 'path' (default: the trajectory's z, a radar carried at a known "
                         "height), a number [m], or 'unknown' (the tracker estimates z too)")
     p.add_argument("--accel-density", type=float, metavar="Q",
-                   help="the tracker's white acceleration density [m²/s³] per axis (default: the library's)")
+                   help="track with one nearly-constant-velocity model of this white acceleration density [m²/s³] "
+                        "per axis (default: the two-model filter, quiet and turning, of docs/tracking.md)")
     p.add_argument("--estimator", choices=["refined", "paper"], default="refined",
                    help="single-sweep estimator (default: refined)")
     p.add_argument("--workers", type=int, metavar="N",

@@ -44,13 +44,14 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from dsp.fusion import DOUBT_CODES
-from dsp.tracking import nees_band
+from dsp.tracking import Manoeuvres, nees_band
 
 from .trajectory import Trajectory, TrajectoryError
 from .walk_figures import plot_consistency, plot_error, plot_plan
 
 __all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
-           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS"]
+           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "WALK_MANOEUVRES",
+           "WalkTracker"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
 #: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
@@ -421,9 +422,140 @@ def _track_row(slot: WalkSlot, job: _SlotJob, meas: Any, fix_sigma: float, secs:
     return row
 
 
+#: The two-model tracker's models for a walker (``docs/tracking.md``, "Manoeuvres"): a quiet model of
+#: q = 1e-4 m²/s³ (straight walking; the value of a grid with the smallest track RMSE ≥ 1.5 s from a turn on
+#: the calibration walk, ``benchmarks/calibrate_walk_floors.py``), a turning model of q = v²/T = 2.56 m²/s³
+#: (a 90° turn at v = 1 m/s changes each horizontal velocity component by up to v within one slot
+#: T = 0.3904 s), a mean time between turns of 8.4 s (the calibration walk's 42 s in 5 legs) and a turn
+#: lasting one slot.
+WALK_MANOEUVRES = Manoeuvres(quiet=1e-4, turning=1.0 / 0.3904, quiet_time=42.0 / 5, turning_time=0.3904)
+
+
+class WalkTracker:
+    """The walk's tracker: what :func:`run_walk` does with each slot's measurement, in slot order.
+
+    The first usable measurement starts the track; a measurement carrying a :data:`SKIP_FLAGS` code is not
+    used (``flagged``), no measurement is coasted through (``coast``); otherwise the filter updates on it
+    (``used``) or gates it (``gated``), and ``restart_after`` gated measurements in a row restart the track
+    from the next one (``restart``). The filter is the two-model IMM of :mod:`dsp.tracking` (``manoeuvres``,
+    default :data:`WALK_MANOEUVRES`), or one nearly-constant-velocity model when ``accel_density`` is given.
+
+    Parameters
+    ----------
+    manoeuvres : dsp.tracking.Manoeuvres, optional
+        The two models (default :data:`WALK_MANOEUVRES`).
+    accel_density : float, optional
+        q [m²/s³] of a single-model filter instead (not with ``manoeuvres``).
+    gate_pfa : float
+        Probability that a consistent measurement is gated out (χ² on the NIS).
+    restart_after : int
+        Gated measurements in a row after which the track restarts.
+
+    Attributes
+    ----------
+    state : dsp.tracking.TrackState or dsp.tracking.ImmState or None
+        The track after the last step (None before the first measurement).
+    """
+
+    def __init__(self, *, manoeuvres: Any = None, accel_density: float | None = None, gate_pfa: float = 1e-3,
+                 restart_after: int = 3) -> None:
+        from dsp import tracking
+
+        if manoeuvres is not None and accel_density is not None:
+            raise ValueError("give manoeuvres (two models) or accel_density (one model), not both")
+        if accel_density is not None:
+            accel_density = float(accel_density)
+            if not (math.isfinite(accel_density) and accel_density > 0):
+                raise ValueError(f"accel_density={accel_density!r} must be > 0 [m²/s³], e.g. 0.5")
+        elif manoeuvres is None:
+            manoeuvres = WALK_MANOEUVRES
+        if manoeuvres is not None and not isinstance(manoeuvres, tracking.Manoeuvres):
+            raise ValueError(f"manoeuvres must be a dsp.tracking.Manoeuvres, got {type(manoeuvres).__name__}")
+        if not 0 < gate_pfa < 1:
+            raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
+        if isinstance(restart_after, bool) or not isinstance(restart_after, int) or restart_after < 1:
+            raise ValueError(f"restart_after={restart_after!r} must be an integer >= 1 (gated measurements in a row)")
+        self.manoeuvres, self.accel_density = manoeuvres, accel_density
+        self.gate_pfa, self.restart_after = float(gate_pfa), restart_after
+        self.state: Any = None
+        self._gated_run = 0
+
+    def describe(self) -> dict[str, Any]:
+        """The filter and its parameters, for ``summary.json`` [m²/s³, s].
+
+        Returns
+        -------
+        dict
+        """
+        if self.manoeuvres is None:
+            return {"models": "nearly constant velocity", "accel_density_m2_s3": self.accel_density}
+        m = self.manoeuvres
+        return {"models": "IMM: quiet and turning nearly constant velocity", "quiet_m2_s3": m.quiet,
+                "turning_m2_s3": m.turning, "quiet_time_s": m.quiet_time, "turning_time_s": m.turning_time}
+
+    def _start(self, meas: Any, known: Any) -> Any:
+        from dsp import tracking
+
+        if self.manoeuvres is None:
+            return tracking.start_track(meas, height=known)
+        return tracking.imm_start(meas, height=known)
+
+    def _predict(self, time: float) -> Any:
+        from dsp import tracking
+
+        if self.manoeuvres is None:
+            return tracking.predict(self.state, time, accel_density=self.accel_density)
+        return tracking.imm_predict(self.state, time, self.manoeuvres)
+
+    def step(self, time: float, meas: Any, *, height: Any = None) -> tuple[str, float, int]:
+        """One slot: the track moved to ``time`` and updated on ``meas`` (module notes).
+
+        Parameters
+        ----------
+        time : float
+            The slot's reference time [s].
+        meas : dsp.tracking.RisMeasurement or None
+            The slot's measurement (None: no detection, no position, or the radar behind the RIS).
+        height : (float, float), optional
+            A known height ``(h, σ_h)`` [m].
+
+        Returns
+        -------
+        (str, float, int)
+            What was done (:data:`UPDATE_KINDS`), the NIS [unitless] (NaN when nothing was measured) and
+            its degrees of freedom.
+        """
+        from dsp import tracking
+
+        flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
+        if self.state is None:
+            if meas is None or flagged:
+                return "none", math.nan, 0
+            self.state = self._start(meas, height)
+            return "start", math.nan, 0
+        if meas is None or flagged:
+            self.state = self._predict(time)
+            return ("flagged" if flagged else "coast"), math.nan, 0
+        if self.manoeuvres is None:
+            up = tracking.update(self.state, meas, accel_density=self.accel_density, gate_pfa=self.gate_pfa,
+                                 height=height)
+        else:
+            up = tracking.imm_update(self.state, meas, self.manoeuvres, gate_pfa=self.gate_pfa, height=height)
+        if up.accepted:
+            self.state, self._gated_run = up.state, 0
+            return "used", up.nis, up.dof
+        self._gated_run += 1
+        if self._gated_run >= self.restart_after:
+            self.state, self._gated_run = self._start(meas, height), 0
+            return "restart", up.nis, up.dof
+        self.state = up.state
+        return "gated", up.nis, up.dof
+
+
 def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, seed: int = 0,
              tx_power_dbm: float | None = None, trace: Any = None, cache: Any = None, height: Any = "path",
-             height_std: float = 0.01, accel_density: float = 0.5, gate_pfa: float = 1e-3, restart_after: int = 3,
+             height_std: float = 0.01, accel_density: float | None = None, manoeuvres: Any = None,
+             gate_pfa: float = 1e-3, restart_after: int = 3,
              estimator: str = "refined", progress: Callable[[str], None] | None = None,
              progress_every: int = 10, max_sweeps: int | None = None, floors: Any = MOVING_FLOORS,
              sweep: Any = None, backend: Any = None, workers: int = 1) -> WalkResult:
@@ -453,8 +585,11 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
         (:mod:`dsp.tracking`, "A known height").
     height_std : float
         1σ of the known height [m].
-    accel_density : float
-        The tracker's white acceleration density q [m²/s³] per axis.
+    accel_density : float, optional
+        Track with one nearly-constant-velocity model of this white acceleration density q [m²/s³] per
+        axis instead of the two-model filter (:class:`WalkTracker`).
+    manoeuvres : dsp.tracking.Manoeuvres, optional
+        The two-model filter's models (default :data:`WALK_MANOEUVRES`); not with ``accel_density``.
     gate_pfa : float
         Probability that a consistent measurement is gated out (χ² on the NIS).
     restart_after : int
@@ -497,8 +632,6 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
     floors = tuple(float(f) for f in floors)
     if len(floors) != 3 or not all(math.isfinite(f) and f >= 0 for f in floors):
         raise ValueError(f"floors={floors!r} must be three numbers >= 0: distance [m], azimuth [rad], velocity [m/s]")
-    if restart_after < 1:
-        raise ValueError(f"restart_after={restart_after!r} must be >= 1 (gated measurements in a row)")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers={workers!r} must be an integer >= 1 (processes)")
     if backend is not None and backend.is_numpy:
@@ -513,7 +646,9 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
     schedule = schedule or default_schedule(spec, radar, sweep.num_beams)
     t_mid = sweep_reference_time(radar, sweep.num_beams)
     axes = tracking.HORIZONTAL if height is not None else tracking.ALL_AXES
-    state, gated_run, rows = None, 0, []
+    tracker = WalkTracker(manoeuvres=manoeuvres, accel_density=accel_density, gate_pfa=gate_pfa,
+                          restart_after=restart_after)
+    state, rows = None, []
     jobs = [_SlotJob(folder=folder, slot=slot, idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace,
                      sweep=sweep, radar=radar, seed=int(seed), estimator=estimator,
                      height=None if height is None else (float(slot.position[2]) if height == "path" else float(height)),
@@ -527,29 +662,8 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
             if no_position:
                 row["status"] = "no-position"
             known = None if job.height is None else (job.height, height_std)
-            nis, nis_dof = math.nan, 0
-            flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
-            if flagged:
-                state, kind = (None, "none") if state is None else (
-                    tracking.predict(state, slot.time, accel_density=accel_density), "flagged")
-            elif state is None:
-                if meas is not None:
-                    state, kind = tracking.start_track(meas, height=known), "start"
-                else:
-                    kind = "none"
-            elif meas is None:
-                state, kind = tracking.predict(state, slot.time, accel_density=accel_density), "coast"
-            else:
-                up = tracking.update(state, meas, accel_density=accel_density, gate_pfa=gate_pfa, height=known)
-                nis, nis_dof = up.nis, up.dof
-                if up.accepted:
-                    state, kind, gated_run = up.state, "used", 0
-                else:
-                    gated_run += 1
-                    if gated_run >= restart_after:
-                        state, kind, gated_run = tracking.start_track(meas, height=known), "restart", 0
-                    else:
-                        state, kind = up.state, "gated"
+            kind, nis, nis_dof = tracker.step(slot.time, meas, height=known)
+            state = tracker.state
             row.update(update=kind, nis=nis, nis_dof=nis_dof)
             if state is not None:
                 truth = np.concatenate([slot.position, slot.velocity])
@@ -571,7 +685,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                 progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
                          f"{time.perf_counter() - begin:.0f} s")
     summary = _summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
-                       height=height, height_std=height_std, accel_density=accel_density, gate_pfa=gate_pfa,
+                       height=height, height_std=height_std, tracker=tracker, gate_pfa=gate_pfa,
                        wall=time.perf_counter() - begin)
     return WalkResult(rows=rows, summary=summary, scene=folder, trajectory=trajectory)
 
@@ -593,7 +707,7 @@ def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: fl
 
 
 def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
-             radar: Any, height: Any, height_std: float, accel_density: float, gate_pfa: float,
+             radar: Any, height: Any, height_std: float, tracker: Any, gate_pfa: float,
              wall: float) -> dict[str, Any]:
     """``summary.json``: the walk's figures (units in the keys' names or docs/tracking.md)."""
     col = {k: np.array([r[k] for r in rows]) for k in ("fix_error", "track_error", "nees", "nis", "nees_dof",
@@ -617,7 +731,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "duration_s": trajectory.duration, "sweeps": len(rows), "schedule": schedule.to_dict(),
         "tx_power_dbm": float(radar.tx_power_dbm),
         "height": height if height is None or isinstance(height, str) else float(height), "height_std_m": height_std,
-        "accel_density_m2_s3": accel_density, "gate_pfa": gate_pfa,
+        "tracker": tracker.describe(), "gate_pfa": gate_pfa,
         "sweeps_per_ris": {name: sum(r["ris"] == name for r in rows) for name in schedule.order},
         "sweeps_in_view": int(view.sum()), "fixes": int(fix.sum()), "fixes_in_view": int((fix & view).sum()),
         "fixes_out_of_view": int((fix & ~view).sum()),
