@@ -92,7 +92,7 @@ _COMPONENT = 0.1
 #: Profile check: a rise of the cost at ±1σ outside [0.5/PROFILE_RATIO, 0.5·PROFILE_RATIO] marks the 1σ as weak.
 PROFILE_RATIO: float = 2.0
 _DB = 10.0 / math.log(10.0)
-_LOG_SIGMA_BOUNDS = (-40.0, 40.0)  # ln σ [ln(S/m)]: keeps σ a finite float32
+_LOG_SIGMA_BOUNDS = (-40.0, 20.0)  # ln σ [ln(S/m)]: 4e-18 to 5e8 S/m; at e^40 S/m sionna-rt's float32 slab model loses every path
 
 
 @dataclass(frozen=True)
