@@ -139,3 +139,53 @@ def test_a_detection_without_a_positive_distance_is_no_position_not_a_crash(monk
     row = walk.rows[2]
     assert 2 in calls and row["status"] == "no-position" and row["update"] == "coast" and math.isnan(row["fix_x"])
     assert walk.summary["no_position"] == 1 and walk.rows[4]["update"] == "used"
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(accel_density=0.5, manoeuvres="default"), "not both"),
+    (dict(accel_density=0.0), r"accel_density=0.0 must be > 0"),
+    (dict(accel_density=float("inf")), "accel_density=inf must be > 0"),
+    (dict(manoeuvres=(1e-4, 2.6, 8.4, 0.39)), "must be a dsp.tracking.Manoeuvres"),
+    (dict(gate_pfa=1.0), r"gate_pfa=1.0 must lie in \(0, 1\)"),
+    (dict(restart_after=0), "restart_after=0 must be an integer >= 1"),
+    (dict(restart_after=2.5), "restart_after=2.5 must be an integer >= 1"),
+])
+def test_the_walk_tracker_refuses_bad_settings_in_one_line(kwargs, match):
+    from risloc_rt.studies.walk import WALK_MANOEUVRES, WalkTracker
+
+    if kwargs.get("manoeuvres") == "default":
+        kwargs["manoeuvres"] = WALK_MANOEUVRES
+    with pytest.raises(ValueError, match=match) as err:
+        WalkTracker(**kwargs)
+    assert "\n" not in str(err.value)
+
+
+def test_the_walk_tracker_starts_flags_coasts_and_updates_with_two_models_or_one():
+    """No track before the first usable fix; a flagged fix before it starts nothing; then start, coast, a
+    flagged fix predicted through, an update: the state is the two-model mixture by default, one model's
+    state with accel_density; summary's description names the filter."""
+    from dsp import RisPose
+    from dsp.fusion import RisFix
+    from dsp.tracking import ImmState, RisMeasurement, TrackState
+    from risloc_rt.studies.walk import SKIP_FLAGS, WalkTracker
+
+    pose = RisPose.facing(np.array([0.0, 5.0, 1.2]), np.array([6.0, 5.0, 1.2]))
+
+    def meas(t, flags=()):
+        x = np.array([2.0 + t, 5.0, 1.2])  # 1 m/s along x, straight at the RIS's broadside
+        return RisMeasurement(time=t, fix=RisFix(name="a", pose=pose, distance=float(np.linalg.norm(x - pose.position)),
+                                                 std_distance=1e-3, aod=np.array([0.0, 0.0]),
+                                                 std_aod=np.array([np.deg2rad(0.05), np.nan]), flags=tuple(flags)),
+                              velocity=1.0, std_velocity=1e-3)
+
+    for kwargs, kind in (({}, ImmState), ({"accel_density": 0.5}, TrackState)):
+        tracker = WalkTracker(**kwargs)
+        steps = [tracker.step(0.0, meas(0.0, flags=SKIP_FLAGS[:1]), height=(1.2, 0.01)),
+                 tracker.step(0.4, meas(0.4), height=(1.2, 0.01)), tracker.step(0.8, None),
+                 tracker.step(1.2, meas(1.2, flags=SKIP_FLAGS[:1])), tracker.step(1.6, meas(1.6), height=(1.2, 0.01))]
+        assert [s[0] for s in steps] == ["none", "start", "coast", "flagged", "used"]
+        assert isinstance(tracker.state, kind) and tracker.state.time == 1.6
+        assert steps[-1][2] == 4 and np.isfinite(steps[-1][1]) and all(np.isnan(s[1]) for s in steps[:4])
+        assert abs(tracker.state.mean[0] - 3.6) < 0.01
+    assert WalkTracker().describe()["models"].startswith("IMM")
+    assert WalkTracker(accel_density=0.5).describe() == {"models": "nearly constant velocity", "accel_density_m2_s3": 0.5}
