@@ -90,6 +90,7 @@ def main() -> int:
     s = full.summary
     keys = ("sweeps", "sweeps_in_view", "fixes", "fixes_in_view", "fix_share_in_view", "fixes_out_of_view",
             "fix_rmse_m", "fix_median_error_m", "track_rmse_m", "track_max_error_m", "corner_max_error_m", "updates",
+            "track_rmse_updated_m", "far_from_turns", "near_turns", "tracker",
             "nees_dof", "nees_mean", "nees_band_95", "nees_mean_in_band", "nees_share_in_single_band_95",
             "nis_mean_per_dof", "nis_band_95_per_dof", "seconds")
     report["walk40"] = {k: s[k] for k in keys}

@@ -31,6 +31,18 @@ the same numbers). A radar carried at a known height (a robot, a trolley: the on
 of :func:`start_track` and :func:`update`); the filter then tracks the horizontal position and
 velocity, and its consistency is judged on those (:func:`nees` with ``axes=HORIZONTAL``).
 
+**Manoeuvres.** A walker goes straight and turns; one white-acceleration density cannot serve both
+(loose enough for a turn, the track copies every fix on the straight legs; tight, it falls behind at
+the turn). :class:`Manoeuvres` holds two nearly-constant-velocity models, quiet (q₀) and turning
+(q₁), switching as a two-state Markov chain in continuous time; :func:`imm_start`,
+:func:`imm_predict` and :func:`imm_update` are the interacting multiple model filter over them
+(mixing, each model predicted and updated with the iterated update above, each model's probability
+reweighted by the likelihood of the measurement under its prediction); :class:`ImmState` gives the
+mixture's mean and covariance (the models' spread included), which :func:`nees` reads as it reads a
+:class:`TrackState`. A measurement beyond both models' gates is rejected; a model whose own gate it
+is beyond keeps its prediction. ``docs/tracking.md``, "Manoeuvres", has the calibration and the
+measured consistency.
+
 Why not filterpy or Stone Soup (``docs/tracking.md``, "Why our own filter"): the filter here is
 about a hundred lines of NumPy around one measurement function that must wrap the azimuth, drop
 the angles a sweep cannot see and append the known height. filterpy's ``ExtendedKalmanFilter``

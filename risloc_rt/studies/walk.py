@@ -706,6 +706,25 @@ def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: fl
     return float(err[sel].max()) if sel.any() else None
 
 
+def _split_figures(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 1.5) -> dict[str, Any]:
+    """The track's RMSE [m] over the sweeps updated on a fix, and its RMSE and mean NEES (with the 95 % band of
+    that many χ² values) at least ``window`` [s] from a turn (an inner waypoint) and within it."""
+    t = np.array([r["time"] for r in rows])
+    err = np.array([r["track_error"] for r in rows])
+    nees = np.array([r["nees"] for r in rows])
+    dof = next((int(r["nees_dof"]) for r in rows if r["nees_dof"]), 0)
+    turns = np.asarray(trajectory.times[1:-1], dtype=float)
+    near = (np.min(np.abs(t[:, None] - turns[None, :]), axis=1) < window) if turns.size else np.zeros(t.size, bool)
+    used = np.array([r["update"] == "used" for r in rows])
+    out: dict[str, Any] = {"track_rmse_updated_m": _rms(err[used]), "turn_window_s": window}
+    for name, sel in (("far_from_turns", ~near), ("near_turns", near)):
+        ok = sel & np.isfinite(nees)
+        out[name] = {"sweeps": int(sel.sum()), "track_rmse_m": _rms(err[sel]),
+                     "nees_mean": float(np.mean(nees[ok])) if ok.any() else None,
+                     "nees_band_95": list(nees_band(dof, int(ok.sum()))) if ok.any() and dof else None}
+    return out
+
+
 def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
              radar: Any, height: Any, height_std: float, tracker: Any, gate_pfa: float,
              wall: float) -> dict[str, Any]:
@@ -743,7 +762,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "fix_rmse_in_view_m": _rms(col["fix_error"][fix & view]),
         "track_rmse_m": _rms(col["track_error"]),
         "track_max_error_m": float(np.nanmax(col["track_error"])) if tracked.any() else None,
-        "corner_max_error_m": _corner_error(rows, trajectory),
+        "corner_max_error_m": _corner_error(rows, trajectory), **_split_figures(rows, trajectory),
         "nees_dof": nees_dof, "nees_mean": float(np.mean(col["nees"][tracked])) if n_nees else None,
         "nees_band_95": list(band), "nees_mean_in_band": bool(band[0] <= np.mean(col["nees"][tracked]) <= band[1])
         if n_nees else False, "nees_share_in_single_band_95": inside, "nees_single_band_95": list(single),
