@@ -7,7 +7,8 @@ by Levenberg–Marquardt through the ray tracer's exact derivatives
 (:func:`risloc_rt.hall.material_fit.fit_materials`, progress per iteration on stderr). Printed: a
 table per material (ε_r ± 1σ, σ ± 1σ [S/m]), the correlation matrix and the identifiability
 report. A material that is not identifiable is never written as a number: the report names the
-reason and no scene is written (exit 2). Otherwise the fitted scene folder is written atomically
+reason and no scene is written (exit 2); so is a fit that ends at the edge of what the tracer accepts
+(ε_r = 1, σ at :data:`SIGMA_RANGE`'s ends), where the Fisher 1σ means nothing. Otherwise the fitted scene folder is written atomically
 (:func:`risloc_rt.authoring.fitted_scene.write_fitted_scene`) with ``material-fit.json``.
 """
 
@@ -23,7 +24,11 @@ import numpy as np
 
 from .common import CliError, trace_cache, trace_settings, vector
 
-__all__ = ["run_materials", "material_names"]
+__all__ = ["run_materials", "material_names", "SIGMA_RANGE"]
+
+#: The conductivities the fit can reach [S/m] (ln σ within the engine's bounds, -40..20): a fitted σ at either end
+#: is refused, as is ε_r at its bound 1.
+SIGMA_RANGE: tuple[float, float] = (math.exp(-40.0) * 1.001, math.exp(20.0) / 1.001)
 
 
 def material_names(text: str) -> list[str]:
@@ -205,6 +210,14 @@ def run_materials(args: argparse.Namespace) -> int:
                        "with --fixed NAME:eps_r, add radar positions that see the material at other angles, or fit "
                        "fewer materials")
     values = {m: fit.value(m)[:2] for m in fit.materials}
+    held = fit.identifiability.fixed
+    at_bound = [f"{m}:eps_r = 1" for m, (eps, _) in values.items() if eps <= 1.0 and f"{m}:eps_r" not in held]
+    at_bound += [f"{m}:sigma = {sig:.3g} S/m" for m, (_, sig) in values.items()
+                 if not SIGMA_RANGE[0] < sig < SIGMA_RANGE[1] and f"{m}:ln_sigma" not in held]
+    if at_bound:
+        raise CliError(f"no scene written: the fit ran into the edge of what the ray tracer accepts ({', '.join(at_bound)}; "
+                       "eps_r >= 1, sigma within 4e-18..5e8 S/m): the peaks do not hold it there, so its 1-sigma means "
+                       "nothing; hold it with --fixed NAME:eps_r (or NAME:sigma), or add radar positions")
     write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records), force=args.force,
                        note="captures: " + ", ".join(Path(c).name for c in args.capture))
     print(f"wrote {out} (spec.toml, scene.xml, meshes/, material-fit.json): use it as --scene {out}")
