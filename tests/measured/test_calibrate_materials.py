@@ -19,6 +19,7 @@ import hashlib
 import json
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -140,3 +141,42 @@ def test_cli_refuses_unidentifiable_then_fits_with_eps_r_held_and_the_held_out_r
     print(f"held-out static peak power residuals [dB]: before {r_before}, after {r_after}")
     assert r_before and len(r_after) == len(r_before)
     assert np.sqrt(np.mean(np.square(r_after))) < np.sqrt(np.mean(np.square(r_before)))
+
+
+@pytest.mark.slow
+def test_cli_with_a_calibration_file_and_a_fit_at_the_tracers_edge(changed_hall, tmp_path, capsys, monkeypatch):
+    import risloc_rt.hall.material_fit as material_fit
+
+    monkeypatch.setenv("RISLOC_CACHE_DIR", str(changed_hall["cache"].directory))
+    cap0 = str(changed_hall["paths"][0])
+    cal = tmp_path / "cal.toml"
+    assert main(["calibrate", cap0, "--scene", "paper_hall", "-o", str(cal), *TRACE]) == 0     # the -o mode, unchanged
+    out = tmp_path / "fitted"
+    base = ["calibrate", cap0, "--scene", "paper_hall", "--materials", "concrete-200mm", "--out", str(out),
+            "--calibration", str(cal), *TRACE]
+    assert main(base + ["--ue", "6,9,1.2", "--ue", "6,9,1.3"]) == 2
+    assert "--ue is given 2 times for 1 captures" in capsys.readouterr().err
+
+    # a fit that ends at eps_r = 1, the edge of what sionna-rt accepts, is not written (its 1 sigma means nothing)
+    real = material_fit.fit_materials
+
+    def at_the_edge(*args, **kwargs):
+        fit = real(*args, **kwargs)
+        return replace(fit, relative_permittivity=np.ones_like(fit.relative_permittivity))
+
+    monkeypatch.setattr(material_fit, "fit_materials", at_the_edge)
+    assert main(base + ["--fixed", "concrete-200mm:sigma"]) == 2
+    assert "edge of what the ray tracer accepts (concrete-200mm:eps_r = 1" in capsys.readouterr().err
+    assert not out.exists()
+    monkeypatch.setattr(material_fit, "fit_materials", real)
+
+    # with the calibration: recorded with its hash; the spec carries the fitted eps_r (sigma held at ITU's)
+    assert main(base + ["--fixed", "concrete-200mm:sigma"]) == 0
+    capsys.readouterr()
+    prov = json.loads((out / "material-fit.json").read_text())
+    record = prov["captures"][0]
+    assert record["calibration"] == str(cal)
+    assert record["calibration_sha256"] == hashlib.sha256(cal.read_bytes()).hexdigest()
+    fitted = prov["materials"]["concrete-200mm"]
+    assert fitted["eps_r"] > 1.0 and fitted["eps_r_sigma"] > 0 and fitted["sigma_sigma_s_per_m"] == 0.0
+    assert f"permittivity = {fitted['eps_r']!r}" in (out / "spec.toml").read_text()
