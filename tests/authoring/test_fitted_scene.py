@@ -82,3 +82,11 @@ def test_a_name_that_is_not_a_material_of_the_spec(tmp_path):
     with pytest.raises(ValueError, match="'glass-6mm' is not a material of .*its materials: concrete-200mm"):
         write_fitted_scene("paper_hall", tmp_path / "fit", {"glass-6mm": (6.0, 0.1)}, {})
     assert not (tmp_path / "fit").exists()
+
+
+def test_a_failure_while_staging_leaves_nothing(tmp_path):
+    # the scene is built into the staging folder, then the provenance cannot be written (not JSON): no target, no
+    # half scene, no staging folder left behind
+    with pytest.raises(TypeError):
+        write_fitted_scene("paper_hall", tmp_path / "fit", {"concrete-200mm": (6.0, 0.5)}, {"x": object()})
+    assert list(tmp_path.iterdir()) == []
