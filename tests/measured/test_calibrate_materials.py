@@ -156,6 +156,9 @@ def test_cli_with_a_calibration_file_and_a_fit_at_the_tracers_edge(changed_hall,
             "--calibration", str(cal), *TRACE]
     assert main(base + ["--ue", "6,9,1.2", "--ue", "6,9,1.3"]) == 2
     assert "--ue is given 2 times for 1 captures" in capsys.readouterr().err
+    wrong = [x if x != "concrete-200mm" else "glass-6mm" for x in base]
+    assert main(wrong) == 2
+    assert "'glass-6mm' is not a radio material of scene" in capsys.readouterr().err and not out.exists()
 
     # a fit that ends at eps_r = 1, the edge of what sionna-rt accepts, is not written (its 1 sigma means nothing)
     real = material_fit.fit_materials

@@ -163,12 +163,13 @@ def capture_observation(capture: Any, model: HallModel, materials: Any, *,
     """
     if not (isinstance(model_sigma_db, (int, float)) and math.isfinite(model_sigma_db) and model_sigma_db >= 0):
         raise ValueError(f"model_sigma_db={model_sigma_db!r} must be finite and >= 0 [dB]")
+    # the material tracer first: an unknown material name is refused before the (slower) comparison
+    jac = material_jacobian(model.scenario.scene_xml, model.ue_position, materials, settings=settings)
     comp = comparison if comparison is not None else compare_capture(
         capture, model, calibration=calibration, prominence_db=prominence_db, floor_db=floor_db)
     radar = capture.radar
     w_k, w_n, coherent = dft_windows(radar, capture.processing)
     floor = float(comp.summary["noise_counts2"]) * float(np.sum(w_k ** 2) * np.sum(w_n ** 2)) / coherent ** 2
-    jac = material_jacobian(model.scenario.scene_xml, model.ue_position, materials, settings=settings)
     ris_labels = {label for label, via in zip(model.traced.paths.labels, model.traced.paths.via_ris) if via}
     candidates, left = [], []
     for p in comp.peaks:
