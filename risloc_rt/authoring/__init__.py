@@ -11,6 +11,8 @@
 * :mod:`.check` -- :func:`check_scene` validates a spec or a built folder (mesh quality, closure,
   placement, materials, grating lobes, range) into a :class:`CheckReport`.
 * :mod:`.show` -- :func:`show_scene` draws the plan and elevation (optionally traced paths) to a PNG.
+* :mod:`.fitted_scene` -- a hall's spec with fitted materials, built atomically into a new scene
+  folder with its provenance (``risloc calibrate --materials``).
 * :mod:`.cli` -- ``risloc scene build|check|show`` (:func:`~.cli.add_scene_parser`).
 
 Tutorial: ``docs/scene-authoring.md``.

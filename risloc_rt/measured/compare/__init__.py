@@ -8,7 +8,9 @@ Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``
 - :mod:`.comparison`: measured vs traced: peaks, residuals (``comparison.json``);
 - :mod:`.comparison_page`: the ``risloc compare`` folder (``index.html``, PNG figures);
 - :mod:`.uncertainty_budget`: every term of a measured estimate's 1σ (device registers, τ_RB, range
-  offset, RIS tolerances) and the total.
+  offset, RIS tolerances) and the total;
+- :mod:`.material_peaks`: a capture's explained static peaks as the material fit's observation
+  (delays, powers with their 1σ and per-peak offsets; ``risloc calibrate --materials``).
 
 The names load on first use: ``import risloc_rt.measured.compare`` loads neither the hall nor ``io``.
 """
@@ -27,6 +29,8 @@ _EXPORTS = {
     "BudgetTerm": "uncertainty_budget", "RisTolerances": "uncertainty_budget",
     "UncertaintyBudget": "uncertainty_budget", "apply_budget": "uncertainty_budget",
     "measured_budget": "uncertainty_budget", "ris_tolerances": "uncertainty_budget",
+    "CapturePeaks": "material_peaks", "DEFAULT_MODEL_SIGMA_DB": "material_peaks",
+    "capture_observation": "material_peaks", "peak_power_sigma_db": "material_peaks",
 }
 
 __all__ = sorted(_EXPORTS)
