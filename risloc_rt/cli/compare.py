@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 from .._outputs import output_folder
@@ -17,7 +18,8 @@ def _run(args: argparse.Namespace) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line (CAPTURE, --scene, --ue [m], --calibration, -o, --force, trace flags).
+        The parsed command line (CAPTURE, --scene, --baseline-scene, --ue [m], --calibration, -o, --force,
+        trace flags).
 
     Returns
     -------
@@ -29,6 +31,13 @@ def _run(args: argparse.Namespace) -> int:
     with output_folder(out, force=args.force, flag="-o", expect=("index.html", "comparison.json")) as stage:
         comparison, position, source = _compare(args, stage)
     s = comparison.summary
+    doc = json.loads((out / "comparison.json").read_text(encoding="utf-8"))
+    if "baseline" in doc:
+        b, ch = doc["baseline"]["summary"], doc["baseline"]["change"]
+        print(f"against the baseline scene {args.baseline_scene}: power residual rms {_num(b['power_residual_rms_db'])} "
+              f"-> {_num(s['power_residual_rms_db'])} dB, delay residual rms {_num(b['delay_residual_rms_mm'])} -> "
+              f"{_num(s['delay_residual_rms_mm'])} mm, P_ave rms difference {_num(b['pave_rms_difference_db'])} -> "
+              f"{_num(s['pave_rms_difference_db'])} dB (change {_num(ch['pave_rms_difference_db'])} dB)")
     print(f"wrote {out / 'index.html'} and the figures beside it: {s['peaks']} measured peak(s) at the best beam "
           f"{comparison.beam}, {s['explained']} explained by traced paths, {s['unexplained']} unexplained; delay "
           f"residual rms {s['delay_residual_rms_mm'] if s['delay_residual_rms_mm'] is not None else float('nan'):.2f} mm,"
@@ -36,6 +45,11 @@ def _run(args: argparse.Namespace) -> int:
           f" dB; P_ave rms difference {s['pave_rms_difference_db']:.2f} dB; radar at {[round(float(v), 3) for v in position]}"
           f" m ({source})")
     return 0
+
+
+def _num(v) -> str:
+    """A number of the summary for the console (``nan`` when the comparison has none)."""
+    return f"{float('nan') if v is None else v:.2f}"
 
 
 def _compare(args: argparse.Namespace, stage: Path):
@@ -69,10 +83,14 @@ def _compare(args: argparse.Namespace, stage: Path):
         from dataclasses import replace
 
         ris = replace(capture.ris, loopback_delay=cal.loopback_delay, amplification_db=cal.amplification_db)
-    model = hall_model(capture, args.scene, position, ue_source=source, ris=ris, trace=trace_settings(args),
-                       cache=trace_cache(args))
-    comparison = compare_capture(capture, model, calibration=cal)
-    write_comparison(comparison, stage)
+    models = {scene: hall_model(capture, scene, position, ue_source=source, ris=ris, trace=trace_settings(args),
+                                cache=trace_cache(args)) for scene in dict.fromkeys([args.scene, args.baseline_scene])
+              if scene is not None}
+    comparison = compare_capture(capture, models[args.scene], calibration=cal)
+    baseline = None
+    if args.baseline_scene is not None:  # the same capture, calibration and noise seed against the other hall
+        baseline = compare_capture(capture, models[args.baseline_scene], calibration=cal)
+    write_comparison(comparison, stage, baseline=baseline)
     return comparison, position, source
 
 
@@ -93,6 +111,9 @@ def add_parser(sub) -> None:
     p.add_argument("--ue", metavar="X,Y,Z", help="the radar's position [m] (default: the capture's truth, else the "
                                                  "estimate)")
     p.add_argument("--calibration", metavar="FILE", help="a calibration file from 'risloc calibrate'")
+    p.add_argument("--baseline-scene", metavar="HALL",
+                   help="also compare against this hall (e.g. the one a 'calibrate --materials' folder was fitted "
+                        "from): its residuals beside --scene's, before -> after, in the page and comparison.json")
     p.add_argument("-o", "--output", required=True, help="folder for index.html, comparison.json and the PNG figures")
     add_force_flag(p, "a page file in -o")
     add_trace_flags(p)

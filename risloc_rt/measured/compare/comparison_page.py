@@ -19,7 +19,7 @@ from ..._files import atomic_write_bytes
 from ...plotting import new_figure, save_figure
 from .comparison import Comparison
 
-__all__ = ["FIGURES", "write_comparison"]
+__all__ = ["BASELINE_KEYS", "FIGURES", "baseline_document", "write_comparison"]
 
 FIGURES = {"range_profiles": "range_profiles.png", "delay_doppler": "delay_doppler.png", "sweep": "sweep_power.png"}
 DPI = 90
@@ -97,11 +97,15 @@ def _fmt(v: Any, digits: int = 3) -> str:
 
 def _html(c: Comparison, doc: dict[str, Any]) -> str:
     s = doc["summary"]
+    base = (doc.get("baseline") or {}).get("peaks")
+    extra = (lambda i: f"<td>{_fmt(base[i]['delay_residual_mm'], 2)}</td><td>{_fmt(base[i]['power_residual_db'], 2)}</td>"
+             if base else "")
     rows = "\n".join(
         f"<tr class=\"{'explained' if p['explained'] else 'unexplained'}\"><td>{i}</td><td>{_fmt(p['distance_m'], 4)}</td>"
         f"<td>{_fmt(p['power_db'], 2)}</td><td>{_fmt(p['label'])}</td><td>{_fmt(p['simulated_distance_m'], 4)}</td>"
-        f"<td>{_fmt(p['delay_residual_mm'], 2)}</td><td>{_fmt(p['power_residual_db'], 2)}</td></tr>"
+        f"<td>{_fmt(p['delay_residual_mm'], 2)}</td><td>{_fmt(p['power_residual_db'], 2)}</td>{extra(i)}</tr>"
         for i, p in enumerate(doc["peaks"]))
+    base_heads = "<th>delay residual, baseline [mm]</th><th>power residual, baseline [dB]</th>" if base else ""
     summary = "\n".join(f"<tr><th>{html.escape(k)}</th><td id=\"summary-{html.escape(k)}\">{_fmt(v, 3)}</td></tr>"
                         for k, v in s.items() if not isinstance(v, list))
     figs = "\n".join(f"<figure><img src=\"{name}\" alt=\"{key}\" data-figure=\"{key}\"><figcaption>{key.replace('_', ' ')}"
@@ -118,9 +122,9 @@ img{{max-width:100%;border:1px solid #ddd}} figure{{margin:1em 0}}</style></head
 numbers in <a href="comparison.json">comparison.json</a>. Figures loaded: <span id="figure-status">0/{len(FIGURES)}</span>.</p>
 <h2>Summary</h2>
 <table id="summary">{summary}</table>
-<h2>Peaks of the measured range profile (best beam)</h2>
+{_baseline_html(doc)}<h2>Peaks of the measured range profile (best beam)</h2>
 <table id="peaks"><tr><th>#</th><th>range [m]</th><th>power [dB]</th><th>traced path</th><th>simulated range [m]</th>
-<th>delay residual [mm]</th><th>power residual [dB]</th></tr>
+<th>delay residual [mm]</th><th>power residual [dB]</th>{base_heads}</tr>
 {rows}
 </table>
 {figs}
@@ -140,7 +144,61 @@ window.addEventListener("load", markFigures);
 """
 
 
-def write_comparison(c: Comparison, folder: str | Path) -> dict[str, Path]:
+#: The summary's numbers a baseline comparison sets beside this one's (``before`` → ``after``).
+BASELINE_KEYS = ("explained", "unexplained", "delay_residual_rms_mm", "power_residual_rms_db",
+                 "power_residual_mean_db", "pave_rms_difference_db")
+
+
+def baseline_document(c: Comparison, baseline: Comparison) -> dict[str, Any]:
+    """``comparison.json``'s ``baseline``: the same capture against another hall (e.g. before a material fit).
+
+    The measured peaks do not depend on the hall (found on the measured profile at the measured best
+    beam), so the baseline's peak k is this comparison's peak k; only what explains it differs.
+
+    Parameters
+    ----------
+    c, baseline : Comparison
+        The capture against the scene and against the baseline scene (:func:`~.comparison.compare_capture`).
+
+    Returns
+    -------
+    dict
+        ``scene``; ``summary`` (:data:`BASELINE_KEYS`, residuals in mm and dB); ``peaks``, per measured peak
+        its baseline ``label``, ``explained``, ``delay_residual_mm`` and ``power_residual_db``; ``change``,
+        this comparison's value minus the baseline's for each number of the summary both have.
+
+    Raises
+    ------
+    ValueError
+        When the two are not of the same capture (other measured peaks or best beam).
+    """
+    same = (c.beam == baseline.beam and len(c.peaks) == len(baseline.peaks)
+            and all(a["distance_m"] == b["distance_m"] for a, b in zip(c.peaks, baseline.peaks)))
+    if not same:
+        raise ValueError("the baseline comparison is not of the same capture (its measured peaks or best beam differ); "
+                         "compare one capture against both scenes")
+    summary = {k: baseline.summary.get(k) for k in BASELINE_KEYS}
+    change = {k: (c.summary[k] - summary[k] if isinstance(c.summary.get(k), (int, float))
+                  and isinstance(summary[k], (int, float)) else None) for k in BASELINE_KEYS}
+    peaks = [{k: p[k] for k in ("label", "explained", "delay_residual_mm", "power_residual_db")} for p in baseline.peaks]
+    return {"scene": baseline.info.get("scene"), "summary": summary, "change": change, "peaks": peaks}
+
+
+def _baseline_html(doc: dict[str, Any]) -> str:
+    """The page's "before and after" table: the baseline scene's summary beside this scene's."""
+    base = doc.get("baseline")
+    if not base:
+        return ""
+    rows = "\n".join(f"<tr><th>{html.escape(k)}</th><td id=\"baseline-{html.escape(k)}\">{_fmt(base['summary'][k], 3)}</td>"
+                     f"<td>{_fmt(doc['summary'].get(k), 3)}</td><td>{_fmt(base['change'][k], 3)}</td></tr>"
+                     for k in BASELINE_KEYS)
+    return (f"<h2>Before and after</h2>\n<p>The same capture against the baseline scene "
+            f"<code>{html.escape(str(base['scene']))}</code> (before) and <code>{html.escape(doc['scene'])}</code> "
+            f"(after).</p>\n<table id=\"baseline\"><tr><th></th><th>before</th><th>after</th><th>change</th></tr>\n"
+            f"{rows}\n</table>\n")
+
+
+def write_comparison(c: Comparison, folder: str | Path, *, baseline: Comparison | None = None) -> dict[str, Path]:
     """Write the figures, ``comparison.json`` and ``index.html`` into ``folder``, each atomically.
 
     Parameters
@@ -149,6 +207,10 @@ def write_comparison(c: Comparison, folder: str | Path) -> dict[str, Path]:
         From :func:`~.comparison.compare_capture`.
     folder : path
         Created when missing; the page's files in it are replaced.
+    baseline : Comparison, optional
+        The same capture against another hall (before a material fit, say): its residuals are set beside
+        ``c``'s (:func:`baseline_document`; the page's "Before and after" table, the peak table's
+        baseline columns, ``comparison.json``'s ``baseline``).
 
     Returns
     -------
@@ -156,9 +218,11 @@ def write_comparison(c: Comparison, folder: str | Path) -> dict[str, Path]:
         ``index``, ``json`` and one entry per figure of :data:`FIGURES`.
     """
     folder = Path(folder)
+    doc = c.to_json()
+    if baseline is not None:
+        doc["baseline"] = baseline_document(c, baseline)
     folder.mkdir(parents=True, exist_ok=True)
     _figures(c, folder)
-    doc = c.to_json()
     doc["figures"] = dict(FIGURES)
     atomic_write_bytes(folder / "comparison.json", (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8"))
     atomic_write_bytes(folder / "index.html", _html(c, doc).encode("utf-8"))
