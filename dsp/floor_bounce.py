@@ -41,7 +41,7 @@ from .dtft_subspace import as_cube
 from .radar import RadarConfig
 from .residual import beam_values
 
-__all__ = ["MAX_RUNG_DROP_DB", "RUNGS", "FloorLadder", "floor_ladder", "rung_spacing"]
+__all__ = ["MAX_RUNG_DROP_DB", "RUNGS", "STATIC_WEIGHT", "FloorLadder", "floor_ladder", "rung_spacing"]
 
 SPEED_OF_LIGHT = 299_792_458.0
 #: The rungs read around an estimate: two earlier, the estimate, two later.
@@ -51,6 +51,11 @@ RUNGS = (-2, -1, 0, 1, 2)
 #: pattern tilts them by a few degrees); a rung 12 dB down is a sidelobe of the estimate's own peak
 #: or another return, not the floor's ladder.
 MAX_RUNG_DROP_DB = 12.0
+#: Beams with |A_m| below this share of the largest hold no RIS return at the estimate's AoD; the mean of
+#: their values at a rung is what every beam holds alike (the panel's structural echo, τ_RB earlier than
+#: the RIS's straight leg, and its own floor legs, which land between the RIS's earlier rungs), and is
+#: removed from every beam before the rungs are read, as :func:`dsp.refine.refine_estimate` removes it.
+STATIC_WEIGHT = 0.1
 
 
 def rung_spacing(ris_position: Any, position: Any, floor_height: float) -> float:
@@ -142,12 +147,16 @@ def floor_ladder(cube: Any, radar: RadarConfig, *, delay: float, delay_rate: flo
     m, k, n = arr.shape
     w = np.asarray(weights, dtype=float)
     sel = w >= min_weight * w.max()
+    far = w < STATIC_WEIGHT * w.max()
     f2 = delay_rate * radar.carrier_frequency * radar.chirp_interval
     levels = []
     for rung in RUNGS:
         tau = delay + 2.0 * rung * spacing / SPEED_OF_LIGHT
         f1 = (tau * radar.slope + radar.carrier_frequency * delay_rate) * radar.sample_period
         values, gain = beam_values(arr, radar, f1, f2, w)
+        if far.sum() >= 4:  # what every beam holds alike (the panel's echo and its own ladder): not the RIS's
+            values = values - values[far].mean()
+            gain = gain * (1.0 + 1.0 / float(far.sum()))
         levels.append(float(np.sum(np.abs(values[sel]) ** 2) / (gain * noise_power)))
     lv = np.asarray(levels)
     dof = int(sel.sum())

@@ -147,3 +147,50 @@ def test_a_bad_floor_height_is_refused():
     cube, _ = _ladder_cube(np.random.default_rng(1), distance=_distance_for(1.8))
     with pytest.raises(ValueError, match="floor_height"):
         _locate(cube, floor_height=float("nan"))
+
+
+def test_the_panels_own_ladder_is_not_taken_for_an_earlier_rung():
+    """Regression (the default hall with a second RIS, ris1 at 14.3 m and 33° off its boresight: fixes 6-20 m off,
+    flagged grating-lobe): the panel's structural echo arrives c·τ_RB/2 = 26.7 cm before the RIS's straight leg,
+    in every beam alike, with a floor's ladder of its own; its floor-floor leg then lands on the RIS's rung -1,
+    which the ladder read as an earlier RIS return and sent the estimate there. Here δ = c·τ_RB/6 puts that
+    leg exactly on rung -1, on Table I's chirp (600 samples: a rung is 2.4 range cells, as in the hall) and a
+    ±45° sweep in 1.5° steps (most beams see no RIS return): the ladder must see no earlier rung (what every
+    beam holds alike is not the RIS's), and the estimate ends on the straight leg, at the RIS's azimuth."""
+    rng = np.random.default_rng(23)
+    radar = dsp.RadarConfig(num_chirps=16)
+    processing = dsp.ProcessingConfig(n_dft=1199, k_dft=64)
+    sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-45.0, 45.0, 1.5]))       # M = 61
+    m, k, n = sweep.num_beams, radar.num_chirps, radar.num_samples
+    delta = C * TAU_RB / 2 / 3
+    height = 1.0                                                             # radar and RIS 1 m above the floor
+    distance = ((2 * height) ** 2 - 4 * delta**2) / (4 * delta)              # rung_spacing = δ: 11.2 m
+    assert delta / radar.range_resolution > 2.0 and distance < radar.max_range   # resolved rungs, not folded
+    nu = 2 * 0.2 / C
+
+    def tone(tau, rate):
+        f1 = (radar.slope * tau + radar.carrier_frequency * rate) * radar.sample_period
+        f2 = radar.carrier_frequency * rate * radar.chirp_interval
+        return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
+
+    def ladder_of(extra, phases):
+        return sum(g * np.exp(1j * p) * tone(2 * (distance + r * delta) / C + extra, nu)
+                   for r, (g, p) in enumerate(zip((1.0, 1.8, 0.8), phases)))
+
+    pattern = dsp.BeamPattern().for_wavelength(radar.wavelength)
+    weights = np.abs(pattern.amplitude([AZ, 0.0], sweep.angles))
+    scale = np.sqrt(3e3 / (k * n))
+    cube = ((weights * scale * np.exp(2j * np.pi * rng.random(m)))[:, None, None] * ladder_of(TAU_RB, (0.0, 0.3, 0.0))
+            + 3.0 * scale * ladder_of(0.0, (0.4, 1.1, 2.0))[None])   # the panel: τ_RB earlier, every beam alike
+    cube = cube + (rng.standard_normal(cube.shape) + 1j * rng.standard_normal(cube.shape)) * np.sqrt(0.5)
+    ladder = floor_ladder(cube, radar, delay=2 * distance / C + TAU_RB, delay_rate=nu, weights=weights,
+                          spacing=delta, noise_power=1.0)
+    assert ladder.steps_down == 0
+    assert dict(zip(RUNGS, ladder.levels_db))[-1] < ladder.threshold_db + 3.0   # at the noise, not the panel
+    pose = dsp.RisPose.facing([0.0, 0.0, height], [0.0, 10.0, height])
+    loc = dsp.self_localize(cube, sweep=sweep, radar=radar, processing=processing, pose=pose, loopback_delay=TAU_RB,
+                            pattern=pattern, ue_height=height, estimator="refined", floor_height=0.0)
+    # the middle rung (1.8x) is the strongest: the estimate starts there and goes down to the straight leg, no further
+    assert loc.detected and abs(loc.distance - distance) < 0.25 * delta
+    assert abs(loc.aod[0] - AZ) < math.radians(0.5)
+    assert not {"grating-lobe", "beam-edge", "floor-leg"} & set(loc.flag_codes)
