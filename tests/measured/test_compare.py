@@ -283,3 +283,21 @@ def test_baseline_scene_sets_the_residuals_before_and_after(injected_hall, pages
     page = (tmp_path / "both" / "index.html").read_text()
     assert "Before and after" in page and "power residual, baseline [dB]" in page
     assert f"{before['summary']['power_residual_rms_db']:.3f}" in page
+
+
+@pytest.mark.slow
+def test_a_capture_of_the_second_ris_is_compared_in_its_slot(tmp_path, monkeypatch):
+    """Regression: in a hall with two RISs, ``compare`` traced the first RIS's slot whatever the capture, so a
+    capture of ``ris1``'s slot was refused ("the capture's RIS is at ... but the scene's is at ..."). The scene's
+    RIS at the capture's RIS position now sweeps. Oracle: the capture is the hall's own simulation, so every
+    measured peak is explained and its delay residual is the measured peak's noise (within 4 of its σ)."""
+    monkeypatch.setenv("RISLOC_CACHE_DIR", str(tmp_path / "cache"))
+    cap = tmp_path / "ris1.npz"
+    assert main(["simulate", "-o", str(cap), "--scene", "paper_hall_2ris", "--ris", "ris1", "--ue", "15.5,3.5,1.2",
+                 "--seed", "3", *TRACE]) == 0
+    assert main(["compare", str(cap), "--scene", "paper_hall_2ris", "-o", str(tmp_path / "cmp"), *TRACE]) == 0
+    doc = _doc(tmp_path / "cmp")
+    assert doc["summary"]["peaks"] >= 1 and doc["summary"]["unexplained"] == 0
+    assert any(p["label"] == LOS for p in doc["peaks"])
+    for p in doc["peaks"]:
+        assert abs(p["delay_residual_mm"]) <= 4 * p["delay_sigma_mm"], p

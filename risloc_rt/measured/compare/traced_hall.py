@@ -66,6 +66,9 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
                ris: RisConfig | None = None, trace: Any = None, cache: Any = None) -> HallModel:
     """Trace ``scene`` for the capture's radar, sweep and RIS (or ``ris``) with the radar at ``ue_position``.
 
+    In a hall with several RISs the sweeping one is the scene's RIS at the capture's RIS position (the
+    others idle and off, their panels echoes), so a capture of any RIS's slot is compared in that slot.
+
     Parameters
     ----------
     capture : Capture
@@ -98,9 +101,10 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
     ValueError
         The radar position lies behind the scene's RIS panel (:func:`risloc_rt.hall.hall_scenario`).
     """
-    hs = hall_scenario(scene, radar=capture.radar, sweep=capture.sweep, processing=capture.processing,
-                       ue_position=ue_position, ue_velocity=np.zeros(3), trace=trace)
     ris = capture.ris if ris is None else ris
+    hs = hall_scenario(scene, radar=capture.radar, sweep=capture.sweep, processing=capture.processing,
+                       ue_position=ue_position, ue_velocity=np.zeros(3), trace=trace,
+                       ris=_sweeping_ris(scene, ris))
     if np.linalg.norm(ris.pose.position - hs.base.ris.pose.position) > 0.05:
         raise MeasuredFormatError(
             f"the capture's RIS is at {np.round(ris.pose.position, 3).tolist()} m but the scene's is at "
@@ -112,6 +116,18 @@ def hall_model(capture: Capture, scene: str | Path, ue_position: np.ndarray, *, 
         warnings.simplefilter("ignore", AliasWarning)
         traced = hall_paths(hs, cache=cache)
     return HallModel(scenario=hs, traced=traced, ue_position=np.asarray(ue_position, float), ue_source=ue_source)
+
+
+def _sweeping_ris(scene: Any, ris: RisConfig) -> int:
+    """The index of the scene's RIS at the capture's RIS position (within 5 cm): in a hall with several
+    RISs, the one whose slot the capture recorded (the others idle, off); the first when none is there
+    (then :func:`hall_model` says the positions differ)."""
+    from ...authoring.scene_folder import scene_directory
+    from ...authoring.spec import load_spec
+
+    configs = load_spec(scene_directory(scene) / "spec.toml").ris_configs()
+    near = [i for i, c in enumerate(configs) if np.linalg.norm(c.pose.position - ris.pose.position) <= 0.05]
+    return near[0] if near else 0
 
 
 def _check_facing(ris: RisConfig, scene_ris: RisConfig) -> None:
