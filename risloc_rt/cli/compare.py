@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from .._outputs import output_folder
@@ -29,21 +28,19 @@ def _run(args: argparse.Namespace) -> int:
     """
     out = Path(args.output)
     with output_folder(out, force=args.force, flag="-o", expect=("index.html", "comparison.json")) as stage:
-        comparison, position, source = _compare(args, stage)
+        comparison, baseline, position, source = _compare(args, stage)
     s = comparison.summary
-    doc = json.loads((out / "comparison.json").read_text(encoding="utf-8"))
-    if "baseline" in doc:
-        b, ch = doc["baseline"]["summary"], doc["baseline"]["change"]
+    if baseline is not None:
+        b = baseline.summary
         print(f"against the baseline scene {args.baseline_scene}: power residual rms {_num(b['power_residual_rms_db'])} "
               f"-> {_num(s['power_residual_rms_db'])} dB, delay residual rms {_num(b['delay_residual_rms_mm'])} -> "
               f"{_num(s['delay_residual_rms_mm'])} mm, P_ave rms difference {_num(b['pave_rms_difference_db'])} -> "
-              f"{_num(s['pave_rms_difference_db'])} dB (change {_num(ch['pave_rms_difference_db'])} dB)")
+              f"{_num(s['pave_rms_difference_db'])} dB")
     print(f"wrote {out / 'index.html'} and the figures beside it: {s['peaks']} measured peak(s) at the best beam "
           f"{comparison.beam}, {s['explained']} explained by traced paths, {s['unexplained']} unexplained; delay "
-          f"residual rms {s['delay_residual_rms_mm'] if s['delay_residual_rms_mm'] is not None else float('nan'):.2f} mm,"
-          f" power residual rms {s['power_residual_rms_db'] if s['power_residual_rms_db'] is not None else float('nan'):.2f}"
-          f" dB; P_ave rms difference {s['pave_rms_difference_db']:.2f} dB; radar at {[round(float(v), 3) for v in position]}"
-          f" m ({source})")
+          f"residual rms {_num(s['delay_residual_rms_mm'])} mm, power residual rms {_num(s['power_residual_rms_db'])}"
+          f" dB; P_ave rms difference {_num(s['pave_rms_difference_db'])} dB; radar at "
+          f"{[round(float(v), 3) for v in position]} m ({source})")
     return 0
 
 
@@ -57,8 +54,9 @@ def _compare(args: argparse.Namespace, stage: Path):
 
     Returns
     -------
-    (Comparison, ndarray, str)
-        The comparison, the radar position used [m] and where it came from.
+    (Comparison, Comparison or None, ndarray, str)
+        The comparison, the one against ``--baseline-scene`` (None without it), the radar position used [m]
+        and where it came from.
     """
     from ..io.capture_file import load_capture
     from ..io.report import process_capture
@@ -91,7 +89,7 @@ def _compare(args: argparse.Namespace, stage: Path):
     if args.baseline_scene is not None:  # the same capture, calibration and noise seed against the other hall
         baseline = compare_capture(capture, models[args.baseline_scene], calibration=cal)
     write_comparison(comparison, stage, baseline=baseline)
-    return comparison, position, source
+    return comparison, baseline, position, source
 
 
 def add_parser(sub) -> None:
