@@ -23,6 +23,20 @@ either may be the wrong one), the fixes that carry a doubt of their own (:data:`
 kept, and the flag says their position is a compromise. A grating-lobe twin, a blocked RIS whose peak is
 another path, or a path taken for a return shows up this way; an average would hide it.
 
+**The compromise's covariance.** The inverse information describes fixes that agree; for fixes that
+do not, it is the σ of an answer nobody gave (two fixes 0.1 m apart, each of 1 mm, fused to ±1 mm).
+The compromise x̂ therefore states the covariance of "one of the kept fixes is right, which one is not
+known": the second moment about x̂ of the equal mixture of the fixes' own positions (each fix alone,
+with the known height when given: x̂ᵢ with covariance Pᵢ),
+
+    P = (1/m) Σᵢ [Pᵢ + (x̂ᵢ − x̂)(x̂ᵢ − x̂)ᵀ],
+
+so whichever fix is right, its position lies within NEES ≤ m of x̂ (m fixes), and ``peb`` grows with
+the disagreement. Where a fix alone cannot see every direction (no known height, a 1-D sweep) its own
+position is not defined; the covariance is then the inverse information scaled by T/(n − r) (the
+Birge ratio squared), which spans the disagreement only in proportion to the fixes' weights. Either
+way the flag's message gives the widened ``peb``.
+
 **Observability.** Directions along which the information is below 1e-12 of its largest
 eigenvalue cannot be seen: two RISs at one height whose sweeps
 cannot see elevation leave the height unobservable (the mirror image below the sweep plane gives
@@ -173,7 +187,8 @@ class FusedFix:
         x̂, world frame [m].
     covariance : float array [3, 3]
         Its covariance [m²]: the inverse of the summed Fisher information; ``inf`` on the diagonal
-        along a direction the fixes cannot see.
+        along a direction the fixes cannot see; widened to span the fixes when they disagree and none
+        can be left out (module notes, "The compromise's covariance").
     peb : float
         sqrt(trace(covariance)) [m] (inf when a direction is unobservable).
     used : tuple of str
@@ -283,6 +298,31 @@ def _covariance(info: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     return cov, unseen
 
 
+def _compromise_covariance(fixes: list[RisFix], x: np.ndarray, info: np.ndarray, birge: float,
+                           height: tuple[float, float] | None) -> np.ndarray:
+    """The covariance [m²] of the compromise ``x`` of fixes that disagree (module notes): the equal mixture
+    of each fix's own position about ``x``; the inverse information times ``birge`` (T/dof) where a fix alone
+    cannot see every direction."""
+    cov, unseen = _covariance(info)
+    if unseen:
+        return cov
+    parts = []
+    for f in fixes:
+        start = f.position(None if np.isfinite(f.std_aod[1]) else 0.0)
+        xi, info_i, _ = _solve([f], start, height)
+        if _rank(info_i) < 3:
+            return cov * max(float(birge), 1.0)
+        d = xi - x
+        parts.append(np.linalg.inv(info_i) + np.outer(d, d))
+    return np.mean(parts, axis=0)
+
+
+def _mm(cov: np.ndarray) -> str:
+    """sqrt(trace(cov)) as text with its unit [m or mm]."""
+    peb = float(np.sqrt(np.trace(cov)))
+    return f"{1e3 * peb:.3g} mm" if peb < 1.0 else f"{peb:.3g} m"
+
+
 def _describe(direction: np.ndarray) -> str:
     """'the height (z)' for a vertical direction, else the world vector."""
     if abs(direction[2]) > 0.999:
@@ -344,6 +384,7 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
     start = begin(used[0])
     excluded: list[tuple[str, str]] = []
     flags: list[Flag] = []
+    compromise = None
     while True:
         x, info, stat = _solve(used, start, height)
         dof = sum(f.measurements for f in used) + known - _rank(info)
@@ -367,10 +408,12 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
             start = begin(used[0])
             continue
         if not trials:
+            compromise = _compromise_covariance(used, x, info, stat / dof, height)
             flags.append(Flag("inconsistent-ris", (
                 f"the fixes of {', '.join(f.name for f in used)} disagree (χ² {stat:.1f} against {threshold:.1f} at "
-                f"{dof} degrees of freedom) and no one of them explains it: the position is their compromise; "
-                "check each RIS's flags (grating-lobe, unresolved-peaks) and add a RIS to tell them apart")))
+                f"{dof} degrees of freedom) and no one of them explains it: the position is their compromise, its "
+                f"covariance widened to span them (PEB {_mm(compromise)}); check each RIS's flags (grating-lobe, "
+                "unresolved-peaks) and add a RIS to tell them apart")))
             break
         _, i, xr = min(trials)
         bad = used[i]
@@ -382,6 +425,8 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
     if excluded:
         flags.insert(0, Flag("inconsistent-ris", "left out: " + "; ".join(f"{n} ({why})" for n, why in excluded)))
     cov, unseen = _covariance(info)
+    if compromise is not None and not unseen:
+        cov = compromise
     for v in unseen:
         flags.append(Flag("unobservable", (
             f"{_describe(v)} cannot be seen by the fixes of {', '.join(f.name for f in used)} (e.g. RISs at one "

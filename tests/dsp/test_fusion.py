@@ -207,3 +207,40 @@ def test_a_known_height_is_one_more_measurement():
     assert fused.std[2] == pytest.approx(1e-3, rel=1e-3) and fused.dof == 2
     with pytest.raises(ValueError, match="height"):
         fuse_fixes(fixes, height=(1.2, 0.0))
+
+
+@pytest.mark.parametrize("biased", ["ris-a", "ris-b"])
+def test_a_compromise_states_a_covariance_that_spans_the_fixes(biased):
+    """Two RISs that each fix the position alone (elevation seen), one of them 0.1 m off in distance (50σ; no
+    flag of its own): the test cannot say which is wrong, so the position is their compromise. Its covariance
+    must span both fixes' own positions: over 200 noisy pairs the truth's NEES against it stays within the
+    99 % level of χ²(3) in ≥ 95 % of the runs whichever RIS is wrong, where the inverse information (what
+    agreeing fixes would have) puts the truth at NEES > 100 (checked on the same runs)."""
+    rng = np.random.default_rng(21)
+    level = scipy.stats.chi2.ppf(0.99, 3)
+    within, info_nees = 0, []
+    for _ in range(200):
+        fixes = [_fix(k, POSES[k], TRUTH, rng=rng, offset=(0.1 if k == biased else 0.0, 0.0, 0.0))
+                 for k in ("ris-a", "ris-b")]
+        fused = fuse_fixes(fixes)
+        (flag,) = [f for f in fused.flags if f.code == "inconsistent-ris"]
+        assert "compromise" in flag.message and "widened" in flag.message and not fused.excluded
+        e = fused.position - TRUTH
+        within += float(e @ np.linalg.solve(fused.covariance, e)) <= level
+        agreeing = fuse_fixes(fixes, pfa=1e-300)  # the same fixes, no test: the inverse information
+        np.testing.assert_allclose(agreeing.position, fused.position, atol=1e-9)
+        info_nees.append(float(e @ np.linalg.solve(agreeing.covariance, e)))
+    assert within >= 0.95 * 200
+    assert np.median(info_nees) > 100
+
+
+def test_a_compromise_of_fixes_that_cannot_stand_alone_is_scaled_by_its_chi2():
+    """1-D sweeps at two heights (no elevation, no known height): a fix alone cannot place the radar, so the
+    compromise's covariance is the inverse information times T/(n − r), the Birge ratio squared (ris-a's azimuth
+    2° off: 10σ; a distance error the free height absorbs would not be seen)."""
+    fixes = [_fix("ris-a", POSES["ris-a"], TRUTH, sees_elevation=False, offset=(0.0, np.deg2rad(2.0), 0.0)),
+             _fix("ris-b", POSES["ris-b"], TRUTH, sees_elevation=False)]
+    fused = fuse_fixes(fixes)
+    assert any(f.code == "inconsistent-ris" for f in fused.flags) and fused.statistic > fused.threshold
+    agreeing = fuse_fixes(fixes, pfa=1e-300)
+    np.testing.assert_allclose(fused.covariance, agreeing.covariance * fused.statistic / fused.dof, rtol=1e-9)
