@@ -19,6 +19,14 @@ ceiling board, chipboard) from 2 radar positions, peaks made by the tracer at ch
 values ± 1σ and the fit's wall time (goal ≤ 2 min on 2 cores).
 
     .venv/bin/python benchmarks/bench_material_recovery.py [--seeds N] [--first-seed S] [--skip-engine]
+        [--profile sweep-mean|best-beam] [--model-sigma DB] [--held-out-seeds N] [--log FILE.jsonl]
+
+``--profile sweep-mean`` (the default) reads the static peaks from the complex mean over the 61 beams
+(:func:`risloc_rt.measured.compare.sweep_mean_peaks.sweep_mean_observation`), ``best-beam`` from the
+comparison's best beam (the first mode). Per seed: the peaks used (surface sequence, SNR, σ, the
+angles of incidence at each bounce from the traced vertices), the free fit (value ± 1σ, |error|/σ,
+condition, weak flags), the ε_r-held fit and the held-out residuals. Over several seeds: the
+coverage of the free fits (share of |error| within 1, 2, 3σ for ε_r and ln σ).
 
 Run with one worker on the shared 2-core machine; timings there are ~1.5x an idle machine's.
 """
@@ -26,6 +34,7 @@ Run with one worker on the shared 2-core machine; timings there are ~1.5x an idl
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import shutil
 import tempfile
@@ -38,12 +47,16 @@ import numpy as np
 from dsp import RadarConfig
 from risloc_rt.authoring.fitted_scene import write_fitted_scene
 from risloc_rt.authoring.scene_folder import scene_directory
+from risloc_rt.hall.antenna import RadarAntenna
 from risloc_rt.hall.material_fit import fit_materials, synthetic_observations
+from risloc_rt.hall.multipath import monostatic_paths
+from risloc_rt.hall.raytrace.material_gradients import material_jacobian
 from risloc_rt.hall.raytrace.result import TraceSettings
 from risloc_rt.hall.scenario import hall_paths, hall_scenario
 from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
 from risloc_rt.measured.compare.comparison import compare_capture
 from risloc_rt.measured.compare.material_peaks import capture_observation
+from risloc_rt.measured.compare.sweep_mean_peaks import sweep_mean_observation
 from risloc_rt.measured.compare.traced_hall import hall_model
 
 MATERIAL = "concrete-200mm"
@@ -54,22 +67,64 @@ HELD_OUT = RIS + 13.38 * np.array([-math.cos(math.radians(15)), math.sin(math.ra
 L_TRUE = {"concrete-200mm": (6.1, 0.6), "ceiling_board-20mm": (1.55, 0.12), "chipboard-20mm": (2.75, 0.25)}
 
 
+_TRACED: dict = {}
+_MODELS: dict = {}
+
+
 def record(scene: Path, position: np.ndarray, folder: Path, seed: int):
-    """One emulated DCA1000 capture of ``scene`` with the radar at ``position`` [m], imported."""
+    """One emulated DCA1000 capture of ``scene`` with the radar at ``position`` [m], imported (trace reused per position)."""
     hs = hall_scenario(str(scene), ue_position=position, radar=dca1000_radar(RadarConfig()), trace=SETTINGS)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        traced = hall_paths(hs)
+    key = (str(scene), tuple(np.round(position, 9)))
+    if key not in _TRACED:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _TRACED[key] = hall_paths(hs)
     plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2)
-    rec = emulate_recording(hs.base, folder, plan=plan, paths=traced.paths, rng=np.random.default_rng(seed))
+    rec = emulate_recording(hs.base, folder, plan=plan, paths=_TRACED[key].paths, rng=np.random.default_rng(seed))
     exp = rec.experiment
     first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
     return import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
 
 
-def static_residuals(capture, scene) -> tuple[list[float], list[float], list[float]]:
+def model_of(capture, scene):
+    """The traced hall at the capture's true radar position (the same for every seed: traced once per scene and position)."""
+    key = (str(scene), tuple(np.round(capture.truth.ue_position, 9)))
+    if key not in _MODELS:
+        _MODELS[key] = hall_model(capture, scene, capture.truth.ue_position, trace=SETTINGS)
+    return _MODELS[key]
+
+
+def observe(capture, scene, profile: str, model_sigma: float):
+    """The capture's observation with the chosen peak profile (``best-beam`` or ``sweep-mean``)."""
+    model = model_of(capture, scene)
+    if profile == "sweep-mean":
+        return sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS, model_sigma_db=model_sigma)
+    return capture_observation(capture, model, [MATERIAL], settings=SETTINGS, model_sigma_db=model_sigma)
+
+
+def incidence_angles(scene: Path, position: np.ndarray, delay: float, label: str) -> list[float]:
+    """Angles of incidence [deg] at each bounce of the traced path ``label`` nearest ``delay`` [s] (from its vertices)."""
+    jac = material_jacobian(Path(scene) / "scene.xml", position, [MATERIAL], settings=SETTINGS)
+    paths = jac.paths
+    names = monostatic_paths(paths, radar=RadarConfig(), antenna=RadarAntenna.isotropic()).labels
+    same = [i for i, name in enumerate(names) if name == label] or list(range(len(names)))
+    i = min(same, key=lambda j: abs(paths.delay[j] - delay))
+    pts = [np.asarray(paths.tx_position, float)] + [v for v in paths.vertices[i] if np.all(np.isfinite(v))]
+    pts.append(np.asarray(paths.rx_position, float))
+    angles = []
+    for a, b, c in zip(pts[:-2], pts[1:-1], pts[2:]):
+        u, v = (a - b) / np.linalg.norm(a - b), (c - b) / np.linalg.norm(c - b)
+        angles.append(0.5 * math.degrees(math.acos(float(np.clip(np.dot(u, v), -1.0, 1.0)))))
+    return angles
+
+
+def static_residuals(capture, scene, profile: str) -> tuple[list[float], list[float], list[float]]:
     """Power [dB] and delay [mm] residuals of the explained static (non-RIS) peaks, and of every explained peak [dB]."""
     model = hall_model(capture, scene, capture.truth.ue_position, trace=SETTINGS)
+    if profile == "sweep-mean":
+        peaks = sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS).used
+        power = [p["power_residual_db"] for p in peaks]
+        return power, [p["delay_residual_mm"] for p in peaks], power
     comp = compare_capture(capture, model)
     static = [p for p in comp.peaks if p["explained"] and p["label"].startswith("hall:")]
     every = [p["power_residual_db"] for p in comp.peaks if p["explained"]]
@@ -81,7 +136,30 @@ def rms(xs) -> float:
     return float(np.sqrt(np.mean(np.square(xs)))) if len(xs) else math.nan
 
 
-def captures_part(root: Path, seed: int) -> dict:
+def free_fit(scene: Path, obs: list, seed: int) -> dict:
+    """(a): ε_r and σ free; the recovered values, their 1σ, |error|/σ and the identifiability report."""
+    free = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS)
+    rep = free.identifiability
+    row = {"seed": seed, "condition": rep.condition, "flagged": bool(rep.not_identifiable), "weak": sorted(rep.weak),
+           "peaks": len(free.residuals_db), "rms_start": free.rms_start_db, "rms": free.rms_db, "chi2": free.chi2,
+           "fit_s": free.seconds}
+    print(f"  (a) eps_r and sigma free: condition {rep.condition:.3g}; flagged: {sorted(rep.not_identifiable) or 'none'}; "
+          f"weak: {sorted(rep.weak) or 'none'}")
+    if rep.not_identifiable:
+        return row
+    e, g, de, dg = free.value(MATERIAL)
+    dl = float(free.log_conductivity_sigma[0])
+    z_eps = (e - TRUE[MATERIAL][0]) / de
+    z_ln = (math.log(g) - math.log(TRUE[MATERIAL][1])) / dl
+    row.update(eps=e, d_eps=de, sigma=g, d_sigma=dg, d_ln_sigma=dl, z_eps=z_eps, z_ln_sigma=z_ln, at_bound=e <= 1.0)
+    print(f"      eps_r {e:.3f} ± {de:.3f} (|error|/sigma {abs(z_eps):.2f}), sigma {g:.4f} ± {dg:.4f} S/m (ln sigma "
+          f"± {dl:.3f}, |error|/sigma {abs(z_ln):.2f}); true {TRUE[MATERIAL]}; rms {free.rms_start_db:.3f} -> "
+          f"{free.rms_db:.3f} dB over {len(free.residuals_db)} peaks, chi2 {free.chi2:.2f}, {free.seconds:.1f} s")
+    return row
+
+
+def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma: float = 0.3,
+                  held_out: bool = True) -> dict:
     """Part 1 for one receiver-noise seed (module docstring)."""
     true_scene = root / "true_hall"
     if not true_scene.exists():
@@ -89,43 +167,72 @@ def captures_part(root: Path, seed: int) -> dict:
     spec_positions = [np.array([6.0, 9.0, 1.2]), np.array([6.888693893467439, 4.205036835083882, 1.2])]
     t0 = time.perf_counter()
     caps = [record(true_scene, p, root / f"rec{seed}_{i}", seed * 10 + i) for i, p in enumerate(spec_positions)]
-    held = record(true_scene, HELD_OUT, root / f"rec{seed}_held", seed * 10 + 9)
     t_rec = time.perf_counter() - t0
     scene = scene_directory("paper_hall")
     t0 = time.perf_counter()
     obs = []
     for cap in caps:
-        model = hall_model(cap, scene, cap.truth.ue_position, trace=SETTINGS)
-        peaks = capture_observation(cap, model, [MATERIAL], settings=SETTINGS)
+        peaks = observe(cap, scene, profile, model_sigma)
         obs.append(peaks.observation)
-        used = ", ".join(f"{u['label']} SNR {u['snr_db']:.1f} dB" for u in peaks.used)
+        used = "; ".join(f"{u['label'].removeprefix('hall: ')} SNR {u['snr_db']:.1f} dB sigma {u['sigma_db']:.2f} dB at "
+                         f"{', '.join(f'{a:.0f}' for a in incidence_angles(scene, cap.truth.ue_position, u['delay_s'], u['label']))} deg"
+                         for u in peaks.used)
         print(f"  seed {seed}: position {np.round(cap.truth.ue_position, 3).tolist()}: {len(peaks.used)} peak(s) used "
               f"({used}), {len(peaks.left_out)} left out")
     t_obs = time.perf_counter() - t0
-    free = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS)
-    print(f"  (a) eps_r and sigma free: condition {free.identifiability.condition:.3g}; flagged: "
-          f"{sorted(free.identifiability.not_identifiable) or 'none'}; weak: {sorted(free.identifiability.weak) or 'none'}")
-    if not free.identifiability.not_identifiable:
-        e, g, de, dg = free.value(MATERIAL)
-        print(f"      eps_r {e:.3f} ± {de:.3f}, sigma {g:.4f} ± {dg:.4f} S/m (true {TRUE[MATERIAL]}); rms "
-              f"{free.rms_start_db:.3f} -> {free.rms_db:.3f} dB over {len(free.residuals_db)} peaks, {free.seconds:.1f} s")
+    row = free_fit(scene, obs, seed)
+    row.update(record_s=t_rec, observe_s=t_obs)
+    known = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS, fixed=[f"{MATERIAL}:eps_r"],
+                          start={MATERIAL: (TRUE[MATERIAL][0], 1.136)})
+    k_sig, k_dln = known.value(MATERIAL)[1], float(known.log_conductivity_sigma[0])
+    row.update(known_sigma=k_sig, known_d_ln_sigma=k_dln,
+               z_known=(math.log(k_sig) - math.log(TRUE[MATERIAL][1])) / k_dln if k_dln > 0 else math.nan)
+    print(f"  (c) eps_r held at the true {TRUE[MATERIAL][0]}: sigma {k_sig:.4f} S/m (ln sigma ± {k_dln:.3f}, |error|/sigma "
+          f"{abs(row['z_known']):.2f}); weak: {sorted(known.identifiability.weak) or 'none'}")
+    if not held_out:
+        return row
     held_fit = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS, fixed=[f"{MATERIAL}:eps_r"])
     eps, sigma, _, d_sigma = held_fit.value(MATERIAL)
     print(f"  (b) eps_r held at {eps:.3f}: sigma {sigma:.4f} ± {d_sigma:.4f} S/m; rms {held_fit.rms_start_db:.3f} -> "
           f"{held_fit.rms_db:.3f} dB over {len(held_fit.residuals_db)} peaks; {held_fit.iterations} iterations, "
           f"{held_fit.evaluations} evaluations, {held_fit.seconds:.1f} s (peaks from the captures: {t_obs:.1f} s)")
+    use_free = "eps" in row and not row["at_bound"] and not row["weak"]
+    values = (row["eps"], row["sigma"]) if use_free else (eps, sigma)
     fitted = root / f"fitted{seed}"
     shutil.rmtree(fitted, ignore_errors=True)
-    write_fitted_scene("paper_hall", fitted, {MATERIAL: (eps, sigma)}, {"seed": seed})
-    p0, d0, a0 = static_residuals(held, scene)
-    p1, d1, a1 = static_residuals(held, fitted)
-    print(f"  held-out {np.round(HELD_OUT, 3).tolist()}: static power residuals {np.round(p0, 3).tolist()} -> "
-          f"{np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}); delay {np.round(d0, 3).tolist()} -> "
-          f"{np.round(d1, 3).tolist()} mm; every explained peak rms {rms(a0):.3f} -> {rms(a1):.3f} dB "
-          f"(recording {t_rec:.1f} s)")
-    return {"flagged": bool(free.identifiability.not_identifiable), "sigma": sigma, "d_sigma": d_sigma,
-            "fit_s": held_fit.seconds, "before": rms(p0), "after": rms(p1), "delay_before": rms(d0),
-            "delay_after": rms(d1)}
+    write_fitted_scene("paper_hall", fitted, {MATERIAL: values}, {"seed": seed})
+    held = record(true_scene, HELD_OUT, root / f"rec{seed}_held", seed * 10 + 9)
+    p0, d0, a0 = static_residuals(held, scene, profile)
+    p1, d1, a1 = static_residuals(held, fitted, profile)
+    print(f"  held-out {np.round(HELD_OUT, 3).tolist()} with fit ({'a' if use_free else 'b'}): static power residuals "
+          f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}); delay "
+          f"{np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every explained peak rms {rms(a0):.3f} -> "
+          f"{rms(a1):.3f} dB (recording {t_rec:.1f} s)")
+    row.update(held_sigma=sigma, held_d_sigma=d_sigma, held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1),
+               delay_before=rms(d0), delay_after=rms(d1))
+    return row
+
+
+def coverage(rows: list) -> None:
+    """Share of the free fits whose |error| lies within 1, 2, 3 of their stated σ (ε_r and ln σ)."""
+    known = np.abs([r["z_known"] for r in rows if math.isfinite(r.get("z_known", math.nan))])
+    if known.size:
+        print(f"coverage of ln sigma with eps_r held at the truth over {known.size} fits: within 1 sigma "
+              f"{np.mean(known <= 1):.3f}, 2 sigma {np.mean(known <= 2):.3f}, 3 sigma {np.mean(known <= 3):.3f}; median "
+              f"|error|/sigma {np.median(known):.2f}")
+    fits = [r for r in rows if "z_eps" in r]
+    if not fits:
+        print("coverage: no identifiable free fit")
+        return
+    for key, name in (("z_eps", "eps_r"), ("z_ln_sigma", "ln sigma")):
+        z = np.abs([r[key] for r in fits])
+        print(f"coverage of {name} over {len(fits)} free fits: within 1 sigma {np.mean(z <= 1):.3f}, 2 sigma "
+              f"{np.mean(z <= 2):.3f}, 3 sigma {np.mean(z <= 3):.3f} (Gaussian 0.683, 0.954, 0.997); median |error|/sigma "
+              f"{np.median(z):.2f}")
+    print(f"  weak in {sum(bool(r['weak']) for r in fits)}, at the eps_r bound in {sum(r['at_bound'] for r in fits)}, "
+          f"flagged (no number) in {sum(r['flagged'] for r in rows)} of {len(rows)}; median eps_r "
+          f"{np.median([r['eps'] for r in fits]):.3f}, sigma {np.median([r['sigma'] for r in fits]):.4f} S/m; median 1 sigma "
+          f"eps_r {np.median([r['d_eps'] for r in fits]):.3f}, ln sigma {np.median([r['d_ln_sigma'] for r in fits]):.3f}")
 
 
 def engine_part() -> None:
@@ -159,16 +266,34 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=1, help="receiver-noise seeds for part 1 (default 1)")
     ap.add_argument("--first-seed", type=int, default=1, help="the first seed (default 1)")
     ap.add_argument("--skip-engine", action="store_true", help="skip part 2")
+    ap.add_argument("--profile", choices=("sweep-mean", "best-beam"), default="sweep-mean",
+                    help="the peaks' profile: the complex mean over the beams (default) or the best beam (the old mode)")
+    ap.add_argument("--model-sigma", type=float, default=0.3, help="model error in quadrature [dB] (default 0.3)")
+    ap.add_argument("--held-out-seeds", type=int, default=None,
+                    help="do the held-out prediction for the first N seeds only (default: every seed)")
+    ap.add_argument("--log", type=Path, default=None, help="append one JSON line per seed to this file")
     args = ap.parse_args()
     root = Path(tempfile.mkdtemp(prefix="bench_material_recovery-"))
     try:
-        print(f"part 1: paper_hall, concrete true {TRUE[MATERIAL]}, ITU start (5.24, 1.136); depth 3, 2e4 rays")
-        rows = [captures_part(root, seed) for seed in range(args.first_seed, args.first_seed + args.seeds)]
+        print(f"part 1: paper_hall, concrete true {TRUE[MATERIAL]}, ITU start (5.24, 1.136); depth 3, 2e4 rays; "
+              f"profile {args.profile}, model sigma {args.model_sigma} dB")
+        rows = []
+        for n, seed in enumerate(range(args.first_seed, args.first_seed + args.seeds)):
+            held = args.held_out_seeds is None or n < args.held_out_seeds
+            rows.append(captures_part(root, seed, args.profile, args.model_sigma, held_out=held))
+            if args.log is not None:
+                with open(args.log, "a") as f:
+                    f.write(json.dumps(rows[-1], default=float) + "\n")
+            for sub in root.glob(f"rec{seed}_*"):
+                shutil.rmtree(sub, ignore_errors=True)
+        helds = [r for r in rows if "before" in r]
+        if len(helds) > 1:
+            print(f"over {len(helds)} seeds: held-out static power rms before {np.mean([r['before'] for r in helds]):.3f}, "
+                  f"after {np.mean([r['after'] for r in helds]):.3f} dB (mean); fell in "
+                  f"{sum(r['after'] < r['before'] for r in helds)}/{len(helds)}; delay rms after "
+                  f"{np.mean([r['delay_after'] for r in helds]):.3f} mm")
         if len(rows) > 1:
-            print(f"over {len(rows)} seeds: free fit flagged in {sum(r['flagged'] for r in rows)}; held-out static power "
-                  f"rms before {np.mean([r['before'] for r in rows]):.3f}, after {np.mean([r['after'] for r in rows]):.3f} "
-                  f"dB (mean); fell in {sum(r['after'] < r['before'] for r in rows)}/{len(rows)}; delay rms after "
-                  f"{np.mean([r['delay_after'] for r in rows]):.3f} mm; fit {np.mean([r['fit_s'] for r in rows]):.1f} s")
+            coverage(rows)
         if not args.skip_engine:
             engine_part()
     finally:

@@ -1,8 +1,10 @@
 """``risloc calibrate CAPTURE... --scene HALL --materials NAME,... --out DIR``: the hall's materials from captures.
 
 Each capture (at its known radar position: ``--ue`` or its truth; with its ``--calibration`` if
-given) is compared with the traced hall; its explained, non-RIS peaks become the fit's observation
-(:mod:`risloc_rt.measured.compare.material_peaks`); the named materials' ε_r and σ [S/m] are fitted
+given) is compared with the traced hall; its explained static peaks become the fit's observation,
+read from the complex mean over the sweep's beams (``--peak-profile sweep-mean``, the default:
+:mod:`risloc_rt.measured.compare.sweep_mean_peaks`) or from the comparison's best beam
+(``best-beam``: :mod:`risloc_rt.measured.compare.material_peaks`); the named materials' ε_r and σ [S/m] are fitted
 by Levenberg–Marquardt through the ray tracer's exact derivatives
 (:func:`risloc_rt.hall.material_fit.fit_materials`, progress per iteration on stderr). Printed: a
 table per material (ε_r ± 1σ, σ ± 1σ [S/m]), the correlation matrix and the identifiability
@@ -24,7 +26,12 @@ import numpy as np
 
 from .common import CliError, trace_cache, trace_settings, vector
 
-__all__ = ["run_materials", "material_names", "SIGMA_RANGE"]
+__all__ = ["run_materials", "material_names", "peak_profile", "SIGMA_RANGE", "PEAK_PROFILES", "DEFAULT_PEAK_PROFILE"]
+
+#: Where the static peaks are read: the complex mean over the sweep's beams, or the comparison's best beam.
+PEAK_PROFILES: tuple[str, ...] = ("sweep-mean", "best-beam")
+#: The default (``docs/calibration-materials.md``, "Measured": more static peaks, each with a smaller σ).
+DEFAULT_PEAK_PROFILE: str = "sweep-mean"
 
 #: The conductivities the fit can reach [S/m] (ln σ within the engine's bounds, -40..20): a fitted σ at either end
 #: is refused, as is ε_r at its bound 1.
@@ -57,6 +64,30 @@ def material_names(text: str) -> list[str]:
     return names
 
 
+def peak_profile(args: argparse.Namespace) -> str:
+    """The ``--peak-profile`` asked for (``sweep-mean`` when the parser has no such flag).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line; ``peak_profile`` is read if present.
+
+    Returns
+    -------
+    str
+        One of :data:`PEAK_PROFILES`.
+
+    Raises
+    ------
+    CliError
+        Any other value.
+    """
+    value = getattr(args, "peak_profile", None) or DEFAULT_PEAK_PROFILE
+    if value not in PEAK_PROFILES:
+        raise CliError(f"--peak-profile {value!r}: give one of {', '.join(PEAK_PROFILES)}")
+    return value
+
+
 def _per_capture(values: list[str] | None, n: int, flag: str) -> list[str | None]:
     """``values`` of a repeated flag as one entry per capture (none, one for all, or one each)."""
     if not values:
@@ -76,6 +107,7 @@ def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tu
     from ..io.capture_file import load_capture
     from ..measured.compare.calibration_file import read_calibration
     from ..measured.compare.material_peaks import capture_observation
+    from ..measured.compare.sweep_mean_peaks import sweep_mean_observation
     from ..measured.compare.traced_hall import hall_model, ue_position_of
 
     if args.ue is not None and len(args.ue) not in (len(args.capture),):
@@ -84,6 +116,7 @@ def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tu
     ues = _per_capture(args.ue, len(args.capture), "--ue")
     cals = _per_capture(args.calibration, len(args.capture), "--calibration")
     settings = trace_settings(args)
+    observe = sweep_mean_observation if peak_profile(args) == "sweep-mean" else capture_observation
     observations, records = [], []
     for path, ue_text, cal_path in zip(args.capture, ues, cals):
         capture = load_capture(path)
@@ -92,12 +125,16 @@ def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tu
         ris = None if cal is None else replace(capture.ris, loopback_delay=cal.loopback_delay,
                                                amplification_db=cal.amplification_db)
         model = hall_model(capture, scene, ue, ue_source=source, ris=ris, trace=settings, cache=trace_cache(args))
-        peaks = capture_observation(capture, model, names, calibration=cal, settings=settings,
+        peaks = observe(capture, model, names, calibration=cal, settings=settings,
                                     model_sigma_db=args.model_sigma, prominence_db=args.peak_prominence,
                                     floor_db=args.peak_floor)
-        print(f"{path}: radar at {[round(float(x), 3) for x in ue]} m ({source}); {len(peaks.used)} peak(s) used, "
-              f"{len(peaks.left_out)} left out; power residual rms at the scene's materials "
-              f"{_fmt(peaks.comparison.summary['power_residual_rms_db'])} dB")
+        res = [u["power_residual_db"] for u in peaks.used if "power_residual_db" in u]
+        rms = float(np.sqrt(np.mean(np.square(res)))) if res else peaks.comparison.summary["power_residual_rms_db"]
+        print(f"{path}: radar at {[round(float(x), 3) for x in ue]} m ({source}); {len(peaks.used)} peak(s) used "
+              f"({peak_profile(args)}), {len(peaks.left_out)} left out; power residual rms at the scene's materials "
+              f"{_fmt(rms)} dB")
+        for u in peaks.used:
+            print(f"  used {u['distance_m']:.3f} m: {u['label']}, SNR {u['snr_db']:.1f} dB, sigma {u['sigma_db']:.2f} dB")
         for d, why in peaks.left_out:
             print(f"  left out {d:.3f} m: {why}")
         observations.append(peaks.observation)
@@ -147,6 +184,7 @@ def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[d
         "format": "risloc-material-fit", "version": 1, "risloc_rt_version": __version__,
         "source_scene": str(scene), "captures": records,
         "trace": {k: getattr(trace_settings(args), k) for k in ("max_depth", "samples_per_src")},
+        "peak_profile": peak_profile(args),
         "units": "eps_r unitless, sigma S/m, powers and residuals dB, positions m, delays s",
         "materials": {m: {"eps_r": float(fit.relative_permittivity[q]), "eps_r_sigma": float(fit.relative_permittivity_sigma[q]),
                           "sigma_s_per_m": float(fit.conductivity[q]), "sigma_sigma_s_per_m": float(fit.conductivity_sigma[q]),

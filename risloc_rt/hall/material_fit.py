@@ -13,10 +13,11 @@ Rayleigh delay resolution, ``RadarConfig().delay_resolution / 2`` = 0.121 ns for
 the paths one beat peak merges); a path within the window of two peaks goes to the nearer one.
 The model power of peak k is
 
-    P_k [dB] = 10 log10( Σ_{p ∈ k} |a_p|² ) + offset_db
+    P_k [dB] = 10 log10( Σ_{p ∈ k} w_p |a_p|² ) + offset_db
 
-with ``a_p`` sionna-rt's gain (``Paths.a``, V-V, without the propagation phase) and
-``offset_db`` the observation's known radar/RIS constant (0 for powers in units of |a|²).
+with ``a_p`` sionna-rt's gain (``Paths.a``, V-V, without the propagation phase),
+``offset_db`` the observation's known radar/RIS constant (0 for powers in units of |a|²) and
+``w_p`` the observation's optional per-path weight (the antenna pattern toward the path; 1 if none).
 **Incoherent** sum: the paths that share one beat peak are distinct legs (A→B and B→A, or
 different bounce sequences of nearly the same length) whose relative phase is 2π f_c Δτ; at
 60 GHz a 1 mm difference in path length is 72° of phase, far below what the hall's geometry is
@@ -116,6 +117,13 @@ class Observation:
         toward that path and the coherent merging of the peak's paths:
         :mod:`risloc_rt.measured.compare.material_peaks`). Stored as given (a float, or a
         read-only array); :meth:`offsets` gives it per peak.
+    path_weight : float array [P], optional
+        A weight >= 0 [unitless] per monostatic path of the material tracer at this position (in
+        :func:`~risloc_rt.hall.raytrace.material_gradients.material_jacobian`'s order, which does
+        not depend on the materials): a peak's model power is then ``Σ_{p∈k} w_p |a_p|²``. A
+        capture's paths reach the receiver through the radar's antenna pattern, which weights the
+        paths of one peak differently (a double bounce arriving from behind the radar against a
+        triple bounce at the same delay); a path the simulator prunes has weight 0. ``None``: all 1.
     """
 
     radar_position: np.ndarray
@@ -123,6 +131,7 @@ class Observation:
     power_db: np.ndarray
     sigma_db: np.ndarray
     offset_db: float | np.ndarray = 0.0
+    path_weight: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pos = as_finite_array(self.radar_position, "radar_position", shape=(3,))
@@ -156,6 +165,12 @@ class Observation:
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         object.__setattr__(self, "offset_db", offset)
+        if self.path_weight is not None:
+            weight = np.array(self.path_weight, dtype=float).reshape(-1)
+            if not (np.all(np.isfinite(weight)) and np.all(weight >= 0)):
+                raise ValueError("path_weight must be finite and >= 0 (one per traced monostatic path)")
+            weight.setflags(write=False)
+            object.__setattr__(self, "path_weight", weight)
 
     def __len__(self) -> int:
         return int(self.delay.size)
@@ -390,7 +405,8 @@ def assign_paths(path_delay: np.ndarray, peak_delay: np.ndarray, window: float) 
     return np.where(dist[np.arange(path_delay.size), best] <= window, best, -1).astype(np.int64)
 
 
-def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int,
+                weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per-peak power [dB, without offset], its Jacobian [K, 2Q] w.r.t. (ε_r, ln σ), and touches [K, Q]."""
     q = len(jac.materials)
     power = np.zeros(k)
@@ -398,12 +414,17 @@ def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int) -> tuple[np.n
     touches = np.zeros((k, q), dtype=bool)
     a = jac.a
     sig = jac.conductivity
+    if weight is None:
+        weight = np.ones(a.size)
+    elif weight.size != a.size:
+        raise ValueError(f"path_weight has {weight.size} entries for the {a.size} traced monostatic paths at "
+                         f"{np.round(jac.paths.tx_position, 3).tolist()} m: give one per path of the material tracer")
     for i in range(k):
-        m = assign == i
+        m = (assign == i) & (weight > 0)
         if not m.any():
             continue
-        power[i] = float(np.sum(np.abs(a[m]) ** 2))
-        conj = np.conj(a[m])[:, None]
+        power[i] = float(np.sum(weight[m] * np.abs(a[m]) ** 2))
+        conj = (weight[m] * np.conj(a[m]))[:, None]
         d_power[i, 0::2] = np.sum(2.0 * np.real(conj * jac.d_eps[m]), axis=0)
         d_power[i, 1::2] = np.sum(2.0 * np.real(conj * jac.d_sigma[m]), axis=0) * sig
         touches[i] = jac.touches[m].any(axis=0)
@@ -637,7 +658,7 @@ def fit_materials(
         for i, o in enumerate(obs):
             jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings)
             jacs.append(jac)
-            db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o))
+            db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o), o.path_weight)
             offsets = o.offsets()
             for k in range(len(o)):
                 if explained[k]:

@@ -7,8 +7,9 @@ specular). Oracles: the hall's geometry (the wall_1 echo's delay is 2·24 m/c fr
 |s + n|² for the power σ, the file system for the outputs, and the held-out capture (position 1, not used in the
 fit), whose static peak's power residual must fall when the fitted hall replaces the original.
 
-What the two positions can tell (measured here): each sees one static echo above the comparison's thresholds, wall_1
-at normal incidence, where |Γ|² is one number for two parameters; ε_r and σ of concrete are therefore *not*
+What the two positions can tell (measured here, depth 2): from the sweep mean (the default) position 0 sees two static
+echoes, wall_1 and the floor, both at normal incidence (from the best beam: wall_1 only), where |Γ|² is one number for
+two parameters; ε_r and σ of concrete are therefore *not*
 separately identifiable, the CLI refuses to write a scene and says why; with ``--fixed concrete-200mm:eps_r`` (ε_r
 held at ITU's 5.24) σ is fitted to reproduce |Γ|², and the held-out wall_1 residual falls.
 """
@@ -109,15 +110,16 @@ def test_cli_refuses_unidentifiable_then_fits_with_eps_r_held_and_the_held_out_r
     record = prov["captures"][0]
     assert record["sha256"] == hashlib.sha256(open(cap0, "rb").read()).hexdigest()
     assert record["radar_position_m"] == [6.0, 9.0, 1.2] and prov["fixed"] == ["concrete-200mm:eps_r"]
-    # the peaks used: wall_1 (radar at x = 6 m, its face at x = 30 m: a 48 m round trip, folded by the radar to
-    # 2.17 m), never an RIS path (left out with the reason); its sigma from its SNR (0.6-0.7 dB at 19-21 dB) and the
+    # the peaks used (the default --peak-profile sweep-mean: the complex mean of the 61 beams): wall_1 (radar at
+    # x = 6 m, its face at x = 30 m: a 48 m round trip, folded by the radar to 2.17 m), never an RIS path (left out
+    # with the reason); its SNR the best beam's 19-21 dB plus 10 log10(61) = 17.9 dB, its sigma from that SNR and the
     # 0.3 dB model error
     wall = next(p for p in record["peaks"] if p["label"] == "hall: specular:wall_1")
     assert not any(p["label"].startswith("ris") for p in record["peaks"])
     assert any("via the RIS" in p["reason"] for p in record["left_out"])
     assert abs(wall["delay_s"] * SPEED_OF_LIGHT / 2 - 24.0) <= 3e-3
     assert wall["distance_m"] == pytest.approx(24.0 - 21.82, abs=0.02)
-    assert 15 <= wall["snr_db"] <= 25
+    assert 33 <= wall["snr_db"] <= 43 and prov["peak_profile"] == "sweep-mean"
     assert wall["sigma_db"] == pytest.approx(peak_power_sigma_db(10 ** (wall["snr_db"] / 10), 1.0, 0.3), rel=1e-9)
     fitted = prov["materials"]["concrete-200mm"]
     assert fitted["eps_r"] == pytest.approx(5.24, abs=1e-6) and fitted["sigma_s_per_m"] > 0 and fitted["sigma_sigma_s_per_m"] > 0

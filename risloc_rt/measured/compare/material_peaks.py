@@ -54,13 +54,14 @@ from dsp import SPEED_OF_LIGHT
 from dsp.spectrum import dft_windows
 
 from ...hall.material_fit import DEFAULT_WINDOW, Observation, assign_paths
+from ...hall.multipath import monostatic_paths
 from ...hall.path_table import apparent_distance
 from ...hall.raytrace.material_gradients import material_jacobian
 from .calibration_file import Calibration
 from .comparison import Comparison, compare_capture
 from .traced_hall import HallModel
 
-__all__ = ["CapturePeaks", "DEFAULT_MODEL_SIGMA_DB", "capture_observation", "peak_power_sigma_db"]
+__all__ = ["CapturePeaks", "DEFAULT_MODEL_SIGMA_DB", "capture_observation", "path_weights", "peak_power_sigma_db"]
 
 #: Model error added in quadrature to every peak's noise σ [dB] (module docstring, "Power σ").
 DEFAULT_MODEL_SIGMA_DB: float = 0.3
@@ -110,6 +111,40 @@ def peak_power_sigma_db(peak_power: float, noise_floor: float, model_sigma_db: f
     if not peak_power > 0:
         return math.inf
     return math.sqrt(_DB ** 2 * 2.0 * noise_floor / peak_power + model_sigma_db ** 2)
+
+
+def path_weights(traced: Any, model: HallModel) -> np.ndarray:
+    """The weight of each monostatic path of the material tracer in the simulator: antenna pattern, 0 where pruned.
+
+    The material tracer's gains ``a_p`` are those of isotropic antennas; the simulator
+    (:func:`risloc_rt.hall.multipath.monostatic_paths`) multiplies each by the radar's antenna
+    gain toward its departure and arrival and then drops the paths far below the noise floor. Two
+    paths of one peak can differ by 20 dB there (a double bounce returning from behind the radar
+    beside a triple bounce of the same delay), so the fit weights each path as the capture sees it.
+
+    Parameters
+    ----------
+    traced : TracedPaths
+        The material tracer's monostatic paths (``material_jacobian(...).paths``).
+    model : HallModel
+        The traced hall at the same radar position (its antenna, radar and kept paths).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``w_p = |g_p|² / |a_p|²`` [W, the transmit power times the antenna gains] for every path the
+        simulator keeps (same label, delay within 10 fs), else 0; shape [P].
+    """
+    conv = monostatic_paths(traced, radar=model.scenario.base.radar, antenna=model.scenario.antenna)
+    a2 = np.abs(np.asarray(traced.amplitude)) ** 2
+    kept = model.traced.paths
+    static = [(float(d), label) for d, label, via in zip(kept.delay, kept.labels, kept.via_ris) if not via]
+    present = np.array([any(lab == label and abs(d - dk) < 1e-14 for dk, lab in static)
+                        for d, label in zip(conv.delay, conv.labels)], dtype=bool)
+    ok = present & (a2 > 0)
+    weight = np.zeros(a2.size)
+    weight[ok] = np.abs(conv.gain[ok]) ** 2 / a2[ok]
+    return weight
 
 
 def _path_delay(model: HallModel, label: str, path_distance: float, radar: Any) -> float | None:
@@ -186,13 +221,14 @@ def capture_observation(capture: Any, model: HallModel, materials: Any, *,
                 candidates.append((p, tau + 2.0 * (p["distance_m"] - p["path_distance_m"]) / SPEED_OF_LIGHT))
     delays = np.array([t for _, t in candidates])
     assign = assign_paths(jac.delay, delays, window)
+    weight = path_weights(jac.paths, model)
     used = []
     for k, (p, tau) in enumerate(candidates):
-        members = assign == k
+        members = (assign == k) & (weight > 0)
         if not members.any():
             left.append((p["distance_m"], f"no monostatic path of the material tracer within {window * 1e9:.3g} ns"))
             continue
-        model_db = _DB * math.log(float(np.sum(np.abs(jac.a[members]) ** 2)))
+        model_db = _DB * math.log(float(np.sum(weight[members] * np.abs(jac.a[members]) ** 2)))
         signal = 10 ** (p["power_db"] / 10) - floor
         used.append({"distance_m": p["distance_m"], "label": p["label"], "delay_s": tau, "power_db": p["power_db"],
                      "offset_db": p["simulated_power_db"] - model_db,
@@ -204,5 +240,5 @@ def capture_observation(capture: Any, model: HallModel, materials: Any, *,
         reasons = "; ".join(f"{d:.3f} m: {r}" for d, r in left) or "the comparison found no peak"
         raise ValueError(f"no peak of this capture can constrain the materials ({reasons})")
     obs = Observation(model.ue_position, [u["delay_s"] for u in used], [u["power_db"] for u in used],
-                      [u["sigma_db"] for u in used], offset_db=[u["offset_db"] for u in used])
+                      [u["sigma_db"] for u in used], offset_db=[u["offset_db"] for u in used], path_weight=weight)
     return CapturePeaks(observation=obs, comparison=comp, used=tuple(used), left_out=tuple(left))

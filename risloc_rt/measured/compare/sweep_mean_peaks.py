@@ -1,0 +1,349 @@
+"""The static peaks of a capture read from the complex mean over the sweep's beams (``--profile sweep-mean``).
+
+A static (beam-independent) echo of the hall is the same in every one of the sweep's M beams: the
+radar does not move and the RIS's code does not touch it. Its power can therefore be read from the
+**complex mean of the M beams' cubes**, ``ȳ = (1/M) Σ_m y_m`` [counts], processed as one frame
+(zero-Doppler range profile of ``dsp.delay_doppler_map``): the static echo keeps its amplitude, the
+receiver noise (independent from beam to beam) drops to σ²/M per sample, 10 log10 M ≈ 17.9 dB for
+61 beams, and every path via the RIS keeps only its mean response over the codebook
+``(1/M) Σ_m r_m`` (the RIS loop-back's peak falls by ≈ 23 dB in the default hall). So weaker static
+echoes (the floor, oblique triple bounces between the walls) rise above the comparison's
+thresholds and every static peak's power σ falls by √M.
+
+**Why the complex mean, not the power mean.** The power mean ``(1/M) Σ_m |Y_m|²`` also averages a
+peak's power fluctuation (to first order ``var = 2PN/M``, the same as below), but its noise floor
+stays at N: a peak must still stand 12 dB over the median of a profile whose median is the noise,
+so no new echo crosses the thresholds (measured on the default hall: the same peaks as the best
+beam, 2 static of 4), and the RIS paths enter with their full power at every beam. The complex mean
+lowers the floor itself (18 dB) and suppresses what varies with the beam; measured on the same
+capture: 3 static peaks (wall_1, the floor, the wall_0 > wall_1 > wall_2 triple bounce).
+
+**Power σ of a peak of the mean.** ``ȳ`` at the peak's bin is ``s + n̄`` with ``n̄`` complex white
+noise of power ``N/M`` per bin (N the single frame's, the comparison's floor σ² times the windows'
+noise gain), so as for one frame (:func:`~.material_peaks.peak_power_sigma_db`)
+
+    σ_noise = 10/ln 10 · sqrt(2 N / (M P)) = 4.34 dB · sqrt(2 / (M · SNR₁))
+
+with SNR₁ = P/N the single frame's SNR; the model error ``model_sigma_db`` is added in quadrature.
+Checked by a Monte Carlo of the whole processing (``tests/measured/test_material_sweep_mean.py``).
+
+**The forward side, processed alike.** The noise-free simulated cube of the comparison (eq. (1) of
+the traced paths for the same beams, scaled by the same G, range-gated as the capture) is averaged
+over the same M beams and processed the same way; each peak's offset is that expected peak power
+minus the engine's model power ``10 log10 Σ|a_p|²`` of the same peak (as in
+:mod:`.material_peaks`). With a calibration the model must be traced with the calibrated RIS (as
+``risloc calibrate`` does): the calibration's range offset then shifts every path.
+
+**Which peaks.** Local maxima of the measured mean profile ``prominence_db`` prominent and
+``floor_db`` over its median, beyond the range gate, each associated with the traced path of
+largest power *in the mean* within 1.5 range cells (an RIS path counts with its mean response).
+Left out, each with its reason: an unexplained peak; a peak whose strongest path goes via the RIS
+(set by ζ and the RIS); the RIS panel's structural echo and its multipath (``ris_structure``: its
+power is the panel's, which the material tracer does not model); a peak whose expected power
+exceeds the coherent sum of its own static paths ``G (Σ|g_p|)²`` by more than
+:data:`MAX_BLEND_DB` (it is mostly another echo's sidelobe or an RIS path's mean, which the
+materials do not set); a peak with no monostatic path of the material tracer within ``window``
+(each path weighted as the simulator weights it, :func:`~.material_peaks.path_weights`); a peak less
+than :data:`MIN_SNR_DB` over the mean's noise floor (near the thresholds a peak is found only when the
+noise adds to it: measured, single wall bounces at 10–11 dB SNR read 2.9 and 3.6 dB high).
+
+**Observed power.** The measured peak of the mean minus the mean's noise floor, ``|s + n̄|² − N/M``
+(the expected value of ``|s + n̄|²`` is ``P + N/M``; the expected side is noise-free).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.signal
+
+from dsp import SPEED_OF_LIGHT, delay_doppler_map
+from dsp.spectrum import dft_windows
+
+from ...hall.material_fit import DEFAULT_WINDOW, Observation, assign_paths
+from ...hall.path_table import apparent_distance
+from ...hall.raytrace.material_gradients import material_jacobian
+from ...model.beat import beat_cube
+from ...model.paths import shift_paths
+from ...model.ris import ris_response
+from ..sweep.leakage import apply_range_gate, range_gate_basis
+from .calibration_file import Calibration, apply_to_scenario, calibration_delay
+from .comparison import Comparison, compare_capture, delay_sigma
+from .material_peaks import DEFAULT_MODEL_SIGMA_DB, CapturePeaks, path_weights, peak_power_sigma_db
+from .traced_hall import HallModel
+
+__all__ = ["MAX_BLEND_DB", "MIN_SNR_DB", "SweepMeanProfiles", "sweep_mean_observation", "sweep_mean_power_sigma_db",
+           "sweep_mean_profile", "sweep_mean_profiles"]
+
+#: A peak whose expected power exceeds the coherent sum of its own static paths by more than this [dB] is left out.
+MAX_BLEND_DB: float = 1.0
+#: A peak less than this far over the mean's noise floor [dB] is left out (threshold-selection and noise bias).
+MIN_SNR_DB: float = 15.0
+_DB = 10.0 / math.log(10.0)
+
+
+@dataclass(frozen=True)
+class SweepMeanProfiles:
+    """The measured and the expected (noise-free) zero-Doppler profiles of the complex beam mean.
+
+    Attributes
+    ----------
+    distance : numpy.ndarray
+        Range axis [m].
+    measured, expected : numpy.ndarray
+        Powers [counts²] of the measured and of the noise-free simulated complex mean.
+    noise_floor : float
+        Noise power per bin of the mean [counts²]: the single frame's divided by ``beams``.
+    beams : int
+        M, the beams averaged.
+    gain : float
+        G, the comparison's receiver gain [counts² per W].
+    """
+
+    distance: np.ndarray
+    measured: np.ndarray
+    expected: np.ndarray
+    noise_floor: float
+    beams: int
+    gain: float
+
+
+def sweep_mean_power_sigma_db(peak_power: float, noise_floor: float, beams: int, model_sigma_db: float = 0.0) -> float:
+    """1σ [dB] of a peak's power read from the complex mean of ``beams`` frames (module docstring).
+
+    Parameters
+    ----------
+    peak_power : float
+        P, the static echo's power in the profile [counts²].
+    noise_floor : float
+        N, the noise power per bin of *one* frame's profile [counts²].
+    beams : int
+        M >= 1, the frames averaged.
+    model_sigma_db : float
+        Added in quadrature [dB], >= 0.
+
+    Returns
+    -------
+    float
+        ``sqrt((10/ln10)² · 2N/(M P) + model_sigma_db²)`` [dB]; inf for P <= 0.
+    """
+    if isinstance(beams, bool) or int(beams) != beams or beams < 1:
+        raise ValueError(f"beams={beams!r} must be an integer >= 1")
+    return peak_power_sigma_db(peak_power, noise_floor / beams, model_sigma_db)
+
+
+def sweep_mean_profile(cube: Any, radar: Any, processing: Any) -> np.ndarray:
+    """Zero-Doppler range profile [counts²] of the complex mean over the beams of a cube.
+
+    Parameters
+    ----------
+    cube : array [M, K, N]
+        M beams' frames of K chirps of N samples [counts].
+    radar : dsp.RadarConfig
+    processing : dsp.ProcessingConfig
+
+    Returns
+    -------
+    numpy.ndarray
+        ``|DDM(mean_m cube[m])|²`` at zero Doppler on the processing's range axis [counts²].
+    """
+    mean = np.asarray(cube).mean(axis=0)
+    return delay_doppler_map(mean, radar, processing).profile(0.0)
+
+
+def _model_paths(model: HallModel, calibration: Calibration | None, carrier: float) -> tuple[Any, Any]:
+    """The traced paths and RIS the comparison synthesises (calibrated: range offset applied; RIS must match)."""
+    paths, ris = model.traced.paths, model.scenario.base.ris
+    if calibration is None:
+        return paths, ris
+    if (ris.loopback_delay, ris.amplification_db) != (calibration.loopback_delay, calibration.amplification_db):
+        raise ValueError("the sweep-mean profile needs the model traced with the calibrated RIS: pass "
+                         "ris=replace(capture.ris, loopback_delay=..., amplification_db=...) to hall_model")
+    ris = apply_to_scenario(model.scenario.base, calibration).ris
+    return shift_paths(paths, calibration_delay(calibration), carrier), ris
+
+
+def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
+                        calibration: Calibration | None = None) -> SweepMeanProfiles:
+    """Both sides' complex-mean profiles, the expected one noise-free with the comparison's G (module docstring).
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture [ADC counts] (range-gated as imported).
+    model : HallModel
+        The traced hall at the capture's radar position.
+    comparison : Comparison
+        :func:`~.comparison.compare_capture` of the capture and model (its G and noise floor are used).
+    calibration : Calibration, optional
+        As given to the comparison.
+
+    Returns
+    -------
+    SweepMeanProfiles
+    """
+    radar, processing = capture.radar, capture.processing
+    paths, ris = _model_paths(model, calibration, radar.carrier_frequency)
+    gain = 10 ** (float(comparison.summary["gain_db"]) / 10)
+    clean = beat_cube(paths, radar=radar, sweep=capture.sweep, ris=ris).mean(axis=0) * math.sqrt(gain)
+    leak = capture.provenance.get("leakage") or {}
+    if leak.get("method") == "gate":
+        clean = apply_range_gate(clean[None], range_gate_basis(radar, float(leak["gate_range"])))[0]
+    expected = delay_doppler_map(clean, radar, processing).profile(0.0)
+    measured = sweep_mean_profile(capture.cube, radar, processing)
+    w_k, w_n, coherent = dft_windows(radar, processing)
+    beams = int(np.asarray(capture.cube).shape[0])
+    floor = float(comparison.summary["noise_counts2"]) * float(np.sum(w_k ** 2) * np.sum(w_n ** 2)) / coherent ** 2
+    return SweepMeanProfiles(distance=np.asarray(comparison.distance), measured=measured, expected=expected,
+                             noise_floor=floor / beams, beams=beams, gain=gain)
+
+
+def _interp(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]:
+    """Parabolic peak (distance [m], power [dB]) around bin i (as the comparison's peak table)."""
+    if 0 < i < len(db) - 1:
+        a, b, c = db[i - 1], db[i], db[i + 1]
+        den = a - 2 * b + c
+        if den < 0:
+            p = 0.5 * (a - c) / den
+            return float(distance[i] + p * (distance[1] - distance[0])), float(b - 0.25 * (a - c) * p)
+    return float(distance[i]), float(db[i])
+
+
+def _mean_contribution(paths: Any, ris: Any, capture: Any) -> np.ndarray:
+    """Each path's power in the beam mean [W]: |g|², times |mean_m r_m|² for a path via the RIS."""
+    power = np.abs(paths.gain) ** 2
+    if paths.via_ris.any():
+        r = ris_response(ris, capture.sweep, paths.ris_incidence[paths.via_ris], paths.ris_departure[paths.via_ris],
+                         wavelength=capture.radar.wavelength)
+        power = power.copy()
+        power[paths.via_ris] *= np.abs(np.mean(r, axis=0)) ** 2
+    return power
+
+
+def _mean_peaks(capture: Any, model: HallModel, prof: SweepMeanProfiles, calibration: Calibration | None, *,
+                prominence_db: float, floor_db: float) -> tuple[list[dict[str, Any]], list[tuple[float, str]]]:
+    """The mean profile's static candidate peaks (distance, power, unfolded delay, expected power) and those left out."""
+    radar = capture.radar
+    paths, ris = _model_paths(model, calibration, radar.carrier_frequency)
+    dist, cell = prof.distance, radar.range_resolution
+    db_m = _DB * np.log(np.maximum(prof.measured, 1e-300))
+    db_s = _DB * np.log(np.maximum(prof.expected, 1e-300))
+    leak = capture.provenance.get("leakage") or {}
+    gate = float(leak.get("gate_range") or 0.0) + 2 * cell
+    found, _ = scipy.signal.find_peaks(db_m, prominence=prominence_db, height=np.median(db_m) + floor_db)
+    found = [int(i) for i in found if gate <= dist[i] < radar.max_range - gate]
+    sim_peaks, _ = scipy.signal.find_peaks(db_s)
+    app = apparent_distance(paths, radar)
+    power = _mean_contribution(paths, ris, capture)
+    candidates, left = [], []
+    for i in sorted(found, key=lambda j: -db_m[j]):
+        d_m, p_m = _interp(dist, db_m, i)
+        near = np.flatnonzero(np.abs(app - d_m) <= 1.5 * cell)
+        if not near.size:
+            left.append((d_m, "unexplained: no traced path within 1.5 range cells"))
+            continue
+        best = int(near[np.argmax(power[near])])
+        label = paths.labels[best]
+        if paths.via_ris[best]:
+            left.append((d_m, f"via the RIS ({label}): its power is set by zeta and the RIS, not by the materials"))
+            continue
+        if label.startswith("ris_structure"):
+            left.append((d_m, f"the RIS panel's structural echo ({label}): its power is the panel's, not the hall's "
+                              "materials"))
+            continue
+        cand = sim_peaks[np.abs(dist[sim_peaks] - d_m) <= 1.5 * cell]
+        j = int(cand[np.argmin(np.abs(dist[cand] - d_m))]) if cand.size else i
+        d_s, p_s = _interp(dist, db_s, j)
+        own = near[~paths.via_ris[near] & np.array([paths.labels[k].startswith("hall") for k in near])]
+        own_db = _DB * math.log(prof.gain * float(np.sum(np.abs(paths.gain[own]))) ** 2 + 1e-300)
+        if p_s > own_db + MAX_BLEND_DB:
+            left.append((d_m, f"blended ({label}): the expected peak is {p_s - own_db:.1f} dB over its own static "
+                              "paths (another echo's sidelobe or an RIS path's mean)"))
+            continue
+        tau = float(paths.delay[best]) + 2.0 * (d_m - float(app[best])) / SPEED_OF_LIGHT
+        candidates.append({"distance_m": d_m, "label": label, "delay_s": tau, "power_db": p_m,
+                           "expected_power_db": p_s, "expected_distance_m": d_s})
+    return candidates, left
+
+
+def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
+                           calibration: Calibration | None = None, settings: Any = None,
+                           window: float = DEFAULT_WINDOW, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
+                           comparison: Comparison | None = None, prominence_db: float = 6.0,
+                           floor_db: float = 12.0) -> CapturePeaks:
+    """The material fit's observation of one capture from its sweep-mean static peaks (module docstring).
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture [ADC counts].
+    model : HallModel
+        The traced hall at the capture's radar position (with the calibrated RIS when a calibration is given).
+    materials : str or sequence of str
+        The materials to fit (names checked by the material tracer first).
+    calibration : Calibration, optional
+        The capture's radar/RIS calibration (G, range offset).
+    settings : TraceSettings, optional
+        The material tracer's settings (use the model's).
+    window : float
+        Delay window explaining a peak [s] (as for the fit).
+    model_sigma_db : float
+        Model error in quadrature with each peak's noise σ [dB], >= 0.
+    comparison : Comparison, optional
+        A comparison already made (else :func:`~.comparison.compare_capture`); its G and noise floor are used.
+    prominence_db, floor_db : float
+        Peak thresholds on the mean profile [dB] (prominence, height above its median).
+
+    Returns
+    -------
+    CapturePeaks
+        ``used`` entries as :func:`~.material_peaks.capture_observation`'s (``snr_db`` over the mean's floor), with
+        ``beams`` (M), ``power_residual_db`` [dB] and ``delay_residual_mm`` [mm] (measured minus expected peak of the
+        mean) and ``delay_sigma_mm`` (the comparison's delay σ at the mean's noise σ²/M) added.
+
+    Raises
+    ------
+    ValueError
+        No peak is left (the reasons of each), a bad ``model_sigma_db``, or a calibration without the
+        calibrated RIS in the model.
+    """
+    if not (isinstance(model_sigma_db, (int, float)) and math.isfinite(model_sigma_db) and model_sigma_db >= 0):
+        raise ValueError(f"model_sigma_db={model_sigma_db!r} must be finite and >= 0 [dB]")
+    jac = material_jacobian(model.scenario.scene_xml, model.ue_position, materials, settings=settings)
+    comp = comparison if comparison is not None else compare_capture(
+        capture, model, calibration=calibration, prominence_db=prominence_db, floor_db=floor_db)
+    prof = sweep_mean_profiles(capture, model, comp, calibration)
+    candidates, left = _mean_peaks(capture, model, prof, calibration, prominence_db=prominence_db, floor_db=floor_db)
+    assign = assign_paths(jac.delay, np.array([c["delay_s"] for c in candidates]), window)
+    noise = float(comp.summary["noise_counts2"])
+    weight = path_weights(jac.paths, model)
+    used = []
+    for k, c in enumerate(candidates):
+        members = (assign == k) & (weight > 0)
+        if not members.any():
+            left.append((c["distance_m"], f"no monostatic path of the material tracer within {window * 1e9:.3g} ns"))
+            continue
+        model_db = _DB * math.log(float(np.sum(weight[members] * np.abs(jac.a[members]) ** 2)))
+        signal = 10 ** (c["power_db"] / 10) - prof.noise_floor
+        snr_db = 10 * math.log10(signal / prof.noise_floor) if signal > 0 else -math.inf
+        if snr_db < MIN_SNR_DB:
+            left.append((c["distance_m"], f"{c['label']}: {snr_db:.1f} dB over the mean's noise floor, below "
+                                          f"{MIN_SNR_DB:g} dB (its power is biased by the threshold and the noise)"))
+            continue
+        sigma = sweep_mean_power_sigma_db(signal, prof.noise_floor * prof.beams, prof.beams, model_sigma_db)
+        power_db = 10 * math.log10(signal)
+        used.append({"distance_m": c["distance_m"], "label": c["label"], "delay_s": c["delay_s"],
+                     "power_db": power_db, "offset_db": c["expected_power_db"] - model_db, "sigma_db": sigma,
+                     "snr_db": snr_db, "paths": int(members.sum()),
+                     "beams": prof.beams, "power_residual_db": power_db - c["expected_power_db"],
+                     "delay_residual_mm": 1e3 * (c["distance_m"] - c["expected_distance_m"]),
+                     "delay_sigma_mm": 1e3 * delay_sigma(signal, noise / prof.beams, capture.radar, capture.processing)})
+    if not used:
+        reasons = "; ".join(f"{d:.3f} m: {r}" for d, r in left) or "the sweep-mean profile has no peak"
+        raise ValueError(f"no sweep-mean peak of this capture can constrain the materials ({reasons})")
+    obs = Observation(model.ue_position, [u["delay_s"] for u in used], [u["power_db"] for u in used],
+                      [u["sigma_db"] for u in used], offset_db=[u["offset_db"] for u in used], path_weight=weight)
+    return CapturePeaks(observation=obs, comparison=comp, used=tuple(used), left_out=tuple(left))
