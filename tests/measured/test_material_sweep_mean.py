@@ -97,3 +97,37 @@ def test_a_static_triple_bounce_enters_the_sweep_mean_observation(tmp_path):
     # without a change of material the residuals of the mean's peaks are noise: within 4 sigma
     for u in mean.used:
         assert abs(u["power_residual_db"]) <= 4 * u["sigma_db"], u
+
+
+def test_path_weights_scale_the_model_power_of_their_paths():
+    """The engine's per-path weights (the antenna pattern of a capture): a constant weight is a constant offset, a path
+    of weight 0 explains nothing, and a weight per path of the wrong length is refused in one line."""
+    from dataclasses import replace
+
+    from risloc_rt.hall.material_fit import fit_materials, synthetic_observations
+    from risloc_rt.hall.raytrace.material_gradients import material_jacobian
+    from risloc_rt.hall.raytrace.tracer import TraceSettings
+
+    from risloc_rt.authoring.scene_folder import scene_directory
+
+    settings = TraceSettings(max_depth=1, samples_per_src=20000)
+    position = [6.0, 9.0, 1.2]
+    hall = scene_directory("paper_hall")
+    obs, _ = synthetic_observations(hall, [position], {"concrete-200mm": (6.1, 0.6)}, sigma_db=0.5,
+                                    rng=np.random.default_rng(23), settings=settings)
+    paths = material_jacobian(hall / "scene.xml", position, ["concrete-200mm"], settings=settings).paths
+    kw = dict(settings=settings, max_iter=0, profile_check=False)
+    plain = fit_materials(hall, obs, ["concrete-200mm"], **kw)
+    c = 1e-3
+    scaled = replace(obs[0], offset_db=obs[0].offsets() - 10 * math.log10(c), path_weight=np.full(len(paths.delay), c))
+    assert np.allclose(fit_materials(hall, [scaled], ["concrete-200mm"], **kw).residuals_db, plain.residuals_db,
+                       atol=1e-9)
+    first = int(np.argmin(np.abs(paths.delay - obs[0].delay[0])))
+    weight = np.ones(len(paths.delay))
+    weight[np.abs(paths.delay - paths.delay[first]) < 1e-12] = 0.0
+    dropped = fit_materials(hall, [replace(obs[0], path_weight=weight)], ["concrete-200mm"], **kw)
+    assert len(dropped.residuals_db) == len(plain.residuals_db) - 1
+    with pytest.raises(ValueError, match="path_weight has 3 entries"):
+        fit_materials(hall, [replace(obs[0], path_weight=np.ones(3))], ["concrete-200mm"], **kw)
+    with pytest.raises(ValueError, match="path_weight must be finite and >= 0"):
+        replace(obs[0], path_weight=-np.ones(len(paths.delay)))
