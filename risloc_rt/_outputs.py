@@ -15,8 +15,8 @@ Three rules, one module (importable from every floor; the standard library only)
    ``compare -o``, ``simulate --format dca1000``) writes them into a hidden staging folder inside
    the target folder (:func:`output_folder`); only when every file is written are the conflicts
    checked and the files renamed into place, with ``SIGINT``/``SIGTERM`` held back for the few
-   milliseconds of the renames. A failure, an error or Ctrl-C before that leaves the folder as it
-   was (the staging folder is removed); SIGKILL during the renames can leave a mix, as in a scene
+   milliseconds of the renames. A failure, an error, Ctrl-C or SIGTERM (which ``risloc`` turns into
+   the same unwinding) before that leaves the folder as it was (the staging folder is removed); SIGKILL during the renames can leave a mix, as in a scene
    build. A single file is written with :func:`risloc_rt._files.atomic_open` (old file or new,
    never half).
 3. **Names from inputs stay inside.** An output name derived from an input (a capture's file name,

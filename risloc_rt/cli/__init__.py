@@ -29,6 +29,8 @@ EXIT_BAD_INPUT = 2
 EXIT_FAILURE = 1
 #: Exit status after Ctrl-C (128 + SIGINT).
 EXIT_INTERRUPTED = 130
+#: Exit status after SIGTERM (128 + SIGTERM: ``kill``, ``timeout``, a batch system's time limit).
+EXIT_TERMINATED = 143
 
 #: A value that starts with '-' but is a number or a comma-separated list of numbers (``-6,1,2``).
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
@@ -204,10 +206,14 @@ def _redeliver_interrupt(previous: Any, state: dict[str, Any]) -> Any:
 
 
 def _note_interrupt(state: dict[str, Any]) -> Any:
-    """A ``SIGINT`` handler: note the interrupt in ``state``, then raise ``KeyboardInterrupt`` as Python's does."""
+    """A ``SIGINT`` (and ``SIGTERM``) handler: note the interrupt in ``state``, then raise ``KeyboardInterrupt`` as
+    Python's does, so the verb unwinds as after Ctrl-C (staging folders removed, workers stopped)."""
+    import signal
 
     def handler(signum: int, frame: Any) -> None:
         state["interrupted"] = True
+        if signum == signal.SIGTERM:
+            state["terminated"] = True
         raise KeyboardInterrupt
 
     return handler
@@ -243,17 +249,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.unraisablehook = _redeliver_interrupt(sys.unraisablehook, state)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, _note_interrupt(state))
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # killed, the staging folders stayed behind
+            signal.signal(signal.SIGTERM, _note_interrupt(state))
     try:
         return _main(list(sys.argv[1:] if argv is None else argv), state)
     except KeyboardInterrupt:
         state["interrupted"] = True
         if program:  # the one line below must not be cut by a second Ctrl-C
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-        print(f"{_command(state['args'])}: interrupted; {_interrupted_outputs(state['args'])}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        what = "terminated (SIGTERM)" if state.get("terminated") else "interrupted"
+        print(f"{_command(state['args'])}: {what}; {_interrupted_outputs(state['args'])}", file=sys.stderr)
+        return EXIT_TERMINATED if state.get("terminated") else EXIT_INTERRUPTED
     finally:
         if program:  # Ctrl-C while the interpreter shuts down would print a traceback
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _caused_by_interrupt(exc: BaseException) -> bool:

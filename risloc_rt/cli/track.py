@@ -52,12 +52,15 @@ def _run(args: argparse.Namespace) -> int:
     backend = device_backend(args)  # a missing GPU or a bad --device: one line before anything is read or written
     if args.progress_every < 1:
         raise CliError(f"--progress-every {args.progress_every} must be >= 1 (sweeps between progress lines)")
+    if args.max_sweeps is not None and args.max_sweeps < 1:
+        raise CliError(f"--max-sweeps {args.max_sweeps} must be >= 1 (the walk's first N sweeps)")
     if args.accel_density is not None and not args.accel_density > 0:
         raise CliError(f"--accel-density {args.accel_density:g} must be > 0 [m²/s³], e.g. 0.05 for a steady walk")
     height = _height(args.ue_height)
     trajectory = read_trajectory(args.trajectory)
     schedule = load_schedule(args.schedule, args.scene, idle=args.idle)
-    slots = plan_walk(args.scene, trajectory, schedule=schedule)  # every bad input before anything is traced
+    slots = plan_walk(args.scene, trajectory, schedule=schedule,  # every bad input before anything is traced
+                      max_sweeps=args.max_sweeps)
     settings = trace_settings(args)
     cache = trace_cache(args)
     workers = 1 if not backend.is_numpy else choose_workers(args.workers)
@@ -70,7 +73,8 @@ def _run(args: argparse.Namespace) -> int:
         result = run_walk(args.scene, trajectory, schedule=schedule, seed=args.seed, tx_power_dbm=args.tx_power_dbm,
                           trace=settings, cache=cache, height=height, estimator=args.estimator,
                           progress=lambda line: print(line, file=sys.stderr, flush=True),
-                          progress_every=args.progress_every, backend=backend, workers=workers, **extra)
+                          progress_every=args.progress_every, max_sweeps=args.max_sweeps, backend=backend,
+                          workers=workers, **extra)
         write_walk(result, stage)
     s = result.summary
     share = "n/a" if s["fix_share_in_view"] is None else f"{100 * s['fix_share_in_view']:.1f} %"
@@ -120,6 +124,9 @@ def add_parser(sub) -> None:
     p.add_argument("--workers", type=int, metavar="N",
                    help="processes that trace, simulate and localize the sweeps ahead of the tracker (default: the "
                         "cores the memory limit allows; the rows are the same for any number)")
+    p.add_argument("--max-sweeps", type=int, metavar="N",
+                   help="walk only the first N sweeps (default: every sweep that ends within the walk; a walk whose "
+                        "sweeps would not fit the memory limit is refused with this remedy)")
     p.add_argument("--progress-every", type=int, default=10, metavar="N",
                    help="a progress line on stderr every N sweeps (default: 10)")
     add_trace_flags(p)

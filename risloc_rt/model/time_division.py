@@ -166,6 +166,35 @@ class TimeDivision:
         """
         return self.order[int(index) % self.num_slots]
 
+    def count_until(self, end: float) -> int:
+        """How many slots' sweeps end by ``end`` (from the schedule's start): :meth:`slots_until`'s length,
+        in closed form (no list of a long walk's slots is built to count them).
+
+        Parameters
+        ----------
+        end : float
+            The time [s].
+
+        Returns
+        -------
+        int
+        """
+        if not math.isfinite(end) or end < self.sweep_duration:
+            return 0
+        limit = end * (1 + 1e-12)
+
+        def ends_by(k: int) -> bool:
+            return self.slot_start(k) + self.sweep_duration <= limit
+
+        # slot starts increase with the index, so the slots that end by ``end`` are 0 … S − 1
+        cycles = max(int((limit - self.sweep_duration) // self.cycle) - 1, 0)
+        count = cycles * self.num_slots
+        while ends_by(count):
+            count += 1
+        while count > 0 and not ends_by(count - 1):
+            count -= 1
+        return count
+
     def slots_until(self, end: float) -> np.ndarray:
         """Indices of every slot whose sweep ends by ``end`` (from the schedule's start).
 
@@ -177,15 +206,9 @@ class TimeDivision:
         Returns
         -------
         int array [S]
-            0, 1, ..., S − 1 (empty when no sweep has ended).
+            0, 1, ..., S − 1 (empty when no sweep has ended; S = :meth:`count_until`).
         """
-        if not math.isfinite(end) or end < self.sweep_duration:
-            return np.zeros(0, dtype=int)
-        out, k = [], 0
-        while self.slot_start(k) + self.sweep_duration <= end * (1 + 1e-12):
-            out.append(k)
-            k += 1
-        return np.array(out, dtype=int)
+        return np.arange(self.count_until(end), dtype=int)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``[schedule]`` table of this schedule (ms and degrees, as in the file).

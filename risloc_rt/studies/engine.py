@@ -34,7 +34,7 @@ from .kernel import PreparedPoint, run_once, run_runs
 from .store import RunLog
 
 __all__ = ["ONE_THREAD_ENV", "StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing",
-           "check_preparer", "run_batch", "execute", "default_workers", "choose_workers", "connect_dask",
+           "check_preparer", "check_rows_memory", "run_batch", "execute", "default_workers", "choose_workers", "connect_dask",
            "one_thread", "one_thread_environment", "worker_pool"]
 
 #: A batch whose worker died this many times stops the study.
@@ -273,6 +273,40 @@ def _calibrate(prepare: Preparer, batch: Batch, study_seed: int) -> tuple[float,
     return float(prep.seconds), seconds
 
 
+def check_rows_memory(name: str, points: int, runs: int) -> int:
+    """Refuse a study whose rows (``points × runs ×`` :data:`ROW_BYTES`) exceed the memory limit.
+
+    :func:`check_budget` checks it before any run; the study commands call it before their folder is
+    made, so a refused ``--runs`` leaves nothing behind.
+
+    Parameters
+    ----------
+    name : str
+        The study, for the message.
+    points : int
+        Its points (cells × RISs for a map).
+    runs : int
+        Runs per point.
+
+    Returns
+    -------
+    int
+        ``points × runs``, the study's runs.
+
+    Raises
+    ------
+    dsp.budget.BudgetError
+        Over the limit: one line naming the runs, the estimate, the limit and the remedy.
+    """
+    from dsp.budget import check_memory
+
+    total = int(points) * int(runs)
+    check_memory(total * ROW_BYTES, f"{name}: {points} point(s) x --runs {runs} = {total:,} runs "
+                 f"(a row of about {ROW_BYTES >> 10} KiB each kept in memory)",
+                 fix="use fewer --runs or points (a study continues where it stopped: raise --runs later)")
+    return total
+
+
 def check_budget(spec: StudyPlan, done: set[tuple[int, int]], *, prepare: Preparer, workers: int,
                  long_ok: bool = False, say: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Check a study's memory and time before it starts, and say what it will cost.
@@ -310,13 +344,8 @@ def check_budget(spec: StudyPlan, done: set[tuple[int, int]], *, prepare: Prepar
     StudyError
         The expected time exceeds :data:`LONG_SECONDS` and ``long_ok`` is not given.
     """
-    from dsp.budget import check_memory
-
     n_points = len(spec.points())
-    total = n_points * int(spec.runs)
-    check_memory(total * ROW_BYTES, f"{spec.name}: {n_points} point(s) x --runs {spec.runs} = {total:,} runs "
-                 f"(a row of about {ROW_BYTES >> 10} KiB each kept in memory)",
-                 fix="use fewer --runs or points (a study continues where it stopped: raise --runs later)")
+    total = check_rows_memory(spec.name, n_points, int(spec.runs))
     missing, points = count_missing(spec, done)
     out: dict[str, Any] = {"missing": missing, "points": points, "expected_seconds": None}
     head = f"{spec.name}: {n_points} point(s) x {spec.runs:,} runs = {total:,} runs, {missing:,} to do"

@@ -59,7 +59,7 @@ from dsp.validation import integer, non_negative, one_of, positive
 
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
-from .engine import choose_workers, default_workers, execute
+from .engine import check_rows_memory, choose_workers, default_workers, execute
 from .figures import plot_map
 from .floor_cells import (COVERED_PD, HEIGHT_STD, cell_run_position, coverage, folded_return, fuse_at_height,
                           multi_ris_peb, usable_run)
@@ -539,6 +539,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     pairs = tuple((c, grid.indices[j]) for c in range(len(cells)) for j in range(len(grid.indices)) if sees[c, j])
     unseen = grid.positions[grid.floor & ~grid.sees.any(axis=1)]
     plan = _MapPlan(settings, tuple(tuple(map(float, ue)) for ue in cells), pairs)
+    check_rows_memory(plan.name, len(pairs), settings.runs)  # a --runs beyond memory: nothing made yet
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
                                              "noise_stream": stream}).encode(), sync=True)

@@ -13,7 +13,7 @@ from typing import Any
 
 from .._files import atomic_write_bytes
 from .._outputs import output_folder
-from .engine import choose_workers, default_workers, execute
+from .engine import check_rows_memory, choose_workers, default_workers, execute
 from .figures import plot_summary
 from .kernel import prepare_point
 from .spec import StudySpec
@@ -105,6 +105,7 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
         workers = choose_workers(workers, insist=True) if workers is not None else default_workers()
     folder = Path(out)
     device, stream = study_device(device, local=dask is None)  # one line before any folder is made
+    check_rows_memory(spec.name, len(spec.points()), int(spec.runs))  # and a --runs beyond memory too
     log = open_study_folder(folder, spec, force=force, stream=stream)
     try:
         info = execute(spec, log, prepare=prepare_point, workers=workers, dask=dask, quiet=quiet, long_ok=force_long,

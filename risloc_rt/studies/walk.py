@@ -43,6 +43,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from dsp.budget import check_memory
 from dsp.fusion import DOUBT_CODES
 from dsp.tracking import Manoeuvres, nees_band
 
@@ -50,7 +51,7 @@ from .trajectory import Trajectory, TrajectoryError
 from .walk_figures import plot_consistency, plot_error, plot_plan
 
 __all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
-           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "WALK_MANOEUVRES",
+           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "SWEEP_BYTES", "WALK_MANOEUVRES",
            "WalkTracker"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
@@ -96,6 +97,11 @@ SKIP_FLAGS = tuple(sorted(DOUBT_CODES))
 #: middle (a return earlier than the RIS's own loop-back delay, flag ``before-ris-delay``): the row says
 #: ``no-position`` and the tracker predicts only.
 NO_POSITION = "no-position"
+#: Memory a planned sweep holds until the walk is written [bytes]: its slot (~0.5 KiB) and its row of
+#: :data:`COLUMNS` (~2.7 KiB, measured with ``tracemalloc``), doubled for the table and figures made from
+#: the rows at the end. A walk's sweeps times this is checked against :func:`dsp.budget.memory_limit`
+#: before any is planned.
+SWEEP_BYTES = 8192
 
 
 def default_schedule(spec: Any, radar: Any, num_beams: int) -> Any:
@@ -254,7 +260,11 @@ def plan_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None
     out = []
     if max_sweeps is not None and not (isinstance(max_sweeps, int) and max_sweeps >= 1):
         raise ValueError(f"max_sweeps={max_sweeps!r} must be a whole number >= 1")
-    for k in schedule.slots_until(trajectory.duration)[:max_sweeps]:
+    count = schedule.count_until(trajectory.duration)
+    count = count if max_sweeps is None else min(count, max_sweeps)
+    check_memory(count * SWEEP_BYTES, f"{trajectory.source}: a walk of {trajectory.duration:g} s ({count} sweeps)",
+                 fix="give a shorter walk, or --max-sweeps N for its first N sweeps")
+    for k in range(count):
         start = float(trajectory.times[0] + schedule.slot_start(int(k)))
         t = start + t_mid
         name = schedule.ris_of(int(k))

@@ -181,3 +181,32 @@ def test_issue_19_a_call_from_python_leaves_the_signal_handling_as_it_was(monkey
     monkeypatch.setattr(sim, "simulate", interrupted)
     assert main(["simulate", "-o", str(tmp_path / "x.npz")]) == 130
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_sigterm_unwinds_like_ctrl_c_leaves_no_staging_folder_and_exits_143(tmp_path):
+    """``kill``, ``timeout`` or a batch system's time limit send SIGTERM: it ended the process where it stood, and a
+    walk's hidden staging folder (and the --out folder made for it) stayed behind. Now it unwinds as Ctrl-C does:
+    one line, exit status 143 (128 + 15), the folder as it was (here: absent)."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    (tmp_path / "walk.csv").write_text("t,x,y,z\n0,14,6,1.2\n100,13,6,1.2\n")
+    out = tmp_path / "out"
+    risloc = Path(sys.executable).with_name("risloc")
+    proc = subprocess.Popen([str(risloc), "track", "l_hall_2ris", "--trajectory", str(tmp_path / "walk.csv"),
+                             "--out", str(out), "--max-sweeps", "50", "--progress-every", "1", "--workers", "1",
+                             "--no-cache"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    lines = []
+    for raw in proc.stderr:  # the walk is under way (its staging folder made) once a sweep is reported
+        lines.append(raw.decode().rstrip("\n"))
+        if lines[-1].startswith("sweep "):
+            assert any(p.name.startswith(".risloc-stage-") for p in out.iterdir())
+            break
+    proc.send_signal(signal.SIGTERM)
+    rest = proc.stderr.read().decode().splitlines()
+    assert proc.wait(timeout=60) == 143, (lines, rest)
+    assert len(rest) == 1 and rest[0].startswith("risloc track: terminated (SIGTERM);"), rest
+    assert not out.exists(), list(out.iterdir())

@@ -29,6 +29,11 @@ CASES = [
     ("not TOML", GOOD, "[schedule\n", [], ["not a TOML file"]),
     ("bad height", GOOD, None, ["--ue-height", "high"], ["--ue-height", "'path'"]),
     ("bad q", GOOD, None, ["--accel-density", "0"], ["--accel-density", "> 0"]),
+    ("bad max sweeps", GOOD, None, ["--max-sweeps", "0"], ["--max-sweeps", ">= 1"]),
+    # 1e9 s at 1 m/s back and forth is 2.56e9 sweeps: refused by the memory limit before a slot is planned (it
+    # built a list of every slot before, for minutes, into an out-of-memory kill)
+    ("a walk too long for memory", "t,x,y,z\n0,14,6,1.2\n1e9,13,6,1.2\n", None, [],
+     ["1e+09 s", "2561475409 sweeps", "memory", "--max-sweeps"]),
 ]
 
 

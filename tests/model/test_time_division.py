@@ -36,6 +36,27 @@ def test_gap_order_and_slots_within_a_time():
     assert s.slots_until(SWEEP / 2).size == 0
 
 
+@pytest.mark.parametrize("table", [None, {"gap_ms": 7.0}, {"start_ms": [3.0, 700.0], "cycle_ms": 1900.0}],
+                         ids=["back to back", "gaps", "explicit starts"])
+def test_the_slot_count_in_closed_form_is_the_slot_by_slot_count(table):
+    """count_until counts without listing the slots (a 1e9 s walk has 2.6e9): it must be the number of slots
+    whose start + T_sweep is at most t, counted one by one (the definition), at and around every slot's end."""
+    s = parse_time_division(table, ris_names=NAMES, sweep_duration=SWEEP)
+
+    def by_definition(t: float) -> int:
+        k = 0
+        while s.slot_start(k) + SWEEP <= t * (1 + 1e-12):
+            k += 1
+        return k
+
+    ends = [s.slot_start(k) + SWEEP for k in range(40)]
+    for t in [0.0, SWEEP / 2, *ends, *(e - 1e-9 for e in ends), *(e + 1e-9 for e in ends), 123.456]:
+        assert s.count_until(t) == by_definition(t), t
+        assert s.slots_until(t).tolist() == list(range(by_definition(t)))
+    assert s.count_until(1e9) == pytest.approx(1e9 / s.cycle * s.num_slots, abs=s.num_slots)
+    assert s.count_until(math.inf) == 0 and s.count_until(math.nan) == 0
+
+
 def test_explicit_starts_round_trip():
     s = parse_time_division({"start_ms": [0.0, 500.0], "cycle_ms": 1200.0}, ris_names=NAMES, sweep_duration=SWEEP)
     assert s.starts == pytest.approx((0.0, 0.5)) and s.cycle == pytest.approx(1.2)

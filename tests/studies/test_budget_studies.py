@@ -102,6 +102,7 @@ def test_cli_a_billion_runs_is_one_line_exit_2_and_a_long_study_names_its_expect
                    str(tmp_path / "a"), "--quiet"])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and "2,000,000,000 runs" in err and "needs about" in err
+    assert not (tmp_path / "a").exists()  # refused before the study's folder is made (it was left with a log)
     monkeypatch.setenv("RISLOC_MEMORY_LIMIT", "100G")  # the rows fit; ~20 ms per run x 1e7 runs is days
     status = main(["study", "sweep", *small_cli_args(), "--vary", "tx_power_dbm=30", "--runs", "10000000",
                    "--workers", "1", "--out", str(tmp_path / "b"), "--quiet"])
@@ -161,3 +162,15 @@ def test_cli_a_4_mm_floor_grid_is_refused_with_its_cell_count_and_memory(capsys,
     n = int(re.search(r"grid of ([0-9,]+) points", err).group(1).replace(",", ""))
     assert n > 10**7  # paper_hall's footprint at 4 mm (the issue measured 2.9e7 positions)
     assert time.perf_counter() - t0 < 10.0 and not (tmp_path / "m").exists()
+
+
+def test_cli_a_map_with_a_billion_runs_is_refused_before_its_folder_is_made(capsys, tmp_path, monkeypatch):
+    """The rows' memory is checked before map-study.json and runs.jsonl are written (they were left behind, and
+    the folder then held "another floor map" for the next command)."""
+    monkeypatch.setenv("RISLOC_MEMORY_LIMIT", "1G")
+    status = main(["study", "map", "paper_hall", "--spacing", "4", "--runs", "1000000000", "--out", str(tmp_path / "m"),
+                   "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert "--runs 1000000000" in err and "needs about" in err and "more than the limit 1 GiB" in err
+    assert not (tmp_path / "m").exists()
