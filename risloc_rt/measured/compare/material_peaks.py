@@ -27,7 +27,12 @@ receiver gain G (the calibration's power offset when given, else the comparison'
 antenna pattern toward that path, the DSP gains and the coherent merging of the peak's paths —
 everything the materials do not change. So the fit starts from exactly the comparison's power
 residuals (``observed − model = P_measured − P_simulated``) and moves each peak's model power by
-``10 log10 (Σ|a(θ)|² / Σ|a(θ₀)|²)``.
+``10 log10 (Σ w|a(θ)|² / Σ w|a(θ₀)|²)``, each path weighted as the simulator weights it
+(:func:`path_weights`: the antenna pattern toward its departure and arrival, 0 for a pruned path;
+the material tracer's own gains are isotropic).
+
+The same peaks read from the complex mean over the sweep's beams (more static echoes, each with a
+smaller σ) are :func:`risloc_rt.measured.compare.sweep_mean_peaks.sweep_mean_observation`.
 
 **Power σ.** A peak of power P [counts²] in the profile's complex white noise of power N per bin
 (the comparison's noise floor σ² per sample times the windows' noise gain) reads
