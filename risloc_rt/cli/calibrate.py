@@ -118,6 +118,10 @@ def add_parser(sub) -> None:
     cal.add_argument("--model-sigma", type=float, default=0.3, metavar="DB",
                      help="with --materials: the ray tracer's model error per peak power [dB], in quadrature with "
                           "each peak's noise (default: %(default)s)")
+    cal.add_argument("--peak-profile", choices=["sweep-mean", "best-beam"], default="sweep-mean",
+                     help="with --materials: read the static peaks from the complex mean over the sweep's beams "
+                          "(default; 61 beams average the noise down ~18 dB) or from the best beam's range profile, "
+                          "as compare does (docs/calibration-materials.md)")
     cal.add_argument("--peak-prominence", type=float, default=6.0, metavar="DB",
                      help="with --materials: a measured peak's prominence [dB] (default: %(default)s)")
     cal.add_argument("--peak-floor", type=float, default=12.0, metavar="DB",
