@@ -10,7 +10,9 @@ Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``
 - :mod:`.uncertainty_budget`: every term of a measured estimate's 1σ (device registers, τ_RB, range
   offset, RIS tolerances) and the total;
 - :mod:`.material_peaks`: a capture's explained static peaks as the material fit's observation
-  (delays, powers with their 1σ and per-peak offsets; ``risloc calibrate --materials``).
+  (delays, powers with their 1σ and per-peak offsets; ``risloc calibrate --materials``);
+- :mod:`.sweep_mean_peaks`: the same observation from the complex mean over the sweep's beams (the
+  static echoes ~18 dB further above the noise; the default of ``risloc calibrate --materials``).
 
 The names load on first use: ``import risloc_rt.measured.compare`` loads neither the hall nor ``io``.
 """
@@ -32,6 +34,9 @@ _EXPORTS = {
     "measured_budget": "uncertainty_budget", "ris_tolerances": "uncertainty_budget",
     "CapturePeaks": "material_peaks", "DEFAULT_MODEL_SIGMA_DB": "material_peaks",
     "capture_observation": "material_peaks", "peak_power_sigma_db": "material_peaks",
+    "MAX_BLEND_DB": "sweep_mean_peaks", "MIN_SNR_DB": "sweep_mean_peaks", "SweepMeanProfiles": "sweep_mean_peaks",
+    "sweep_mean_observation": "sweep_mean_peaks", "sweep_mean_power_sigma_db": "sweep_mean_peaks",
+    "sweep_mean_profile": "sweep_mean_peaks", "sweep_mean_profiles": "sweep_mean_peaks",
 }
 
 __all__ = sorted(_EXPORTS)
