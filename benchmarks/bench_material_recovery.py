@@ -204,12 +204,13 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
     held = record(true_scene, HELD_OUT, root / f"rec{seed}_held", seed * 10 + 9)
     p0, d0, a0 = static_residuals(held, scene, profile)
     p1, d1, a1 = static_residuals(held, fitted, profile)
+    p_true = static_residuals(held, true_scene, profile)[0]
     print(f"  held-out {np.round(HELD_OUT, 3).tolist()} with fit ({'a' if use_free else 'b'}): static power residuals "
-          f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}); delay "
-          f"{np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every explained peak rms {rms(a0):.3f} -> "
-          f"{rms(a1):.3f} dB (recording {t_rec:.1f} s)")
+          f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}; against "
+          f"the true hall {rms(p_true):.3f}); delay {np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every "
+          f"explained peak rms {rms(a0):.3f} -> {rms(a1):.3f} dB (recording {t_rec:.1f} s)")
     row.update(held_sigma=sigma, held_d_sigma=d_sigma, held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1),
-               delay_before=rms(d0), delay_after=rms(d1))
+               delay_before=rms(d0), delay_after=rms(d1), true_hall=rms(p_true))
     return row
 
 
