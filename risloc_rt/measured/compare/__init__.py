@@ -33,7 +33,7 @@ _EXPORTS = {
     "UncertaintyBudget": "uncertainty_budget", "apply_budget": "uncertainty_budget",
     "measured_budget": "uncertainty_budget", "ris_tolerances": "uncertainty_budget",
     "CapturePeaks": "material_peaks", "DEFAULT_MODEL_SIGMA_DB": "material_peaks",
-    "capture_observation": "material_peaks", "peak_power_sigma_db": "material_peaks",
+    "capture_observation": "material_peaks", "peak_power_sigma_db": "material_peaks", "path_weights": "material_peaks",
     "MAX_BLEND_DB": "sweep_mean_peaks", "MIN_SNR_DB": "sweep_mean_peaks", "SweepMeanProfiles": "sweep_mean_peaks",
     "sweep_mean_observation": "sweep_mean_peaks", "sweep_mean_power_sigma_db": "sweep_mean_peaks",
     "sweep_mean_profile": "sweep_mean_peaks", "sweep_mean_profiles": "sweep_mean_peaks",
