@@ -26,7 +26,7 @@ _EXPORTS = {
     "calibration_delay": "calibration_file", "read_calibration": "calibration_file",
     "write_calibration": "calibration_file",
     "calibrate_capture": "calibration_fit",
-    "Comparison": "comparison", "compare_capture": "comparison",
+    "Comparison": "comparison", "compare_capture": "comparison", "parabolic_peak": "comparison",
     "FIGURES": "comparison_page", "write_comparison": "comparison_page", "BASELINE_KEYS": "comparison_page",
     "baseline_document": "comparison_page",
     "BudgetTerm": "uncertainty_budget", "RisTolerances": "uncertainty_budget",

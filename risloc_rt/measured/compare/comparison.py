@@ -62,7 +62,7 @@ from ..sweep.leakage import apply_range_gate, range_gate_basis
 from .calibration_file import Calibration, apply_to_scenario, calibration_delay
 from .traced_hall import HallModel
 
-__all__ = ["Comparison", "compare_capture", "delay_sigma"]
+__all__ = ["Comparison", "compare_capture", "delay_sigma", "parabolic_peak"]
 
 FORMAT = "risloc-comparison"
 
@@ -108,8 +108,24 @@ def _db(x: np.ndarray) -> np.ndarray:
     return 10 * np.log10(np.maximum(np.asarray(x, float), 1e-300))
 
 
-def _interp(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]:
-    """Parabolic peak (distance [m], power [dB]) around bin i."""
+def parabolic_peak(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]:
+    """The parabolic peak through bins ``i - 1, i, i + 1`` of a profile (the peak tables' reading).
+
+    Parameters
+    ----------
+    distance : float array [B]
+        The profile's axis, evenly spaced [m].
+    db : float array [B]
+        The profile [dB].
+    i : int
+        A local maximum's bin.
+
+    Returns
+    -------
+    (float, float)
+        The peak's distance [m] and power [dB]; bin ``i`` itself at the profile's ends or where the
+        three bins do not curve down.
+    """
     if 0 < i < len(db) - 1:
         a, b, c = db[i - 1], db[i], db[i + 1]
         den = a - 2 * b + c
@@ -254,14 +270,14 @@ def _peak_table(capture: Capture, side: _SimulatedSide, beam: int, dist: np.ndar
     sim_peaks, _ = scipy.signal.find_peaks(db_s)                   # local maxima of the noise-free simulated profile
     peaks: list[dict[str, Any]] = []
     for i in sorted(found, key=lambda j: -db_m[j]):
-        d_m, p_m = _interp(dist, db_m, i)
+        d_m, p_m = parabolic_peak(dist, db_m, i)
         near = np.flatnonzero(np.abs(app - d_m) <= 1.5 * cell)
         entry: dict[str, Any] = {"distance_m": d_m, "power_db": p_m}
         if near.size:
             best = near[np.argmax(contribution[near])]
             cand = sim_peaks[np.abs(dist[sim_peaks] - d_m) <= 1.5 * cell]
             j = int(cand[np.argmin(np.abs(dist[cand] - d_m))]) if cand.size else i
-            d_s, p_s = _interp(dist, db_s, j)
+            d_s, p_s = parabolic_peak(dist, db_s, j)
             sigma = delay_sigma(10 ** (p_m / 10) - floor, side.noise, radar, capture.processing)
             entry.update(label=paths.labels[best], explained=True, path_distance_m=float(app[best]),
                          simulated_distance_m=d_s, simulated_power_db=p_s,

@@ -71,7 +71,7 @@ from ...model.paths import shift_paths
 from ...model.ris import ris_response
 from ..sweep.leakage import apply_range_gate, range_gate_basis
 from .calibration_file import Calibration, apply_to_scenario, calibration_delay
-from .comparison import Comparison, compare_capture, delay_sigma
+from .comparison import Comparison, compare_capture, delay_sigma, parabolic_peak
 from .material_peaks import DEFAULT_MODEL_SIGMA_DB, CapturePeaks, path_weights, peak_power_sigma_db
 from .traced_hall import HallModel
 
@@ -201,17 +201,6 @@ def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
                              noise_floor=floor / beams, beams=beams, gain=gain)
 
 
-def _interp(distance: np.ndarray, db: np.ndarray, i: int) -> tuple[float, float]:
-    """Parabolic peak (distance [m], power [dB]) around bin i (as the comparison's peak table)."""
-    if 0 < i < len(db) - 1:
-        a, b, c = db[i - 1], db[i], db[i + 1]
-        den = a - 2 * b + c
-        if den < 0:
-            p = 0.5 * (a - c) / den
-            return float(distance[i] + p * (distance[1] - distance[0])), float(b - 0.25 * (a - c) * p)
-    return float(distance[i]), float(db[i])
-
-
 def _mean_contribution(paths: Any, ris: Any, capture: Any) -> np.ndarray:
     """Each path's power in the beam mean [W]: |g|², times |mean_m r_m|² for a path via the RIS."""
     power = np.abs(paths.gain) ** 2
@@ -240,7 +229,7 @@ def _mean_peaks(capture: Any, model: HallModel, prof: SweepMeanProfiles, calibra
     power = _mean_contribution(paths, ris, capture)
     candidates, left = [], []
     for i in sorted(found, key=lambda j: -db_m[j]):
-        d_m, p_m = _interp(dist, db_m, i)
+        d_m, p_m = parabolic_peak(dist, db_m, i)
         near = np.flatnonzero(np.abs(app - d_m) <= 1.5 * cell)
         if not near.size:
             left.append((d_m, "unexplained: no traced path within 1.5 range cells"))
@@ -256,7 +245,7 @@ def _mean_peaks(capture: Any, model: HallModel, prof: SweepMeanProfiles, calibra
             continue
         cand = sim_peaks[np.abs(dist[sim_peaks] - d_m) <= 1.5 * cell]
         j = int(cand[np.argmin(np.abs(dist[cand] - d_m))]) if cand.size else i
-        d_s, p_s = _interp(dist, db_s, j)
+        d_s, p_s = parabolic_peak(dist, db_s, j)
         own = near[~paths.via_ris[near] & np.array([paths.labels[k].startswith("hall") for k in near])]
         own_db = _DB * math.log(prof.gain * float(np.sum(np.abs(paths.gain[own]))) ** 2 + 1e-300)
         if p_s > own_db + MAX_BLEND_DB:
