@@ -1,4 +1,4 @@
-"""On-disk cache of ray traces: one ``.npz`` file per (scene content, poses, frequency, settings).
+"""On-disk cache of ray traces: one compressed ``.npz`` file per (scene content, poses, frequency, settings).
 
 A hit returns the stored arrays bit for bit. The key covers everything that changes the
 paths: the scene's content hash (XML and mesh bytes), the radar and RIS positions, the radar
@@ -203,7 +203,7 @@ class TraceCache:
         arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
         try:
             with atomic_open(path, sync=True) as f:
-                np.savez(f, **arrays)
+                np.savez_compressed(f, **arrays)  # deflate: half the bytes (a carried cache, issue 21)
         except OSError as exc:
             warnings.warn(f"could not write trace cache file {path}: {exc}", RuntimeWarning, stacklevel=2)
             return None
