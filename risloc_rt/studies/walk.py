@@ -51,8 +51,8 @@ from .trajectory import Trajectory, TrajectoryError
 from .walk_figures import plot_consistency, plot_error, plot_plan
 
 __all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
-           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "SWEEP_BYTES", "WALK_MANOEUVRES",
-           "WalkTracker"]
+           "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "SWEEP_BYTES",
+           "WALK_MANOEUVRES", "WalkTracker"]
 
 #: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
 #: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
