@@ -18,9 +18,8 @@
 # 8 files come back: name few stages per call).
 #
 # The device image has numpy, scipy, CuPy (cupy-cuda13x), pyarrow, matplotlib, tqdm, threadpoolctl
-# and pytest, not array-api-compat: carry it as a wheel. Here, once, in the repository root:
+# and pytest, not array-api-compat: carry it as a wheel (.whl/ is git-ignored). Here, once, in the repository root:
 #
-#   echo /.whl/ >> .git/info/exclude
 #   python3 -m pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
 #       -d .whl array-api-compat==1.16.0 array-api-strict==2.6.1
 #

@@ -298,14 +298,11 @@ def _covariance(info: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     return cov, unseen
 
 
-def _compromise_covariance(fixes: list[RisFix], x: np.ndarray, info: np.ndarray, birge: float,
+def _compromise_covariance(fixes: list[RisFix], x: np.ndarray, cov: np.ndarray, birge: float,
                            height: tuple[float, float] | None) -> np.ndarray:
     """The covariance [m²] of the compromise ``x`` of fixes that disagree (module notes): the equal mixture
-    of each fix's own position about ``x``; the inverse information times ``birge`` (T/dof) where a fix alone
-    cannot see every direction."""
-    cov, unseen = _covariance(info)
-    if unseen:
-        return cov
+    of each fix's own position about ``x``; ``cov`` (the inverse information, every direction seen) times
+    ``birge`` (T/dof) where a fix alone cannot see every direction."""
     parts = []
     for f in fixes:
         start = f.position(None if np.isfinite(f.std_aod[1]) else 0.0)
@@ -384,7 +381,7 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
     start = begin(used[0])
     excluded: list[tuple[str, str]] = []
     flags: list[Flag] = []
-    compromise = None
+    disagree = False  # fixes that disagree and none can be left out: their compromise
     while True:
         x, info, stat = _solve(used, start, height)
         dof = sum(f.measurements for f in used) + known - _rank(info)
@@ -408,12 +405,7 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
             start = begin(used[0])
             continue
         if not trials:
-            compromise = _compromise_covariance(used, x, info, stat / dof, height)
-            flags.append(Flag("inconsistent-ris", (
-                f"the fixes of {', '.join(f.name for f in used)} disagree (χ² {stat:.1f} against {threshold:.1f} at "
-                f"{dof} degrees of freedom) and no one of them explains it: the position is their compromise, its "
-                f"covariance widened to span them (PEB {_mm(compromise)}); check each RIS's flags (grating-lobe, "
-                "unresolved-peaks) and add a RIS to tell them apart")))
+            disagree = True
             break
         _, i, xr = min(trials)
         bad = used[i]
@@ -425,8 +417,14 @@ def fuse_fixes(fixes: Any, *, pfa: float = 1e-3, height: Any = None) -> FusedFix
     if excluded:
         flags.insert(0, Flag("inconsistent-ris", "left out: " + "; ".join(f"{n} ({why})" for n, why in excluded)))
     cov, unseen = _covariance(info)
-    if compromise is not None and not unseen:
-        cov = compromise
+    if disagree:
+        if not unseen:
+            cov = _compromise_covariance(used, x, cov, stat / dof, height)
+        flags.append(Flag("inconsistent-ris", (
+            f"the fixes of {', '.join(f.name for f in used)} disagree (χ² {stat:.1f} against {threshold:.1f} at "
+            f"{dof} degrees of freedom) and no one of them explains it: the position is their compromise, its "
+            f"covariance widened to span them (PEB {_mm(cov)}); check each RIS's flags (grating-lobe, "
+            "unresolved-peaks) and add a RIS to tell them apart")))
     for v in unseen:
         flags.append(Flag("unobservable", (
             f"{_describe(v)} cannot be seen by the fixes of {', '.join(f.name for f in used)} (e.g. RISs at one "
