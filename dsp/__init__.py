@@ -16,6 +16,7 @@ from .fusion import FusedFix, RisFix, fuse_fixes
 from .geometry import RisPose, angles_from_direction, direction_from_angles
 from .localization import Alternative
 from .localize import Localization, NoPositionError, localize, self_localize
+from .moving_clutter import ClutterCancellation, MovingEcho, cancel_moving_clutter
 from .pattern import BeamPattern
 from .qualify import Uncertainty, elevation_for_height
 from .aod_fit import AodFit, PatternFit, fit_aod, pattern_fit
@@ -45,6 +46,9 @@ __all__ = [
     "numpy_backend",
     "strict_backend",
     "Alternative",
+    "ClutterCancellation",
+    "MovingEcho",
+    "cancel_moving_clutter",
     "AodFit",
     "BeamPattern",
     "Detection",

@@ -20,6 +20,7 @@ from .aod_fit import AodFit, PatternFit
 from .detection import Detection
 from .drift import DelayDrift
 from .floor_bounce import RUNGS, FloorLadder
+from .moving_clutter import ClutterCancellation
 from .geometry import RisPose
 from .qualify import Uncertainty, is_one_dimensional, position_at
 from .radar import SPEED_OF_LIGHT, RadarConfig
@@ -36,6 +37,8 @@ FLAG_CODES: dict[str, str] = {
     "beam-edge": "the best beam is the first or last of the sweep: the UE may lie outside it",
     "aliased": "the return may lie beyond the unambiguous range or velocity",
     "unresolved-peaks": "two returns within one resolution cell: delay and AoD are biased",
+    "moving-clutter": ("hall echoes that move with the radar lay within a cell of the RIS return: they were "
+                       "removed before the fit"),
     "floor-leg": ("the estimate is the RIS's return via the floor, a rung after the straight leg: "
                   "the distance is too long"),
     "first-arrival": "the strongest RIS return came via the floor; the estimate is the earlier straight leg",
@@ -153,6 +156,9 @@ class FlagContext:
         height was given: ``floor-leg`` and ``first-arrival`` read it.
     floor_moved : bool
         Whether the estimate was moved down the ladder to the first arrival.
+    clutter : ClutterCancellation or None
+        The hall echoes moving with the radar that were searched for and removed before the fit
+        (:func:`dsp.cancel_moving_clutter`), when the return moves: ``moving-clutter`` reads it.
     """
 
     detection: Detection
@@ -176,6 +182,7 @@ class FlagContext:
     pattern_fit: PatternFit | None = None
     floor: FloorLadder | None = None
     floor_moved: bool = False
+    clutter: ClutterCancellation | None = None
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -302,6 +309,21 @@ def _second_return_nearby(c: FlagContext) -> str | None:
             f"{10 * np.log10(max(stat, 1e-30)):.1f} dB (threshold {10 * np.log10(thr):.1f} dB): a second "
             f"return lies within {radar.range_resolution * 100:.1f} cm / {radar.velocity_resolution:.2f} m/s "
             "and biases delay and AoD; move the radar or use more bandwidth/chirps")
+
+
+@_rule("moving-clutter")
+def _moving_clutter_removed(c: FlagContext) -> str | None:
+    if c.clutter is None or not c.clutter.removed:
+        return None
+    echoes = "; ".join(f"{e.range_offset:+.2f} range bin, {e.doppler_offset:+.3f} Doppler cell "
+                       f"({(e.delay_rate - c.delay_rate) * SPEED_OF_LIGHT / 2 * 1e3:+.0f} mm/s), "
+                       f"{10 * np.log10(max(e.snr, 1e-30)):.0f} dB" for e in c.clutter.echoes)
+    n = len(c.clutter.echoes)
+    return (f"{n} hall echo{'es' if n > 1 else ''} moving with the radar within a cell of the RIS return "
+            f"({echoes} over the noise, from {c.clutter.far_beams} far beams) "
+            f"{'were' if n > 1 else 'was'} removed before the fit, each as one tone whose range is linear in time "
+            "over the sweep; an echo whose range curves (fast motion across its line, a near wall) is "
+            "removed less completely: compare with the fixes of neighbouring sweeps")
 
 
 def _rungs(f: FloorLadder, rungs: int) -> str:

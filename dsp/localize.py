@@ -25,6 +25,7 @@ from .flags import GRATING_LOBE_DB, FlagContext, sweep_flags
 from .floor_bounce import FloorLadder, floor_ladder, rung_spacing
 from .geometry import RisPose, direction_from_angles
 from .localization import Alternative, Localization, NoPositionError, localize, no_position
+from .moving_clutter import ClutterCancellation, cancel_moving_clutter
 from .pattern import BeamPattern
 from .processing import ProcessingConfig
 from .aod_fit import pattern_fit
@@ -37,6 +38,12 @@ from .xp import ArrayBackend, backend_of, is_host_array
 __all__ = ["Localization", "NoPositionError", "localize", "self_localize"]
 
 Estimator = Literal["paper", "refined"]
+
+#: The refined estimator removes hall echoes that move with the radar (:func:`dsp.cancel_moving_clutter`) when
+#: the return's delay rate turns its phase by at least this many cycles over the sweep, f_c |ν̂| T_sweep: one
+#: cycle is the sweep's rate resolution, 6.4 mm/s of radial speed over a 0.39 s sweep at 60 GHz. Below it the
+#: hall's echoes barely move from frame to frame and the static template removes them.
+MOVING_CLUTTER_CYCLES = 1.0
 
 #: The fastest motion across the RIS-radar line the ``pattern-mismatch`` test lets the AoD follow during a
 #: sweep [m/s] (walking pace: 1 m/s across a 13.4 m leg turns the AoD 2.6° over a 1.2 s sweep; the
@@ -149,10 +156,16 @@ def self_localize(
     if not det.detected:
         return no_position(grid, det)
     est = steps.estimate(inp, det, grid)
+    floor_height = None if floor_height is None else finite(floor_height, "floor_height", "m")
     floor, moved = None, False
     if floor_height is not None:
-        est, floor, moved = _first_arrival(inp, det, grid, est, estimator, finite(floor_height, "floor_height", "m"),
-                                           ue_height)
+        est, floor, moved = _first_arrival(inp, det, grid, est, estimator, floor_height, ue_height)
+    clutter = _moving_clutter(inp, det, est) if estimator == "refined" else None
+    if clutter is not None and clutter.removed:  # the estimate again, on the cube without them
+        inp = dataclasses.replace(inp, cube=clutter.cube)
+        est = steps.estimate(inp, det, grid)
+        if floor_height is not None:
+            est, floor, moved = _first_arrival(inp, det, grid, est, estimator, floor_height, ue_height)
 
     distance = (est.delay - inp.loopback_delay) * SPEED_OF_LIGHT / 2.0
     velocity = est.delay_rate * SPEED_OF_LIGHT / 2.0
@@ -171,7 +184,7 @@ def self_localize(
                        extra_distance_std=_floor_distance_std(floor, moved))
     context = _flag_context(inp, est, det, steps.residual_frequency, aod, distance, ue_height=ue_height,
                             height_solved=height_solved, height_range=height_range, std=std)
-    context = dataclasses.replace(context, floor=floor, floor_moved=moved)
+    context = dataclasses.replace(context, floor=floor, floor_moved=moved, clutter=clutter)
     if context.pattern_fit is not None and context.pattern_fit.mismatch:
         std = _widened(std, inp.pose, aod, distance, context.pattern_fit.excess,
                        ue_height if height_solved else None)
@@ -234,6 +247,27 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
     if extra_distance_std > 0:
         b = dataclasses.replace(b, distance=float(np.hypot(b.distance, extra_distance_std)))
     return sweep_uncertainty(inp.pose, aod, distance, b, peak_snr=rho, solved_height=solved_height)
+
+
+def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate) -> ClutterCancellation | None:
+    """The hall echoes moving with the radar near the return, found and removed over the sweep
+    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`) and the
+    residual test finds a second return within half a cell of it (``unresolved-peaks``); else None. A
+    device cube's search runs on one host copy of it."""
+    radar = inp.radar
+    times = radar.beam_times(inp.cube.shape[0])
+    span = float(times[-1] - times[0]) + radar.num_chirps * radar.chirp_interval
+    if not (radar.carrier_frequency * abs(est.delay_rate) * span >= MOVING_CLUTTER_CYCLES and det.noise_power > 0):
+        return None
+    weights = np.abs(inp.pattern.amplitude(est.aod, inp.sweep.angles))
+    f1, f2 = est.beat_frequency
+    rate = motion_rate(radar, est.delay_rate,
+                       delay_drift(inp.cube, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights))
+    if _unresolved(inp, f1, f2, weights, det.noise_power, rate) is None:
+        return None  # nothing within half a cell of the return that the fit cannot explain
+    return cancel_moving_clutter(backend_of(inp.cube).to_host(inp.cube), radar, delay=est.delay,
+                                 delay_rate=est.delay_rate, reference_time=est.time, weights=weights,
+                                 noise_power=det.noise_power, pfa=inp.pfa)
 
 
 def _first_arrival(inp: SweepInputs, det: Detection, grid: Any, est: SweepEstimate, estimator: str,

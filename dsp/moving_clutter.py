@@ -39,6 +39,7 @@ left in.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.signal
@@ -48,10 +49,25 @@ from .dtft_subspace import as_cube, dtft_phasors
 from .radar import RadarConfig
 from .validation import fields_equal, finite
 
-__all__ = ["MovingEcho", "ClutterCancellation", "cancel_moving_clutter", "MIN_FAR_BEAMS"]
+__all__ = ["MovingEcho", "ClutterCancellation", "cancel_moving_clutter", "MIN_COHERENCE", "MIN_FAR_BEAMS"]
 
 #: Far beams (|A_m| < 0.1 of the peak) a search needs: fewer cannot resolve an echo's delay rate.
 MIN_FAR_BEAMS = 8
+
+#: An echo is removed only when one amplitude for the whole sweep explains at least this share of the far
+#: frames' energy at it (its coherence, :class:`MovingEcho`): a hall echo's amplitude is the same in every
+#: frame (measured 0.8-1.0 from 22 dB up), a RIS path's follows the beams (0.1-0.3).
+MIN_COHERENCE = 0.5
+#: The largest curvature of an echo's delay fitted, as carrier cycles f_c γ t² at the far frames' farthest
+#: time t from the reference [cycles] (6: 0.37 m/s² of range curvature over a 0.39 s sweep, a walker at 1 m/s
+#: passing a wall 1.3 m away), and the step of its first scan [cycles].
+MAX_CURVATURE_CYCLES = 6.0
+_CURVATURE_STEP = 0.25
+#: Candidates left in (not coherent) before the search gives up.
+_MAX_REJECTED = 3
+#: Frames whose s_m is below this share are left out of the coherence (where the hypothesis sits on the
+#: return's own track they carry no information on it, only noise).
+_MIN_SHARE = 0.05
 
 #: Table step of the search, in range bins (fast time) and Doppler cells (slow time); the hypotheses'
 #: delay step in bins. Bilinear interpolation of the Hann-windowed DTFT at these steps is within 0.2 % (its curvature).
@@ -68,7 +84,10 @@ class MovingEcho:
     delay : float
         τ at the reference time, range-Doppler coupling removed (as ``Localization.delay``) [s].
     delay_rate : float
-        ν [s/s] (its radial velocity is ν c/2).
+        ν [s/s] at the reference time (its radial velocity is ν c/2).
+    delay_curvature : float
+        γ [s/s²]: its delay is τ + ν t + γ t² (t from the reference time); γ c/2 is its range's
+        curvature, v_⊥²/(2d) for a radar passing a wall at speed v_⊥ across the echo's line [m/s²].
     amplitude : complex
         α: the echo's amplitude per sample at the reference time [√W].
     snr : float
@@ -77,14 +96,18 @@ class MovingEcho:
         Its delay less the RIS return's, in un-padded range bins [bins].
     doppler_offset : float
         Its delay rate less the return's, in a frame's Doppler cells [cells].
+    coherence : float
+        The share of the far frames' energy at the echo that its one amplitude explains [0-1].
     """
 
     delay: float
     delay_rate: float
+    delay_curvature: float
     amplitude: complex
     snr: float
     range_offset: float
     doppler_offset: float
+    coherence: float
 
     def __eq__(self, other: object) -> bool:
         return fields_equal(self, other)
@@ -108,6 +131,10 @@ class ClutterCancellation:
         The detection threshold on an echo's coherent SNR [linear].
     far_beams : int
         How many far beams the search used [count]; 0 when it did not run (too few).
+    rejected : int
+        Components over the threshold left in [count]: those one amplitude did not explain (coherence
+        below :data:`MIN_COHERENCE`: returns whose power follows the beams, e.g. the RIS's own paths via
+        a wall or the floor), and those at the search's edge (the tail of an echo beyond it).
     """
 
     cube: np.ndarray
@@ -115,6 +142,7 @@ class ClutterCancellation:
     reference_time: float
     threshold: float
     far_beams: int
+    rejected: int = 0
 
     @property
     def removed(self) -> bool:
@@ -137,9 +165,9 @@ def cancel_moving_clutter(
     weights: np.ndarray,
     noise_power: float,
     pfa: float = 1e-3,
-    max_echoes: int = 3,
-    span_bins: float = 1.0,
-    span_cells: float = 0.6,
+    max_echoes: int = 4,
+    span_bins: float = 3.0,
+    span_cells: float = 1.5,
     exclude_bins: float = 0.35,
     exclude_resolution: float = 1.5,
 ) -> ClutterCancellation:
@@ -163,11 +191,14 @@ def cancel_moving_clutter(
         σ² per sample [W] (``Detection.noise_power``).
     pfa : float, default 1e-3
         Probability that noise alone yields an echo over the whole search.
-    max_echoes : int, default 3
+    max_echoes : int, default 4
         Echoes removed at most.
-    span_bins, span_cells : float, default 1.0, 0.6
+    span_bins, span_cells : float, default 3.0, 1.5
         The search's half-widths around the return: range bins (un-padded) and a frame's Doppler
-        cells. Echoes further out are resolved by the fit's own window.
+        cells. An echo biases the fit when it lies within about one of each; the search reaches
+        the Hann windows' main lobes beyond (2 bins, 2 cells), so that a stronger echo just outside
+        is found where it is (and removed) rather than where its main lobe spills into the return's
+        cell. Echoes further out are resolved by the fit itself.
     exclude_bins, exclude_resolution : float, default 0.35, 1.5
         The return's own track, never searched: within ``exclude_bins`` range bins and
         ``exclude_resolution`` times the sweep's rate resolution ``1/(f_c T_far)`` of it.
@@ -199,27 +230,46 @@ def cancel_moving_clutter(
     noise = sigma2 * search.window_energy  # the variance of T under noise alone, per unit Σ s_m²
     out = arr
     echoes: list[MovingEcho] = []
-    for _ in range(int(max_echoes)):
+    d_bins, d_res = search.offsets()
+    skip = (np.abs(d_res)[:, None] < exclude_resolution) & (np.abs(d_bins)[None, :] < exclude_bins)  # [V, D]
+    rejected = 0
+    while len(echoes) < int(max_echoes) and rejected <= _MAX_REJECTED:
         stat, norm = search.table_statistic()
         power = np.where(norm > 0, np.abs(stat) ** 2 / np.maximum(norm, 1e-300), 0.0) / noise
-        d_bins, d_res = search.offsets()
-        power[(np.abs(d_res)[:, None] < exclude_resolution) & (np.abs(d_bins)[None, :] < exclude_bins)] = 0.0
+        power[skip] = 0.0
         i, j = np.unravel_index(int(np.argmax(power)), power.shape)
         if not power[i, j] > threshold:
             break
-        tau, nu, t_stat, t_norm, t_var = search.refine(search.taus[j], search.nus[i])
-        snr = abs(t_stat) ** 2 / (t_var * noise) if t_var > 0 else 0.0
-        if not snr > threshold:
+        fit = search.best_alias(search.taus[j], search.nus[i])
+        if not fit.var > 0 or not abs(fit.stat) ** 2 / (fit.var * noise) > threshold:
             break
-        alpha = t_stat / (search.window_peak * t_norm)  # E T = α W(0) Σ s_m
-        tone = alpha * _tone(radar, m, k, n, tau, nu, t_ref)
+        tau, nu = fit.delay, fit.rate
+        if _at_edge(search, tau, nu, span_bins, span_cells):  # the tail of an echo beyond the search: follow it
+            tau, nu = search.climb(tau, nu)
+        fit = search.refine(tau, nu, curvature=True)
+        snr = abs(fit.stat) ** 2 / (fit.var * noise) if fit.var > 0 else 0.0
+        if fit.coherence < MIN_COHERENCE or not snr > threshold:
+            # a beam-dependent return (another RIS path), not a hall echo: left in
+            rejected += 1
+            skip |= (np.abs(d_res - d_res[i])[:, None] <= 2.0) & (np.abs(d_bins - d_bins[j])[None, :] <= 0.5)
+            continue
+        alpha = fit.stat / (search.window_peak * fit.norm)  # E T = α W(0) Σ s_m
+        tone = _tone(radar, m, k, n, fit, t_ref, alpha)
         out = out - tone if out is arr else _subtract(out, tone)
-        search.remove(alpha, tau, nu)
-        echoes.append(MovingEcho(delay=float(tau), delay_rate=float(nu), amplitude=complex(alpha), snr=float(snr),
-                                 range_offset=float((tau - tau0) / search.bin_delay),
-                                 doppler_offset=float((nu - nu0) / search.cell_rate)))
+        search.remove(fit, alpha)
+        echoes.append(MovingEcho(delay=float(fit.delay), delay_rate=float(fit.rate),
+                                 delay_curvature=float(fit.curvature), amplitude=complex(alpha), snr=float(snr),
+                                 range_offset=float((fit.delay - tau0) / search.bin_delay),
+                                 doppler_offset=float((fit.rate - nu0) / search.cell_rate),
+                                 coherence=float(fit.coherence)))
     return ClutterCancellation(cube=out, echoes=tuple(echoes), reference_time=t_ref, threshold=threshold,
-                               far_beams=int(far.size))
+                               far_beams=int(far.size), rejected=rejected)
+
+
+def _at_edge(search: "_Search", tau: float, nu: float, span_bins: float, span_cells: float) -> bool:
+    """Whether (τ, ν) lies on the search's border (within one step of it)."""
+    return bool(abs(tau - search.tau0) / search.bin_delay > span_bins - _DELAY_STEP
+                or abs(nu - search.nu0) / search.cell_rate > span_cells - _TABLE_STEP)
 
 
 def _subtract(out: np.ndarray, tone: np.ndarray) -> np.ndarray:
@@ -227,16 +277,12 @@ def _subtract(out: np.ndarray, tone: np.ndarray) -> np.ndarray:
     return out
 
 
-def _tone(radar: RadarConfig, m: int, k: int, n: int, tau: float, nu: float, t_ref: float) -> np.ndarray:
-    """The unit echo (α = 1) of delay ``tau`` at ``t_ref`` and rate ``nu`` in every frame [M, K, N]."""
-    times = radar.beam_times(m) - t_ref
-    fc, ts, s = radar.carrier_frequency, radar.sample_period, radar.slope
-    f1 = ((tau + nu * times) * s + fc * nu) * ts  # [M] cycles/sample
-    f2 = fc * nu * radar.chirp_interval
-    frame = np.exp(-2j * np.pi * _frac(fc * nu * times))  # [M]
-    slow = dtft_phasors(-f2, np.arange(k, dtype=float), np.zeros(1))[0]  # e^{-j2π f₂ k}
-    fast = np.stack([dtft_phasors(-f, np.arange(n, dtype=float), np.zeros(1))[0] for f in f1])  # [M, N]
-    return frame[:, None, None] * slow[None, :, None] * fast[:, None, :]
+def _tone(radar: RadarConfig, m: int, k: int, n: int, fit: _Fit, t_ref: float, alpha: complex) -> np.ndarray:
+    """The echo of ``fit`` with amplitude ``alpha`` in every frame [M, K, N] (uncentred chirps and samples)."""
+    f1, f2, carrier = _echo_frames(radar, radar.beam_times(m) - t_ref, fit.delay, fit.rate, fit.curvature)
+    slow = alpha * np.exp(-2j * np.pi * _frac(carrier[:, None] + np.outer(f2, np.arange(k))))  # [M, K]
+    fast = np.exp(-2j * np.pi * _frac(np.outer(f1, np.arange(n))))  # [M, N]
+    return slow[:, :, None] * fast[:, None, :]
 
 
 def _frac(x: np.ndarray) -> np.ndarray:
@@ -305,15 +351,11 @@ class _Search:
 
     def kernel_n(self, d: np.ndarray, square: bool = False) -> np.ndarray:
         """W_N(d) = Σ_n w_n cos(2π d n'), the windowed fast-time kernel (w_n² with ``square``) [as d]."""
-        d = np.asarray(d, dtype=float)
-        w = self.wn**2 if square else self.wn
-        return (np.cos(2 * np.pi * d.reshape(-1, 1) * self.nc[None, :]) @ w).reshape(d.shape)
+        return hann_kernel(d, self.n, square=square)
 
     def kernel_k(self, d: np.ndarray, square: bool = False) -> np.ndarray:
         """W_K(d), the windowed slow-time kernel (w_k² with ``square``)."""
-        d = np.asarray(d, dtype=float)
-        w = self.wk**2 if square else self.wk
-        return (np.cos(2 * np.pi * d.reshape(-1, 1) * self.kc[None, :]) @ w).reshape(d.shape)
+        return hann_kernel(d, self.k, square=square)
 
     def _project(self) -> None:
         """r_m and the table with the return projected out of every frame."""
@@ -321,16 +363,12 @@ class _Search:
         self.proj = self.table - self.r[:, None, None] * np.outer(self.kern2, self.kern1)[None]
 
     def _f1(self, tau: float | np.ndarray, nu: float) -> np.ndarray:
-        r = self.radar
-        return ((np.asarray(tau)[..., None] + nu * self.times) * r.slope + r.carrier_frequency * nu) * r.sample_period
+        return _echo_frames(self.radar, self.times, tau, nu, 0.0)[0]
 
-    def _phase(self, tau: float | np.ndarray, nu: float) -> np.ndarray:
-        """c_m/α for the hypotheses (τ, ν) [..., F]."""
-        r = self.radar
-        f1 = self._f1(tau, nu)
-        f2 = r.carrier_frequency * nu * r.chirp_interval
-        cyc = r.carrier_frequency * nu * self.times + f1 * (self.n - 1) / 2.0 + f2 * (self.k - 1) / 2.0
-        return np.exp(-2j * np.pi * _frac(cyc))
+    def _phase(self, tau: float | np.ndarray, nu: float, gamma: float = 0.0) -> np.ndarray:
+        """c_m/α for the hypotheses (τ, ν, γ) [..., F]."""
+        f1, f2, carrier = _echo_frames(self.radar, self.times, tau, nu, gamma)
+        return np.exp(-2j * np.pi * _frac(carrier + f1 * (self.n - 1) / 2.0 + f2 * (self.k - 1) / 2.0))
 
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
         """The hypotheses' offsets from the return: delays in bins [D], rates in the sweep's resolution [V]."""
@@ -361,61 +399,183 @@ class _Search:
             norm[i] = np.sum(1.0 - rho**2, axis=1)
         return stat, norm
 
-    def rows(self, nus: np.ndarray) -> np.ndarray:
-        """The far frames' windowed slow-time DTFT at each rate's f₂ [V, F, N]."""
-        r = self.radar
-        ek = np.stack([dtft_phasors(r.carrier_frequency * nu * r.chirp_interval, self.kc, np.zeros(1))[0]
-                       for nu in nus]) * self.wk[None, :]  # [V, K]
-        return np.moveaxis(np.matmul(ek[None], self.data), 1, 0)
+    def rows(self, nus: np.ndarray, gamma: float = 0.0) -> np.ndarray:
+        """The far frames' windowed slow-time DTFT at each rate's f₂(t_m) [V, F, N]."""
+        f2 = np.stack([_echo_frames(self.radar, self.times, 0.0, nu, gamma)[1] for nu in nus])  # [V, F]
+        ek = np.exp(2j * np.pi * _frac(f2[:, :, None] * self.kc[None, None, :])) * self.wk  # [V, F, K]
+        return np.matmul(np.swapaxes(ek, 0, 1), self.data).swapaxes(0, 1)  # one small product per frame
 
-    def exact(self, tau: float, nu: float, rows: np.ndarray | None = None) -> tuple[complex, float, float]:
-        """T, Σ_m s_m and T's noise variance per unit σ² Σw_k²Σw_n² at (τ, ν), from the frames themselves
-        (``rows``: :meth:`rows` at ν [F, N]) less the echoes removed so far."""
-        r = self.radar
-        f2 = r.carrier_frequency * nu * r.chirp_interval
+    def exact(self, tau: float, nu: float, gamma: float = 0.0,
+              rows: np.ndarray | None = None) -> tuple[complex, float, float, float]:
+        """T, Σ_m s_m, T's noise variance per unit σ² Σw_k²Σw_n², and the coherence at (τ, ν, γ), from the
+        frames themselves (``rows``: :meth:`rows` at ν and γ [F, N]) less the echoes removed so far.
+
+        The coherence |Σ_m c̄_m Z'_m|² / (Σ_m s_m · Σ_m |Z'_m|²/s_m) (at most 1, Cauchy–Schwarz) is the share
+        of the frames' energy at the hypothesis that one amplitude for the whole sweep explains: near 1 for
+        a hall echo, low for a RIS path whose power follows the beams (:data:`MIN_COHERENCE`).
+        """
         if rows is None:
-            rows = self.rows(np.array([nu]))[0]
-        f1 = self._f1(tau, nu)
-        en = np.stack([dtft_phasors(f, self.nc, np.zeros(1))[0] for f in f1]) * self.wn[None, :]
+            rows = self.rows(np.array([nu]), gamma)[0]
+        f1, f2, _ = _echo_frames(self.radar, self.times, tau, nu, gamma)
+        en = np.exp(2j * np.pi * _frac(f1[:, None] * self.nc[None, :])) * self.wn[None, :]
         z = np.sum(rows * en, axis=1)
         for alpha, ph, f1e, f2e in self.echoes:
-            z = z - alpha * ph * self.kernel_n(f1 - f1e) * float(self.kernel_k(np.array([f2 - f2e]))[0])
-        d1, d2 = f1 - self.f1r, np.array([f2 - self.f2r])
-        rho = self.kernel_n(d1) * float(self.kernel_k(d2)[0]) / self.window_peak
-        kappa = self.kernel_n(d1, square=True) * float(self.kernel_k(d2, square=True)[0]) / self.window_energy
+            z = z - alpha * ph * self.kernel_n(f1 - f1e) * self.kernel_k(f2 - f2e)
+        d1, d2 = f1 - self.f1r, f2 - self.f2r
+        rho = self.kernel_n(d1) * self.kernel_k(d2) / self.window_peak
+        kappa = self.kernel_n(d1, square=True) * self.kernel_k(d2, square=True) / self.window_energy
         zp = z - self.r * self.window_peak * rho
         var = float(np.sum(1.0 + rho**2 - 2.0 * rho * kappa))
-        return complex(np.sum(np.conj(self._phase(tau, nu)) * zp)), float(np.sum(1.0 - rho**2)), var
+        sm = 1.0 - rho**2
+        terms = np.conj(self._phase(tau, nu, gamma)) * zp
+        stat = complex(np.sum(terms))
+        use = sm >= _MIN_SHARE
+        spread = float(np.sum(sm[use])) * float(np.sum(np.abs(zp[use]) ** 2 / sm[use]))
+        coherence = abs(complex(np.sum(terms[use]))) ** 2 / spread if spread > 0 else 0.0
+        return stat, float(np.sum(sm)), var, coherence
 
-    def refine(self, tau: float, nu: float) -> tuple[float, float, complex, float, float]:
-        """(τ, ν, T, Σ s, var) at the maximum of |T|²/Σ s near a table hypothesis (the least-squares fit
-        of the echo beside a free return per frame): parabolas through 3 × 3 exact points, the steps
-        shrinking from the table's to a ninth of it, three times."""
+    def _score(self, tau: float, nu: float, gamma: float, rows: np.ndarray | None = None) -> float:
+        stat, norm, _, _ = self.exact(tau, nu, gamma, rows)
+        return abs(stat) ** 2 / norm if norm > 0 else 0.0
+
+    def refine(self, tau: float, nu: float, curvature: bool = False) -> "_Fit":
+        """The least-squares fit of the echo beside a free return per frame near (τ, ν): the maximum of
+        |T|²/Σ s by parabolas through 3 × 3 exact points in (τ, ν), the steps shrinking from the table's
+        to a ninth of it over three rounds; with ``curvature``, the delay's curvature γ too (a scan over
+        ±:data:`MAX_CURVATURE_CYCLES` of carrier phase at the far frames' ends first, then a parabola in
+        γ after each round).
+        """
         h1, h2 = _DELAY_STEP * self.bin_delay, self.resolution / 2
-
-        def score(t: float, v: float, rows: np.ndarray) -> float:
-            stat, norm, _ = self.exact(t, v, rows)
-            return abs(stat) ** 2 / norm if norm > 0 else 0.0
-
+        reach = float(np.abs(self.times).max()) ** 2 * self.radar.carrier_frequency  # cycles per unit γ
+        h3 = _CURVATURE_STEP / reach
+        gamma = 0.0
+        if curvature:
+            grid = np.arange(-MAX_CURVATURE_CYCLES, MAX_CURVATURE_CYCLES + 1e-9, _CURVATURE_STEP) / reach
+            rows = self.rows(np.array([nu]))[0]  # each frame's Doppler at γ = 0: the Hann window forgives it here
+            gamma = float(grid[int(np.argmax([self._score(tau, nu, g, rows) for g in grid]))])
         for _ in range(3):
             vs = nu + np.array([-1.0, 0.0, 1.0]) * h2
-            rows = self.rows(vs)
-            p = np.array([[score(tau + a * h1, v, rows[b]) for a in (-1, 0, 1)] for b, v in enumerate(vs)])
+            rows = self.rows(vs, gamma)
+            p = np.array([[self._score(tau + a * h1, v, gamma, rows[b]) for a in (-1, 0, 1)]
+                          for b, v in enumerate(vs)])
             tau += h1 * _vertex(p[1])
             nu += h2 * _vertex(p[:, 1])
+            if curvature:
+                gamma += h3 * _vertex(np.array([self._score(tau, nu, gamma + c * h3) for c in (-1, 0, 1)]))
+                h3 /= 3.0
             h1, h2 = h1 / 3.0, h2 / 3.0
-        stat, norm, var = self.exact(tau, nu)
-        return tau, nu, stat, norm, var
+        return _Fit(tau, nu, gamma, *self.exact(tau, nu, gamma))
 
-    def remove(self, alpha: complex, tau: float, nu: float) -> None:
-        """Take a removed echo out of the table (its kernels, in closed form) and of later :meth:`exact` values."""
+    def best_alias(self, tau: float, nu: float) -> "_Fit":
+        """:meth:`refine` at (τ, ν) and at its frame-rate aliases ν ± q/(f_c T_f) within two Doppler cells but
+        outside the table; the best.
+
+        The frame-to-frame phase of a rate ν is that of ν + q/(f_c T_f) (T_f the time between frames; one
+        Doppler cell for frames back to back): only each frame's own Doppler window (Hann: half the
+        amplitude one cell away) and the range migration tell them apart. A strong echo just outside the
+        search then shows inside it, at its alias, which must not be removed in its place.
+        """
         r = self.radar
-        ph, f1e, f2e = self._phase(tau, nu), self._f1(tau, nu), r.carrier_frequency * nu * r.chirp_interval
-        k2 = self.kernel_k(self.d2 + self.f2r - f2e)  # [D2]
+        times = r.beam_times(2)
+        alias = 1.0 / (r.carrier_frequency * float(times[1] - times[0]))  # [s/s]
+        best = self.refine(tau, nu)
+        reach = int(np.floor(2.0 * self.cell_rate / alias))
+        for q in range(-reach, reach + 1):
+            if q == 0 or abs(nu + q * alias - self.nu0) <= abs(self.nus - self.nu0).max():
+                continue  # no alias, or one inside the table, whose statistic has already been compared
+            other = self.refine(*self.scan(tau, nu + q * alias))
+            if other.score > best.score:
+                best = other
+        return best
+
+    def climb(self, tau: float, nu: float, steps: int = 12) -> tuple[float, float]:
+        """From (τ, ν), :meth:`scan` after scan while the best point is on a scan's border: the peak of an
+        echo beyond the table (its tail at the table's edge is not where it is)."""
+        for _ in range(steps):
+            t, v = self.scan(tau, nu, rates=4, delays=2)
+            inner = abs(t - tau) < 1.5 * _DELAY_STEP * self.bin_delay and abs(v - nu) < 1.5 * self.resolution
+            tau, nu = t, v
+            if inner:
+                break
+        return tau, nu
+
+    def scan(self, tau: float, nu: float, rates: int = 8, delays: int = 2) -> tuple[float, float]:
+        """The best of an exact grid around (τ, ν): ±``rates`` half resolutions, ±``delays`` delay steps."""
+        vs = nu + np.arange(-rates, rates + 1) * self.resolution / 2
+        ts = tau + np.arange(-delays, delays + 1) * _DELAY_STEP * self.bin_delay
+        rows = self.rows(vs)
+        best, where = -1.0, (tau, nu)
+        for b, v in enumerate(vs):
+            for t in ts:
+                score = self._score(t, v, 0.0, rows[b])
+                if score > best:
+                    best, where = score, (float(t), float(v))
+        return where
+
+    def remove(self, fit: "_Fit", alpha: complex) -> None:
+        """Take a removed echo out of the table (its kernels, in closed form) and of later :meth:`exact` values."""
+        ph = self._phase(fit.delay, fit.rate, fit.curvature)
+        f1e, f2e, _ = _echo_frames(self.radar, self.times, fit.delay, fit.rate, fit.curvature)
+        k2 = self.kernel_k(self.d2[None, :] + (self.f2r - f2e)[:, None])  # [F, D2]
         k1 = self.kernel_n(self.d1[None, :] + (self.f1r - f1e)[:, None])  # [F, D1]
-        self.table = self.table - (alpha * ph)[:, None, None] * k2[None, :, None] * k1[:, None, :]
-        self.echoes.append((complex(alpha), ph, f1e, float(f2e)))
+        self.table = self.table - (alpha * ph)[:, None, None] * k2[:, :, None] * k1[:, None, :]
+        self.echoes.append((complex(alpha), ph, f1e, f2e))
         self._project()
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """An echo hypothesis fitted by :meth:`_Search.refine`: τ [s], ν [s/s], γ [s/s²], T, Σ s_m, var, coherence."""
+
+    delay: float
+    rate: float
+    curvature: float
+    stat: complex
+    norm: float
+    var: float
+    coherence: float
+
+    @property
+    def score(self) -> float:
+        """|T|²/Σ s_m, the least-squares fit's captured energy (up to a constant)."""
+        return abs(self.stat) ** 2 / self.norm if self.norm > 0 else 0.0
+
+
+def _echo_frames(radar: RadarConfig, times: np.ndarray, tau: Any, nu: float,
+                 gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An echo of delay τ(t) = τ + ν t + γ t² in frames centred at ``times`` (from t_ref) [F] [s]:
+    f₁(t_m) [cycles/sample] (``tau`` may carry leading axes), f₂(t_m) [cycles/chirp] and the carrier's
+    cycles f_c (τ(t_m) − τ) [F]."""
+    fc, ts, s, tc = radar.carrier_frequency, radar.sample_period, radar.slope, radar.chirp_interval
+    rate = nu + 2.0 * gamma * times
+    moved = nu * times + gamma * times**2
+    f1 = ((np.asarray(tau, dtype=float)[..., None] + moved) * s + fc * rate) * ts
+    return f1, fc * rate * tc, fc * moved
+
+
+def hann_kernel(d: np.ndarray, size: int, square: bool = False) -> np.ndarray:
+    """Σ_n w_n e^{j2π d n'} for the symmetric Hann window w of ``size`` points (``scipy.signal.get_window("hann",
+    size, fftbins=False)``), centred indices n': real and even, in closed form [as d].
+
+    With h = 1/(size − 1), w_n = ½ + ½ cos(2π h n'), so the sum is ½ D(d) + ¼ (D(d + h) + D(d − h)), D the
+    Dirichlet kernel sin(π L d)/sin(π d) of L = ``size`` centred points; ``square`` gives the same sum over
+    w_n² = ⅜ + ½ cos(2π h n') + ⅛ cos(4π h n'). ``d`` in cycles per sample.
+    """
+    x = np.asarray(d, dtype=float)
+    h = 1.0 / (size - 1)
+    if square:
+        terms = ((0.375, 0.0), (0.25, h), (0.25, -h), (0.0625, 2 * h), (0.0625, -2 * h))
+    else:
+        terms = ((0.5, 0.0), (0.25, h), (0.25, -h))
+    return sum(c * _dirichlet(x + o, size) for c, o in terms)
+
+
+def _dirichlet(x: np.ndarray, size: int) -> np.ndarray:
+    """Σ_{n'} e^{j2π x n'} over ``size`` centred indices: sin(π L x)/sin(π x), its limit at integers."""
+    k = np.round(x)
+    near = np.abs(x - k) < 1e-9
+    den = np.where(near, 1.0, np.sin(np.pi * x))
+    return np.where(near, size * np.cos(np.pi * k * (size - 1)), np.sin(np.pi * size * x) / den)
 
 
 def _vertex(p: np.ndarray) -> float:

@@ -276,10 +276,12 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     from dsp.detection import Detection
     from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
     from dsp.floor_bounce import FloorLadder
+    from dsp.moving_clutter import ClutterCancellation, MovingEcho
     from dsp.qualify import Uncertainty
 
     assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
-                                      "unresolved-peaks", "floor-leg", "first-arrival", "before-ris-delay",
+                                      "unresolved-peaks", "moving-clutter", "floor-leg", "first-arrival",
+                                      "before-ris-delay",
                                       "elevation-assumed", "unobservable", "pattern-mismatch"]
     quiet = _quiet_context()
     assert sweep_flags(quiet) == ()
@@ -295,6 +297,11 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
                           height_solved=True),
         "aliased": dict(apparent_delay=0.5 * quiet.radar.delay_resolution),  # within two cells of the wrap
         "unresolved-peaks": dict(unresolved=(100.0, 10.0)),
+        # one hall echo found beside the return and removed before the fit
+        "moving-clutter": dict(clutter=ClutterCancellation(
+            cube=np.zeros((1, 1, 1), complex), reference_time=0.0, threshold=10.0, far_beams=40,
+            echoes=(MovingEcho(delay=1e-7, delay_rate=-6e-9, delay_curvature=0.0, amplitude=1e-6, snr=1e4,
+                               range_offset=-0.4, doppler_offset=0.18, coherence=0.99),))),
         # the straight leg a rung (7 cm) earlier, as strong as the estimate: the paper's peak kept
         "floor-leg": dict(floor=FloorLadder(0.07, (0.0, 20.0, 20.5, 9.0, 0.0), 5.0, steps_down=1, bias_std=4e-3)),
         # the refined estimator moved to it: the estimate is the first arrival
