@@ -251,9 +251,10 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
 
 def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate) -> ClutterCancellation | None:
     """The hall echoes moving with the radar near the return, found and removed over the sweep
-    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`) and the
-    residual test finds a second return within half a cell of it (``unresolved-peaks``); else None. A
-    device cube's search runs on one host copy of it."""
+    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`) and either
+    the residual test finds a second return within half a cell of it (``unresolved-peaks``) or the
+    per-beam values depart from the beam pattern (``pattern-mismatch``: a weaker echo bends them); else
+    None. A device cube's search runs on one host copy of it."""
     radar = inp.radar
     times = radar.beam_times(inp.cube.shape[0])
     span = float(times[-1] - times[0]) + radar.num_chirps * radar.chirp_interval
@@ -263,11 +264,27 @@ def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate) -> Clu
     f1, f2 = est.beat_frequency
     rate = motion_rate(radar, est.delay_rate,
                        delay_drift(inp.cube, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights))
+    distance = (est.delay - inp.loopback_delay) * SPEED_OF_LIGHT / 2.0
     if _unresolved(inp, f1, f2, weights, det.noise_power, rate) is None:
-        return None  # nothing within half a cell of the return that the fit cannot explain
+        fit = _pattern_check(inp, f1, f2, weights, det.noise_power, rate, distance)
+        if fit is None or not fit.mismatch:
+            return None  # nothing near the return that the fit cannot explain, and the beams follow the pattern
     return cancel_moving_clutter(backend_of(inp.cube).to_host(inp.cube), radar, delay=est.delay,
                                  delay_rate=est.delay_rate, reference_time=est.time, weights=weights,
                                  noise_power=det.noise_power, pfa=inp.pfa)
+
+
+def _pattern_check(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noise_power: float, rate: float,
+                   distance: float) -> Any:
+    """The beam pattern's fit to the per-beam values at the tone (:func:`dsp.aod_fit.pattern_fit`, the
+    ``pattern-mismatch`` test), or None without a noise estimate."""
+    if not noise_power > 0:
+        return None
+    radar = inp.radar
+    times = radar.beam_times(inp.cube.shape[0])
+    values, noise_gain = beam_values(inp.cube, radar, f1, f2, weights, drift_rate=rate, beam_times=times)
+    return pattern_fit(np.abs(values), inp.sweep, inp.pattern, noise_variance=noise_power * noise_gain,
+                       pfa=inp.pfa, beam_times=times, max_aod_rate=MAX_CROSS_SPEED / distance if distance > 0 else 0.0)
 
 
 def _first_arrival(inp: SweepInputs, det: Detection, grid: Any, est: SweepEstimate, estimator: str,
@@ -321,12 +338,7 @@ def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
     drift = delay_drift(arr, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights)
     rate = motion_rate(radar, est.delay_rate, drift)
     unresolved = _unresolved(inp, f1, f2, weights, det.noise_power, rate)
-    values, noise_gain = beam_values(arr, radar, f1, f2, weights, drift_rate=rate,
-                                     beam_times=radar.beam_times(arr.shape[0]))
-    fit = pattern_fit(np.abs(values), inp.sweep, inp.pattern, noise_variance=det.noise_power * noise_gain,
-                      pfa=inp.pfa, beam_times=radar.beam_times(arr.shape[0]),
-                      max_aod_rate=MAX_CROSS_SPEED / distance if distance > 0 else 0.0) \
-        if det.noise_power > 0 else None
+    fit = _pattern_check(inp, f1, f2, weights, det.noise_power, rate, distance)
     return FlagContext(detection=det, fit=est.fit, magnitudes=est.magnitudes, sweep=inp.sweep, radar=radar,
                        pose=inp.pose, delay=est.delay, apparent_delay=f1 / (radar.slope * radar.sample_period),
                        delay_rate=est.delay_rate, loopback_delay=inp.loopback_delay, distance=distance, aod=aod,

@@ -467,7 +467,7 @@ class _Search:
         return _Fit(tau, nu, gamma, *self.exact(tau, nu, gamma))
 
     def best_alias(self, tau: float, nu: float) -> "_Fit":
-        """:meth:`refine` at (τ, ν) and at its frame-rate aliases ν ± q/(f_c T_f) within two Doppler cells but
+        """:meth:`refine` at (τ, ν) and at its frame-rate aliases ν ± q/(f_c T_f) within one Doppler cell but
         outside the table; the best.
 
         The frame-to-frame phase of a rate ν is that of ν + q/(f_c T_f) (T_f the time between frames; one
@@ -479,7 +479,7 @@ class _Search:
         times = r.beam_times(2)
         alias = 1.0 / (r.carrier_frequency * float(times[1] - times[0]))  # [s/s]
         best = self.refine(tau, nu)
-        reach = int(np.floor(2.0 * self.cell_rate / alias))
+        reach = int(np.floor(self.cell_rate / alias))  # within one Doppler cell: further, Hann's null
         for q in range(-reach, reach + 1):
             if q == 0 or abs(nu + q * alias - self.nu0) <= abs(self.nus - self.nu0).max():
                 continue  # no alias, or one inside the table, whose statistic has already been compared
