@@ -200,6 +200,12 @@ def test_too_few_far_beams_or_no_noise_estimate_searches_nothing():
     ({"reference_time": np.nan}, "reference_time"),
     ({"noise_power": np.nan}, "noise_power"),
     ({"weights": np.ones(5)}, "weights"),
+    ({"pfa": 0.0}, "pfa"),
+    ({"pfa": 1.5}, "pfa"),
+    ({"max_echoes": -1}, "max_echoes"),
+    ({"max_echoes": 2.5}, "max_echoes"),
+    ({"span_bins": 0.0}, "span_bins"),
+    ({"span_cells": -1.0}, "span_cells"),
 ])
 def test_bad_arguments_are_named(kwargs, match):
     cube = np.zeros((12, RADAR.num_chirps, RADAR.num_samples), complex)
@@ -207,3 +213,24 @@ def test_bad_arguments_are_named(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         cancel_moving_clutter(cube, RADAR, **args)
+
+
+def test_a_cube_that_is_not_three_dimensional_is_named():
+    with pytest.raises(ValueError, match=r"\[M, K, N\]"):
+        cancel_moving_clutter(np.zeros((RADAR.num_chirps, RADAR.num_samples), complex), RADAR, delay=80e-9,
+                              delay_rate=-6e-9, reference_time=0.0, weights=np.ones(12), noise_power=1.0)
+
+
+def test_the_closed_form_hann_kernel_is_the_window_sum():
+    # the kernels the search reads (closed form: three or five Dirichlet kernels) against the direct sum
+    import scipy.signal
+
+    from dsp.moving_clutter import hann_kernel
+    for size in (64, 255, 256):
+        w = scipy.signal.get_window("hann", size, fftbins=False)
+        idx = np.arange(size) - (size - 1) / 2
+        d = np.r_[np.linspace(-5, 5, 401) / size, 0.0, 1 / (size - 1), 1.0]
+        for square in (False, True):
+            ww = w**2 if square else w
+            direct = np.cos(2 * np.pi * np.outer(d, idx)) @ ww
+            assert np.max(np.abs(hann_kernel(d, size, square=square) - direct)) < 1e-12 * ww.sum()
