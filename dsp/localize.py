@@ -28,7 +28,7 @@ from .localization import Alternative, Localization, NoPositionError, localize, 
 from .moving_clutter import ClutterCancellation, cancel_moving_clutter
 from .pattern import BeamPattern
 from .processing import ProcessingConfig
-from .aod_fit import pattern_fit
+from .aod_fit import PatternFit, pattern_fit
 from .qualify import EstimatorBounds, Uncertainty, elevation_for_height, solve_elevation, sweep_uncertainty
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .residual import beam_values, residual_test
@@ -251,31 +251,21 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
 
 def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate) -> ClutterCancellation | None:
     """The hall echoes moving with the radar near the return, found and removed over the sweep
-    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`) and either
-    the residual test finds a second return within half a cell of it (``unresolved-peaks``) or the
-    per-beam values depart from the beam pattern (``pattern-mismatch``: a weaker echo bends them); else
-    None. A device cube's search runs on one host copy of it."""
+    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`); else None.
+    A device cube's search runs on one host copy of it."""
     radar = inp.radar
     times = radar.beam_times(inp.cube.shape[0])
     span = float(times[-1] - times[0]) + radar.num_chirps * radar.chirp_interval
     if not (radar.carrier_frequency * abs(est.delay_rate) * span >= MOVING_CLUTTER_CYCLES and det.noise_power > 0):
         return None
     weights = np.abs(inp.pattern.amplitude(est.aod, inp.sweep.angles))
-    f1, f2 = est.beat_frequency
-    rate = motion_rate(radar, est.delay_rate,
-                       delay_drift(inp.cube, radar, delay=est.delay, delay_rate=est.delay_rate, weights=weights))
-    distance = (est.delay - inp.loopback_delay) * SPEED_OF_LIGHT / 2.0
-    if _unresolved(inp, f1, f2, weights, det.noise_power, rate) is None:
-        fit = _pattern_check(inp, f1, f2, weights, det.noise_power, rate, distance)
-        if fit is None or not fit.mismatch:
-            return None  # nothing near the return that the fit cannot explain, and the beams follow the pattern
     return cancel_moving_clutter(backend_of(inp.cube).to_host(inp.cube), radar, delay=est.delay,
                                  delay_rate=est.delay_rate, reference_time=est.time, weights=weights,
                                  noise_power=det.noise_power, pfa=inp.pfa)
 
 
 def _pattern_check(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noise_power: float, rate: float,
-                   distance: float) -> Any:
+                   distance: float) -> PatternFit | None:
     """The beam pattern's fit to the per-beam values at the tone (:func:`dsp.aod_fit.pattern_fit`, the
     ``pattern-mismatch`` test), or None without a noise estimate."""
     if not noise_power > 0:

@@ -67,6 +67,9 @@ MIN_COHERENCE = 0.5
 #: passing a wall 1.3 m away), and the step of its first scan [cycles].
 MAX_CURVATURE_CYCLES = 6.0
 _CURVATURE_STEP = 0.25
+#: A table candidate whose coherence is below this before any refinement is left in at once (a RIS path
+#: measures 0.08-0.3 there; a hall echo seen at an alias or off its peak 0.5 or more).
+_QUICK_COHERENCE = 0.4
 #: Candidates left in (not coherent) before the search gives up.
 _MAX_REJECTED = 3
 #: Frames whose s_m is below this share are left out of the coherence (where the hypothesis sits on the
@@ -246,30 +249,42 @@ def cancel_moving_clutter(
     d_bins, d_res = search.offsets()
     skip = (np.abs(d_res)[:, None] < exclude_resolution) & (np.abs(d_bins)[None, :] < exclude_bins)  # [V, D]
     rejected = 0
+    table_power = None  # the table's statistic, again only after an echo is removed
     while len(echoes) < int(max_echoes) and rejected <= _MAX_REJECTED:
-        stat, norm = search.table_statistic()
-        power = np.where(norm > 0, np.abs(stat) ** 2 / np.maximum(norm, 1e-300), 0.0) / noise
-        power[skip] = 0.0
+        if table_power is None:
+            stat, norm = search.table_statistic()
+            table_power = np.where(norm > 0, np.abs(stat) ** 2 / np.maximum(norm, 1e-300), 0.0) / noise
+        power = np.where(skip, 0.0, table_power)
         i, j = np.unravel_index(int(np.argmax(power)), power.shape)
         if not power[i, j] > threshold:
             break
+
+        def leave(tau: float, nu: float) -> None:
+            """Search no more around (τ, ν): a return left in."""
+            near = (np.abs(search.nus - nu) / search.resolution <= 2.0)[:, None] & (
+                np.abs(search.taus - tau) / search.bin_delay <= 0.7)[None, :]
+            skip[near] = True
+
+        if search.exact(search.taus[j], search.nus[i])[3] < _QUICK_COHERENCE:  # plainly a RIS path: not refined
+            rejected += 1
+            leave(search.taus[j], search.nus[i])
+            continue
         fit = search.best_alias(search.taus[j], search.nus[i])
         if not fit.var > 0 or not abs(fit.stat) ** 2 / (fit.var * noise) > threshold:
             break
-        tau, nu = fit.delay, fit.rate
-        if _at_edge(search, tau, nu, span_bins, span_cells):  # the tail of an echo beyond the search: follow it
-            tau, nu = search.climb(tau, nu)
-        fit = search.refine(tau, nu, curvature=True)
+        fit = search.refine(fit.delay, fit.rate, curvature=True)
         snr = abs(fit.stat) ** 2 / (fit.var * noise) if fit.var > 0 else 0.0
         if fit.coherence < MIN_COHERENCE or not snr > threshold:
             # a beam-dependent return (another RIS path), not a hall echo: left in
             rejected += 1
-            skip |= (np.abs(d_res - d_res[i])[:, None] <= 2.0) & (np.abs(d_bins - d_bins[j])[None, :] <= 0.5)
+            leave(search.taus[j], search.nus[i])
+            leave(fit.delay, fit.rate)
             continue
         alpha = fit.stat / (search.window_peak * fit.norm)  # E T = α W(0) Σ s_m
         tone = _tone(radar, m, k, n, fit, t_ref, alpha)
         out = out - tone if out is arr else _subtract(out, tone)
         search.remove(fit, alpha)
+        table_power = None
         echoes.append(MovingEcho(delay=float(fit.delay), delay_rate=float(fit.rate),
                                  delay_curvature=float(fit.curvature), amplitude=complex(alpha), snr=float(snr),
                                  range_offset=float((fit.delay - tau0) / search.bin_delay),
@@ -277,12 +292,6 @@ def cancel_moving_clutter(
                                  coherence=float(fit.coherence)))
     return ClutterCancellation(cube=out, echoes=tuple(echoes), reference_time=t_ref, threshold=threshold,
                                far_beams=int(far.size), rejected=rejected)
-
-
-def _at_edge(search: "_Search", tau: float, nu: float, span_bins: float, span_cells: float) -> bool:
-    """Whether (τ, ν) lies on the search's border (within one step of it)."""
-    return bool(abs(tau - search.tau0) / search.bin_delay > span_bins - _DELAY_STEP
-                or abs(nu - search.nu0) / search.cell_rate > span_cells - _TABLE_STEP)
 
 
 def _subtract(out: np.ndarray, tone: np.ndarray) -> np.ndarray:
@@ -421,35 +430,54 @@ class _Search:
     def exact(self, tau: float, nu: float, gamma: float = 0.0,
               rows: np.ndarray | None = None) -> tuple[complex, float, float, float]:
         """T, Σ_m s_m, T's noise variance per unit σ² Σw_k²Σw_n², and the coherence at (τ, ν, γ), from the
-        frames themselves (``rows``: :meth:`rows` at ν and γ [F, N]) less the echoes removed so far.
+        frames themselves (``rows``: :meth:`rows` at ν and γ [F, N]) less the echoes removed so far
+        (:meth:`batch` for one hypothesis)."""
+        stat, norm, var, coherence = self.batch(np.array([tau]), nu, np.array([gamma]), rows)
+        return complex(stat[0]), float(norm[0]), float(var[0]), float(coherence[0])
+
+    def batch(self, taus: np.ndarray, nu: float, gammas: np.ndarray,
+              rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """T, Σ_m s_m, T's noise variance per unit σ² Σw_k²Σw_n², and the coherence of the hypotheses
+        (τ_b, ν, γ_b) [B] each, from the frames' ``rows`` (:meth:`rows` at ν [F, N]; default at ν and γ_0)
+        less the echoes removed so far.
 
         The coherence |Σ_m c̄_m Z'_m|² / (Σ_m s_m · Σ_m |Z'_m|²/s_m) (at most 1, Cauchy–Schwarz) is the share
         of the frames' energy at the hypothesis that one amplitude for the whole sweep explains: near 1 for
         a hall echo, low for a RIS path whose power follows the beams (:data:`MIN_COHERENCE`).
         """
+        taus, gammas = np.asarray(taus, dtype=float), np.asarray(gammas, dtype=float)
         if rows is None:
-            rows = self.rows(np.array([nu]), gamma)[0]
-        f1, f2, _ = _echo_frames(self.radar, self.times, tau, nu, gamma)
-        en = np.exp(2j * np.pi * _frac(f1[:, None] * self.nc[None, :])) * self.wn[None, :]
-        z = np.sum(rows * en, axis=1)
+            rows = self.rows(np.array([nu]), float(gammas[0]))[0]
+        f1, f2, carrier = _echo_frames(self.radar, self.times, taus, nu, gammas)  # [B, F] each
+        if np.all(gammas == gammas[0]):  # one rate and curvature: the delays differ by one shift in every frame
+            en = np.exp(2j * np.pi * _frac(f1[0][:, None] * self.nc)) * self.wn  # [F, N]
+            shift = np.exp(2j * np.pi * _frac(np.outer(f1[:, 0] - f1[0, 0], self.nc)))  # [B, N]
+            z = ((rows * en) @ shift.T).T
+        else:
+            en = np.exp(2j * np.pi * _frac(f1[:, :, None] * self.nc)) * self.wn  # [B, F, N]
+            z = np.einsum("bfn,fn->bf", en, rows)
         for alpha, ph, f1e, f2e in self.echoes:
             z = z - alpha * ph * self.kernel_n(f1 - f1e) * self.kernel_k(f2 - f2e)
         d1, d2 = f1 - self.f1r, f2 - self.f2r
         rho = self.kernel_n(d1) * self.kernel_k(d2) / self.window_peak
         kappa = self.kernel_n(d1, square=True) * self.kernel_k(d2, square=True) / self.window_energy
         zp = z - self.r * self.window_peak * rho
-        var = float(np.sum(1.0 + rho**2 - 2.0 * rho * kappa))
+        var = np.sum(1.0 + rho**2 - 2.0 * rho * kappa, axis=1)
         sm = 1.0 - rho**2
-        terms = np.conj(self._phase(tau, nu, gamma)) * zp
-        stat = complex(np.sum(terms))
+        phase = np.exp(-2j * np.pi * _frac(carrier + f1 * (self.n - 1) / 2.0 + f2 * (self.k - 1) / 2.0))
+        terms = np.conj(phase) * zp
+        stat = np.sum(terms, axis=1)
         use = sm >= _MIN_SHARE
-        spread = float(np.sum(sm[use])) * float(np.sum(np.abs(zp[use]) ** 2 / sm[use]))
-        coherence = abs(complex(np.sum(terms[use]))) ** 2 / spread if spread > 0 else 0.0
-        return stat, float(np.sum(sm)), var, coherence
+        spread = np.sum(np.where(use, sm, 0.0), axis=1) * np.sum(
+            np.where(use, np.abs(zp) ** 2 / np.where(use, sm, 1.0), 0.0), axis=1)
+        coherent = np.abs(np.sum(np.where(use, terms, 0.0), axis=1)) ** 2
+        coherence = np.where(spread > 0, coherent / np.where(spread > 0, spread, 1.0), 0.0)
+        return stat, np.sum(sm, axis=1), var, coherence
 
-    def _score(self, tau: float, nu: float, gamma: float, rows: np.ndarray | None = None) -> float:
-        stat, norm, _, _ = self.exact(tau, nu, gamma, rows)
-        return abs(stat) ** 2 / norm if norm > 0 else 0.0
+    def _scores(self, taus: np.ndarray, nu: float, gammas: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """|T|²/Σ s_m of the hypotheses (τ_b, ν, γ_b) [B]."""
+        stat, norm, _, _ = self.batch(taus, nu, gammas, rows)
+        return np.where(norm > 0, np.abs(stat) ** 2 / np.where(norm > 0, norm, 1.0), 0.0)
 
     def refine(self, tau: float, nu: float, curvature: bool = False) -> "_Fit":
         """The least-squares fit of the echo beside a free return per frame near (τ, ν): the maximum of
@@ -465,48 +493,49 @@ class _Search:
         if curvature:
             grid = np.arange(-MAX_CURVATURE_CYCLES, MAX_CURVATURE_CYCLES + 1e-9, _CURVATURE_STEP) / reach
             rows = self.rows(np.array([nu]))[0]  # each frame's Doppler at γ = 0: the Hann window forgives it here
-            gamma = float(grid[int(np.argmax([self._score(tau, nu, g, rows) for g in grid]))])
+            gamma = float(grid[int(np.argmax(self._scores(np.full(grid.size, tau), nu, grid, rows)))])
+        steps = np.array([-1.0, 0.0, 1.0])
         for _ in range(3):
-            vs = nu + np.array([-1.0, 0.0, 1.0]) * h2
+            vs = nu + steps * h2
             rows = self.rows(vs, gamma)
-            p = np.array([[self._score(tau + a * h1, v, gamma, rows[b]) for a in (-1, 0, 1)]
-                          for b, v in enumerate(vs)])
+            p = np.stack([self._scores(tau + steps * h1, v, np.full(3, gamma), rows[b]) for b, v in enumerate(vs)])
             tau += h1 * _vertex(p[1])
             nu += h2 * _vertex(p[:, 1])
             if curvature:
-                gamma += h3 * _vertex(np.array([self._score(tau, nu, gamma + c * h3) for c in (-1, 0, 1)]))
+                gamma += h3 * _vertex(self._scores(np.full(3, tau), nu, gamma + steps * h3))
                 h3 /= 3.0
             h1, h2 = h1 / 3.0, h2 / 3.0
         return _Fit(tau, nu, gamma, *self.exact(tau, nu, gamma))
 
     def best_alias(self, tau: float, nu: float) -> "_Fit":
-        """:meth:`refine` at (τ, ν) and at its frame-rate aliases ν ± q/(f_c T_f) within one Doppler cell but
-        outside the table; the best.
+        """The echo's peak from a table hypothesis: :meth:`refine` there and at its frame-rate aliases
+        ν ± q/(f_c T_f) within one Doppler cell, each followed by :meth:`climb` while it sits on a scan's
+        border; the best of them.
 
         The frame-to-frame phase of a rate ν is that of ν + q/(f_c T_f) (T_f the time between frames; one
         Doppler cell for frames back to back): only each frame's own Doppler window (Hann: half the
         amplitude one cell away) and the range migration tell them apart. A strong echo just outside the
-        search then shows inside it, at its alias, which must not be removed in its place.
+        search shows inside it at an alias whose migrating range crosses the echo's during the sweep,
+        and that is not where it is.
         """
         r = self.radar
         times = r.beam_times(2)
         alias = 1.0 / (r.carrier_frequency * float(times[1] - times[0]))  # [s/s]
-        best = self.refine(tau, nu)
         reach = int(np.floor(self.cell_rate / alias))  # within one Doppler cell: further, Hann's null
+        best = None
         for q in range(-reach, reach + 1):
-            if q == 0 or abs(nu + q * alias - self.nu0) <= abs(self.nus - self.nu0).max():
-                continue  # no alias, or one inside the table, whose statistic has already been compared
-            other = self.refine(*self.scan(tau, nu + q * alias))
-            if other.score > best.score:
-                best = other
+            start = (tau, nu) if q == 0 else self.scan(tau, nu + q * alias)
+            fit = self.refine(*self.climb(*start))
+            if best is None or fit.score > best.score:
+                best = fit
         return best
 
     def climb(self, tau: float, nu: float, steps: int = 12) -> tuple[float, float]:
         """From (τ, ν), :meth:`scan` after scan while the best point is on a scan's border: the peak of an
         echo beyond the table (its tail at the table's edge is not where it is)."""
         for _ in range(steps):
-            t, v = self.scan(tau, nu, rates=4, delays=2)
-            inner = abs(t - tau) < 1.5 * _DELAY_STEP * self.bin_delay and abs(v - nu) < 1.5 * self.resolution
+            t, v = self.scan(tau, nu, rates=3, delays=5)
+            inner = abs(t - tau) < 4.5 * _DELAY_STEP * self.bin_delay and abs(v - nu) < 1.0 * self.resolution
             tau, nu = t, v
             if inner:
                 break
@@ -517,13 +546,9 @@ class _Search:
         vs = nu + np.arange(-rates, rates + 1) * self.resolution / 2
         ts = tau + np.arange(-delays, delays + 1) * _DELAY_STEP * self.bin_delay
         rows = self.rows(vs)
-        best, where = -1.0, (tau, nu)
-        for b, v in enumerate(vs):
-            for t in ts:
-                score = self._score(t, v, 0.0, rows[b])
-                if score > best:
-                    best, where = score, (float(t), float(v))
-        return where
+        scores = np.stack([self._scores(ts, v, np.zeros(ts.size), rows[b]) for b, v in enumerate(vs)])  # [V, T]
+        b, t = np.unravel_index(int(np.argmax(scores)), scores.shape)
+        return float(ts[t]), float(vs[b])
 
     def remove(self, fit: "_Fit", alpha: complex) -> None:
         """Take a removed echo out of the table (its kernels, in closed form) and of later :meth:`exact` values."""
@@ -555,13 +580,14 @@ class _Fit:
 
 
 def _echo_frames(radar: RadarConfig, times: np.ndarray, tau: Any, nu: float,
-                 gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 gamma: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """An echo of delay τ(t) = τ + ν t + γ t² in frames centred at ``times`` (from t_ref) [F] [s]:
-    f₁(t_m) [cycles/sample] (``tau`` may carry leading axes), f₂(t_m) [cycles/chirp] and the carrier's
-    cycles f_c (τ(t_m) − τ) [F]."""
+    f₁(t_m) [cycles/sample], f₂(t_m) [cycles/chirp] and the carrier's cycles f_c (τ(t_m) − τ), each
+    [..., F] (``tau`` and ``gamma`` may carry leading axes, the same or broadcastable)."""
     fc, ts, s, tc = radar.carrier_frequency, radar.sample_period, radar.slope, radar.chirp_interval
-    rate = nu + 2.0 * gamma * times
-    moved = nu * times + gamma * times**2
+    g = np.asarray(gamma, dtype=float)[..., None]
+    rate = nu + 2.0 * g * times
+    moved = nu * times + g * times**2
     f1 = ((np.asarray(tau, dtype=float)[..., None] + moved) * s + fc * rate) * ts
     return f1, fc * rate * tc, fc * moved
 
