@@ -321,9 +321,9 @@ def _moving_clutter_removed(c: FlagContext) -> str | None:
     n = len(c.clutter.echoes)
     return (f"{n} hall echo{'es' if n > 1 else ''} moving with the radar within a cell of the RIS return "
             f"({echoes} over the noise, from {c.clutter.far_beams} far beams) "
-            f"{'were' if n > 1 else 'was'} removed before the fit, each as one tone whose range is linear in time "
-            "over the sweep; an echo whose range curves (fast motion across its line, a near wall) is "
-            "removed less completely: compare with the fixes of neighbouring sweeps")
+            f"{'were' if n > 1 else 'was'} removed before the fit, each as one tone over the sweep (one amplitude, "
+            "its range's drift and curvature fitted); a wall passed very close is removed less completely: "
+            "compare with the fixes of neighbouring sweeps")
 
 
 def _rungs(f: FloorLadder, rungs: int) -> str:

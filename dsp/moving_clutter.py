@@ -205,8 +205,9 @@ def cancel_moving_clutter(
         cells. An echo biases the fit when it lies within about one of each; the search reaches
         the Hann windows' main lobes beyond (2 bins, 2 cells), so that a stronger echo just outside
         is found where it is (and removed) rather than where its main lobe spills into the return's
-        cell. Further out an echo is left, though one 3-4 bins away and 20 dB stronger than the
-        return still biases the refined fit through its un-windowed sidelobes (``docs/moving-radar.md``).
+        cell. A stronger echo further out whose tail reaches the table is followed to its peak and
+        removed: 20 dB over the return 4-5 bins away, it moves the un-windowed fit by tenths of a
+        millimetre (``docs/moving-radar.md``).
     exclude_bins, exclude_resolution : float, default 0.35, 1.5
         The return's own track, never searched: within ``exclude_bins`` range bins and
         ``exclude_resolution`` times the sweep's rate resolution ``1/(f_c T_far)`` of it.
@@ -243,12 +244,19 @@ def cancel_moving_clutter(
         return ClutterCancellation(cube=arr, echoes=(), reference_time=t_ref, threshold=threshold, far_beams=0)
     search = _Search(arr, radar, far, tau0, nu0, t_ref, span_bins, span_cells)
     threshold = float(-np.log(pfa / search.num_hypotheses))
-    noise = sigma2 * search.window_energy  # the variance of T under noise alone, per unit Σ s_m²
+    noise = sigma2 * search.window_energy  # T's variance under noise alone, per unit of its factor (``var``)
     out = arr
     echoes: list[MovingEcho] = []
     d_bins, d_res = search.offsets()
     skip = (np.abs(d_res)[:, None] < exclude_resolution) & (np.abs(d_bins)[None, :] < exclude_bins)  # [V, D]
     rejected = 0
+
+    def leave(tau: float, nu: float) -> None:
+        """Search no more around (τ, ν): a return left in."""
+        near = (np.abs(search.nus - nu) / search.resolution <= 2.0)[:, None] & (
+            np.abs(search.taus - tau) / search.bin_delay <= 0.7)[None, :]
+        skip[near] = True
+
     table_power = None  # the table's statistic, again only after an echo is removed
     while len(echoes) < int(max_echoes) and rejected <= _MAX_REJECTED:
         if table_power is None:
@@ -258,21 +266,11 @@ def cancel_moving_clutter(
         i, j = np.unravel_index(int(np.argmax(power)), power.shape)
         if not power[i, j] > threshold:
             break
-
-        def leave(tau: float, nu: float) -> None:
-            """Search no more around (τ, ν): a return left in."""
-            near = (np.abs(search.nus - nu) / search.resolution <= 2.0)[:, None] & (
-                np.abs(search.taus - tau) / search.bin_delay <= 0.7)[None, :]
-            skip[near] = True
-
         if search.exact(search.taus[j], search.nus[i])[3] < _QUICK_COHERENCE:  # plainly a RIS path: not refined
             rejected += 1
             leave(search.taus[j], search.nus[i])
             continue
-        fit = search.best_alias(search.taus[j], search.nus[i])
-        if not fit.var > 0 or not abs(fit.stat) ** 2 / (fit.var * noise) > threshold:
-            break
-        fit = search.refine(fit.delay, fit.rate, curvature=True)
+        fit = search.refine(*_peak(search.best_alias(search.taus[j], search.nus[i])), curvature=True)
         snr = abs(fit.stat) ** 2 / (fit.var * noise) if fit.var > 0 else 0.0
         if fit.coherence < MIN_COHERENCE or not snr > threshold:
             # a beam-dependent return (another RIS path), not a hall echo: left in
@@ -292,6 +290,10 @@ def cancel_moving_clutter(
                                  coherence=float(fit.coherence)))
     return ClutterCancellation(cube=out, echoes=tuple(echoes), reference_time=t_ref, threshold=threshold,
                                far_beams=int(far.size), rejected=rejected)
+
+
+def _peak(fit: "_Fit") -> tuple[float, float]:
+    return fit.delay, fit.rate
 
 
 def _subtract(out: np.ndarray, tone: np.ndarray) -> np.ndarray:
