@@ -97,7 +97,8 @@ def run_analytic(seeds: int) -> dict:
             rows.append(row)
         result[f"rcs_{rcs:g}"] = summary(rows)
         s = result[f"rcs_{rcs:g}"]
-        print(f"  {rcs:5g} m²  off: z_d rms {s['zd_off']:6.2f}, vs clean {s['dd_off']:6.2f}σ (az {s['daz_off']:5.2f}σ), "
+        print(f"  {rcs:5g} m²  off: z_d rms {s['zd_off']:6.2f}, vs clean {s['dd_off']:6.2f}σ "
+              f"(az {s['daz_off']:5.2f}σ), "
               f"{s['s_off'] * 1e3:4.0f} ms, unresolved {s['n_unresolved_off']:.2f} | on: z_d rms {s['zd_on']:5.2f}, "
               f"vs clean {s['dd_on']:5.2f}σ (az {s['daz_on']:5.2f}σ), {s['s_on'] * 1e3:4.0f} ms, removed "
               f"{s['n_removed_on']:.2f}, unresolved {s['n_unresolved_on']:.2f}", flush=True)
@@ -151,7 +152,8 @@ def main() -> None:
     parser.add_argument("--skip-hall", action="store_true", help="skip the traced hall (needs the ray tracer)")
     args = parser.parse_args()
     with one_thread():
-        print(f"moving clutter, refined estimator, {args.seeds} seeds, one DSP and one BLAS thread, {platform.machine()}", flush=True)
+        print(f"moving clutter, refined estimator, {args.seeds} seeds, one DSP and one BLAS thread, "
+              f"{platform.machine()}", flush=True)
         print("analytic (RMS over the seeds; vs clean: the same noise without the scatterer)", flush=True)
         out = {"seeds": args.seeds, "analytic": run_analytic(args.seeds)}
         if not args.skip_hall:

@@ -51,8 +51,8 @@ from .dtft_subspace import as_cube, dtft_phasors
 from .radar import RadarConfig
 from .validation import fields_equal, finite, positive
 
-__all__ = ["MovingEcho", "ClutterCancellation", "cancel_moving_clutter", "hann_kernel", "MIN_COHERENCE", "MIN_FAR_BEAMS",
-           "MAX_CURVATURE_CYCLES"]
+__all__ = ["MovingEcho", "ClutterCancellation", "cancel_moving_clutter", "hann_kernel", "MIN_COHERENCE",
+           "MIN_FAR_BEAMS", "MAX_CURVATURE_CYCLES"]
 
 #: Far beams (|A_m| < 0.1 of the peak) a search needs: fewer cannot resolve an echo's delay rate.
 MIN_FAR_BEAMS = 8

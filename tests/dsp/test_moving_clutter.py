@@ -2,12 +2,13 @@
 
 A radar walking toward the RIS at 1 m/s past a static scatterer 21.6° off its line: the scatterer's
 echo closes at v cos 21.6° = 0.93 m/s against the return's 1.00 m/s (0.18 of a frame's Doppler cell)
-and lies 0.4 range bin short of the return's apparent range (30 m², 35 dB over the noise over the sweep). The static template
-cannot remove it (its phase turns 4π·Δd/λ from frame to frame), and the refined estimate was biased
-by millimetres against a σ of tens of micrometres. Oracles: the simulator's moving radar
-(``risloc_rt.model``, ``motion="sweep"``: the analytic scenario recomputes every frame's geometry,
-so the scatterer's range curves over the sweep as it does in a hall, which the canceller's
-first-order model does not) and its truth at the estimate's reference time.
+and lies 0.4 range bin short of the return's apparent range (30 m², 35 dB over the noise over the
+sweep). The static template cannot remove it (its phase turns 4π·Δd/λ from frame to frame), and the
+refined estimate was biased by millimetres against a σ of tens of micrometres. Oracles: the same
+capture (the same noise) without the scatterer, and the simulator's moving radar (``risloc_rt.model``,
+``motion="sweep"``: the analytic scenario recomputes every frame's geometry, so the scatterer's range
+curves over the sweep as it does in a hall; the canceller fits that curvature) with its truth at the
+estimate's reference time.
 """
 
 from __future__ import annotations
