@@ -280,7 +280,9 @@ def cancel_moving_clutter(
             continue
         alpha = fit.stat / (search.window_peak * fit.norm)  # E T = α W(0) Σ s_m
         tone = _tone(radar, m, k, n, fit, t_ref, alpha)
-        out = out - tone if out is arr else _subtract(out, tone)
+        if out is arr:  # the caller's cube is never written to
+            out = arr.copy()
+        out -= tone
         search.remove(fit, alpha)
         table_power = None
         echoes.append(MovingEcho(delay=float(fit.delay), delay_rate=float(fit.rate),
@@ -294,11 +296,6 @@ def cancel_moving_clutter(
 
 def _peak(fit: "_Fit") -> tuple[float, float]:
     return fit.delay, fit.rate
-
-
-def _subtract(out: np.ndarray, tone: np.ndarray) -> np.ndarray:
-    out -= tone
-    return out
 
 
 def _tone(radar: RadarConfig, m: int, k: int, n: int, fit: _Fit, t_ref: float, alpha: complex) -> np.ndarray:
@@ -362,7 +359,7 @@ class _Search:
         self.zero = (j2, j1)
         self.kern1 = self.kernel_n(self.d1)  # W_N on the table [D1]
         self.kern2 = self.kernel_k(self.d2)  # W_K [D2]
-        f1r = self._f1(tau0, nu0)  # [F]
+        f1r = _echo_frames(radar, self.times, tau0, nu0, 0.0)[0]  # the return's track [F]
         self.f1r, self.f2r = f1r, fc * nu0 * tc
         self.data = arr[far]  # [F, K, N]
         slow = dtft_phasors(self.f2r, self.kc, self.d2) * self.wk[None, :]  # [D2, K]
@@ -385,9 +382,6 @@ class _Search:
         """r_m and the table with the return projected out of every frame."""
         self.r = self.table[:, self.zero[0], self.zero[1]] / self.window_peak  # [F]
         self.proj = self.table - self.r[:, None, None] * np.outer(self.kern2, self.kern1)[None]
-
-    def _f1(self, tau: float | np.ndarray, nu: float) -> np.ndarray:
-        return _echo_frames(self.radar, self.times, tau, nu, 0.0)[0]
 
     def _phase(self, tau: float | np.ndarray, nu: float, gamma: float = 0.0) -> np.ndarray:
         """c_m/α for the hypotheses (τ, ν, γ) [..., F]."""

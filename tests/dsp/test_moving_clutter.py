@@ -113,6 +113,7 @@ def test_the_echo_found_is_the_scatterer(walking_past_a_wall):
     assert "1 hall echo" in flag.message
     pattern = wall.ris.beam_pattern().for_wavelength(RADAR.wavelength)
     weights = np.abs(pattern.amplitude(loc.aod, wall.sweep.angles))
+    given = wall.cube.copy()
     res = cancel_moving_clutter(wall.cube, RADAR, delay=loc.delay, delay_rate=loc.delay_rate,
                                 reference_time=loc.reference_time, weights=weights,
                                 noise_power=loc.detection.noise_power)
@@ -130,6 +131,7 @@ def test_the_echo_found_is_the_scatterer(walking_past_a_wall):
     # what is left of it: the cube less the scatterer-free one, against the scatterer's own samples
     left = np.sum(np.abs(res.cube - clean.cube) ** 2) / np.sum(np.abs(wall.cube - clean.cube) ** 2)
     assert left < 1e-2  # 20 dB down at least (its range curves by 0.2 mm over the sweep)
+    assert np.array_equal(wall.cube, given)  # the caller's cube is not written to
 
 
 def test_no_echo_is_found_where_there_is_none():
@@ -193,6 +195,11 @@ def test_too_few_far_beams_or_no_noise_estimate_searches_nothing():
     res = cancel_moving_clutter(cube, RADAR, delay=80e-9, delay_rate=-6e-9, reference_time=0.0,
                                 weights=np.r_[np.full(MIN_FAR_BEAMS, 0.01), np.ones(4)], noise_power=0.0)
     assert res.far_beams == 0 and not res.removed
+    # one far beam more and the search runs (noise only: nothing found, the cube returned as it was)
+    res = cancel_moving_clutter(cube, RADAR, delay=80e-9, delay_rate=-6e-9, reference_time=0.0,
+                                weights=np.r_[np.full(MIN_FAR_BEAMS, 0.01), np.ones(12 - MIN_FAR_BEAMS)],
+                                noise_power=1.0)
+    assert res.far_beams == MIN_FAR_BEAMS and not res.removed and res.cube is cube
 
 
 @pytest.mark.parametrize("kwargs, match", [
