@@ -92,7 +92,7 @@ def main() -> int:
             "fix_rmse_m", "fix_median_error_m", "track_rmse_m", "track_max_error_m", "corner_max_error_m", "updates",
             "track_rmse_updated_m", "far_from_turns", "near_turns", "tracker",
             "nees_dof", "nees_mean", "nees_band_95", "nees_mean_in_band", "nees_share_in_single_band_95",
-            "nis_mean_per_dof", "nis_band_95_per_dof", "seconds")
+            "nis_mean_per_dof", "nis_band_95_per_dof", "smoothed", "seconds")
     report["walk40"] = {k: s[k] for k in keys}
     goals = {
         "fix on >= 95 % of sweeps in view": bool(s["fix_share_in_view"] is not None and s["fix_share_in_view"] >= 0.95),
@@ -101,6 +101,10 @@ def main() -> int:
         "track RMSE < median single-sweep error": bool(s["track_rmse_m"] is not None and
                                                        s["track_rmse_m"] < s["fix_median_error_m"]),
         "mean NEES inside its 95 % band": bool(s["nees_mean_in_band"]),
+        "smoothed track RMSE <= 2 cm and < median single-sweep error": bool(
+            s["smoothed"]["rmse_m"] is not None and s["smoothed"]["rmse_m"] <= min(0.02, s["fix_median_error_m"])),
+        "smoothed track's mean NEES not above its 95 % band": bool(
+            s["smoothed"]["nees_mean"] is not None and s["smoothed"]["nees_mean"] <= s["smoothed"]["nees_band_95"][1]),
         "60 sweeps cold <= 300 s": report.get("sweeps60_cold_s", float("inf")) <= 300,
         "60 sweeps warm <= 30 s": report["sweeps60_warm_s"] <= 30,
     }

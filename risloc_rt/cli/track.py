@@ -84,6 +84,11 @@ def _run(args: argparse.Namespace) -> int:
                                                  f"{s['nees_band_95'][1]:.2f}, {s['nees_dof']} states)")
     print(f"{s['sweeps']} sweeps: fixes on {s['fixes_in_view']}/{s['sweeps_in_view']} in view ({share}); track RMSE "
           f"{rmse}, median single-sweep error {median}; mean NEES {nees}; updates {s['updates']}")
+    sm = s["smoothed"]
+    if sm["rmse_m"] is not None:
+        print(f"smoothed track (every measurement of the walk): RMSE {100 * sm['rmse_m']:.2f} cm, mean NEES "
+              f"{sm['nees_mean']:.2f} (95 % band {sm['nees_band_95'][0]:.2f} … {sm['nees_band_95'][1]:.2f}); "
+              f"{len(sm['turns'])} turn(s) placed between measurements")
     print(f"wrote {out}: " + ", ".join(OUTPUTS))
     return 0
 

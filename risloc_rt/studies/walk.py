@@ -76,7 +76,13 @@ COLUMNS = {
     "track_std_z": "m", "track_error": "m, |track - truth|", "track_sigma": "m, sqrt(trace of the position covariance)",
     "nees": "normalised estimation error squared of the track", "nees_dof": "its degrees of freedom",
     "nis": "normalised innovation squared of the measurement", "nis_dof": "its degrees of freedom",
-    "update": "what the tracker did (UPDATE_KINDS)", "seconds_trace": "s", "seconds_simulate": "s",
+    "update": "what the tracker did (UPDATE_KINDS)",
+    "smooth_x": "m, the smoothed track (every measurement of the walk, dsp.smoothing)", "smooth_y": "m",
+    "smooth_z": "m", "smooth_vx": "m/s", "smooth_vy": "m/s", "smooth_vz": "m/s", "smooth_std_x": "m",
+    "smooth_std_y": "m", "smooth_std_z": "m", "smooth_error": "m, |smoothed track - truth|",
+    "smooth_sigma": "m, sqrt(trace of its position covariance)", "smooth_nees": "NEES of the smoothed track",
+    "smooth": "how the smoothed estimate was made (dsp.smoothing.SMOOTH_KINDS)",
+    "seconds_trace": "s", "seconds_simulate": "s",
     "seconds_dsp": "s", "elapsed": "s, wall time from the walk's start to the end of this sweep's work",
 }
 
@@ -98,11 +104,11 @@ SKIP_FLAGS = tuple(sorted(DOUBT_CODES))
 #: middle (a return earlier than the RIS's own loop-back delay, flag ``before-ris-delay``): the row says
 #: ``no-position`` and the tracker predicts only.
 NO_POSITION = "no-position"
-#: Memory a planned sweep holds until the walk is written [bytes]: its slot (~0.5 KiB) and its row of
-#: :data:`COLUMNS` (~2.7 KiB, measured with ``tracemalloc``), doubled for the table and figures made from
-#: the rows at the end. A walk's sweeps times this is checked against :func:`dsp.budget.memory_limit`
-#: before any is planned.
-SWEEP_BYTES = 8192
+#: Memory a planned sweep holds until the walk is written [bytes]: its slot (~0.5 KiB), its row of
+#: :data:`COLUMNS` (~3.3 KiB) and the smoother's forward, backward and smoothed estimates (~5.3 KiB; both
+#: measured with ``tracemalloc``), the row doubled for the table and figures made from the rows at the end.
+#: A walk's sweeps times this is checked against :func:`dsp.budget.memory_limit` before any is planned.
+SWEEP_BYTES = 16384
 
 
 def default_schedule(spec: Any, radar: Any, num_beams: int) -> Any:
@@ -504,6 +510,21 @@ class WalkTracker:
         return {"models": "IMM: quiet and turning nearly constant velocity", "quiet_m2_s3": m.quiet,
                 "turning_m2_s3": m.turning, "quiet_time_s": m.quiet_time, "turning_time_s": m.turning_time}
 
+    @property
+    def motion(self) -> Any:
+        """The filter's motion model: its :class:`dsp.tracking.Manoeuvres`, or the one model's q [m²/s³]."""
+        return self.manoeuvres if self.manoeuvres is not None else self.accel_density
+
+    def twin(self) -> "WalkTracker":
+        """A new tracker with this one's parameters and no track (the smoother's backward filter).
+
+        Returns
+        -------
+        WalkTracker
+        """
+        return WalkTracker(manoeuvres=self.manoeuvres, accel_density=self.accel_density, gate_pfa=self.gate_pfa,
+                           restart_after=self.restart_after)
+
     def _start(self, meas: Any, known: Any) -> Any:
         from dsp import tracking
 
@@ -659,7 +680,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
     axes = tracking.HORIZONTAL if height is not None else tracking.ALL_AXES
     tracker = WalkTracker(manoeuvres=manoeuvres, accel_density=accel_density, gate_pfa=gate_pfa,
                           restart_after=restart_after)
-    state, rows = None, []
+    state, rows, seen = None, [], []
     jobs = [_SlotJob(folder=folder, slot=slot, idle=schedule.idle, parked_beam=schedule.parked_beam, trace=trace,
                      sweep=sweep, radar=radar, seed=int(seed), estimator=estimator,
                      height=None if height is None else (float(slot.position[2]) if height == "path" else float(height)),
@@ -675,6 +696,7 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
             known = None if job.height is None else (job.height, height_std)
             kind, nis, nis_dof = tracker.step(slot.time, meas, height=known)
             state = tracker.state
+            seen.append((meas, known, state, kind in ("start", "used", "restart")))
             row.update(update=kind, nis=nis, nis_dof=nis_dof)
             if state is not None:
                 truth = np.concatenate([slot.position, slot.velocity])
@@ -690,15 +712,54 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                                                    "track_sigma", "nees")})
                 row["nees_dof"] = 0
             row["elapsed"] = time.perf_counter() - begin
-            rows.append({k: row[k] for k in COLUMNS})
+            rows.append(row)
             if progress is not None and ((n + 1) % max(int(progress_every), 1) == 0 or n + 1 == len(slots)):
                 fixes = sum(r["status"] == "fix" for r in rows)
                 progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
                          f"{time.perf_counter() - begin:.0f} s")
+    smoothed = _smoothed(slots, seen, tracker, axes)
+    for row, slot, est, kind in zip(rows, slots, smoothed.states, smoothed.kinds):
+        row.update(_smoothed_columns(slot, est, kind, axes))
+    rows = [{k: row[k] for k in COLUMNS} for row in rows]
     summary = _summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
                        height=height, height_std=height_std, tracker=tracker, gate_pfa=gate_pfa,
-                       wall=time.perf_counter() - begin)
+                       wall=time.perf_counter() - begin, turns=smoothed.turns)
     return WalkResult(rows=rows, summary=summary, scene=folder, trajectory=trajectory)
+
+
+def _smoothed(slots: list[WalkSlot], seen: list[tuple[Any, Any, Any, bool]], tracker: WalkTracker,
+              axes: tuple[int, ...]) -> Any:
+    """The walk's smoothed track (:mod:`dsp.smoothing`): the tracker's twin run over the slots' measurements
+    last first, in reversed time, joined with the forward track's estimates ``seen`` (per slot: the
+    measurement, the known height, the forward estimate, whether it was used)."""
+    from dsp.smoothing import reversed_measurement, smooth_track
+
+    back, backward = tracker.twin(), [None] * len(slots)
+    for k in range(len(slots) - 1, -1, -1):
+        meas, known = seen[k][0], seen[k][1]
+        back.step(-slots[k].time, None if meas is None else reversed_measurement(meas), height=known)
+        backward[k] = back.state
+    return smooth_track([s.time for s in slots], [x[2] for x in seen], backward, [x[3] for x in seen],
+                        motion=tracker.motion, axes=axes, gate_pfa=tracker.gate_pfa)
+
+
+def _smoothed_columns(slot: WalkSlot, est: Any, kind: str, axes: tuple[int, ...]) -> dict[str, Any]:
+    """A row's ``smooth_*`` columns from the slot's smoothed estimate (None: NaN)."""
+    from dsp.tracking import nees
+
+    names = ("smooth_x", "smooth_y", "smooth_z", "smooth_vx", "smooth_vy", "smooth_vz")
+    if est is None:
+        out = {k: math.nan for k in names + ("smooth_std_x", "smooth_std_y", "smooth_std_z", "smooth_error",
+                                             "smooth_sigma", "smooth_nees")}
+    else:
+        truth = np.concatenate([slot.position, slot.velocity])
+        out = dict(zip(names, map(float, est.mean)))
+        out.update(zip(("smooth_std_x", "smooth_std_y", "smooth_std_z"), map(float, est.position_std)))
+        out.update(smooth_error=float(np.linalg.norm(est.mean[:3] - slot.position)),
+                   smooth_sigma=float(np.sqrt(np.trace(est.covariance[:3, :3]))),
+                   smooth_nees=nees(est, truth, axes=axes))
+    out["smooth"] = kind
+    return out
 
 
 def _rms(x: np.ndarray) -> float | None:
@@ -706,10 +767,11 @@ def _rms(x: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(x**2))) if x.size else None
 
 
-def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 2.0) -> float | None:
-    """The largest track error [m] within ``window`` [s] of an inner waypoint (a turn of the path)."""
+def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 2.0,
+                  column: str = "track_error") -> float | None:
+    """The largest track error [m] (``column``) within ``window`` [s] of an inner waypoint (a turn of the path)."""
     t = np.array([r["time"] for r in rows])
-    err = np.array([r["track_error"] for r in rows])
+    err = np.array([r[column] for r in rows])
     near = np.zeros(len(rows), dtype=bool)
     for tw in trajectory.times[1:-1]:
         near |= np.abs(t - tw) <= window
@@ -717,12 +779,14 @@ def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: fl
     return float(err[sel].max()) if sel.any() else None
 
 
-def _split_figures(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 1.5) -> dict[str, Any]:
+def _split_figures(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 1.5,
+                   columns: tuple[str, str] = ("track_error", "nees")) -> dict[str, Any]:
     """The track's RMSE [m] over the sweeps updated on a fix, and its RMSE and mean NEES (with the 95 % band of
-    that many χ² values) at least ``window`` [s] from a turn (an inner waypoint) and within it."""
+    that many χ² values) at least ``window`` [s] from a turn (an inner waypoint) and within it; ``columns``
+    name the error and NEES columns (the smoothed track's: ``smooth_error``, ``smooth_nees``)."""
     t = np.array([r["time"] for r in rows])
-    err = np.array([r["track_error"] for r in rows])
-    nees = np.array([r["nees"] for r in rows])
+    err = np.array([r[columns[0]] for r in rows])
+    nees = np.array([r[columns[1]] for r in rows])
     dof = next((int(r["nees_dof"]) for r in rows if r["nees_dof"]), 0)
     turns = np.asarray(trajectory.times[1:-1], dtype=float)
     near = (np.min(np.abs(t[:, None] - turns[None, :]), axis=1) < window) if turns.size else np.zeros(t.size, bool)
@@ -736,9 +800,32 @@ def _split_figures(rows: list[dict[str, Any]], trajectory: Trajectory, window: f
     return out
 
 
+def _smoothed_summary(rows: list[dict[str, Any]], trajectory: Trajectory, dof: int, turns: Any) -> dict[str, Any]:
+    """``summary.json``'s ``smoothed``: the smoothed track's RMSE [m], largest error [m], mean NEES with its
+    95 % band, the same split by turns as the track's, how its estimates were made, the turns it placed [s]."""
+    from dsp.smoothing import SMOOTH_KINDS
+
+    err = np.array([r["smooth_error"] for r in rows])
+    nees = np.array([r["smooth_nees"] for r in rows])
+    ok = np.isfinite(nees)
+    band = nees_band(dof, int(ok.sum())) if ok.any() and dof else (math.nan, math.nan)
+    mean = float(np.mean(nees[ok])) if ok.any() else None
+    split = _split_figures(rows, trajectory, columns=("smooth_error", "smooth_nees"))
+    split["rmse_updated_m"] = split.pop("track_rmse_updated_m")
+    for part in ("far_from_turns", "near_turns"):
+        split[part]["rmse_m"] = split[part].pop("track_rmse_m")
+    kinds = [r["smooth"] for r in rows]
+    return {"rmse_m": _rms(err), "max_error_m": float(np.nanmax(err)) if np.isfinite(err).any() else None,
+            "corner_max_error_m": _corner_error(rows, trajectory, column="smooth_error"),
+            "nees_mean": mean, "nees_band_95": list(band),
+            "nees_mean_in_band": bool(mean is not None and band[0] <= mean <= band[1]), **split,
+            "kinds": {k: kinds.count(k) for k in SMOOTH_KINDS},
+            "turns": [{"gap_s": [t.start, t.end], "time_s": t.time, "std_time_s": t.std_time} for t in turns]}
+
+
 def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
              radar: Any, height: Any, height_std: float, tracker: Any, gate_pfa: float,
-             wall: float) -> dict[str, Any]:
+             wall: float, turns: Any = ()) -> dict[str, Any]:
     """``summary.json``: the walk's figures (units in the keys' names or docs/tracking.md)."""
     col = {k: np.array([r[k] for r in rows]) for k in ("fix_error", "track_error", "nees", "nis", "nees_dof",
                                                        "nis_dof")}
@@ -777,6 +864,7 @@ def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory,
         "nees_dof": nees_dof, "nees_mean": float(np.mean(col["nees"][tracked])) if n_nees else None,
         "nees_band_95": list(band), "nees_mean_in_band": bool(band[0] <= np.mean(col["nees"][tracked]) <= band[1])
         if n_nees else False, "nees_share_in_single_band_95": inside, "nees_single_band_95": list(single),
+        "smoothed": _smoothed_summary(rows, trajectory, nees_dof, turns),
         "nis_sum": float(np.sum(col["nis"][used])), "nis_dof": nis_dof,
         "nis_mean_per_dof": float(np.sum(col["nis"][used]) / nis_dof) if nis_dof else None,
         "nis_band_95_per_dof": list(nis_band),

@@ -66,18 +66,21 @@ def plot_plan(result: Any, path: str | Path) -> Path:
             ax.plot(x, y, ls="none", marker=".", ms=4, color=colours[i % len(colours)], label=f"fixes ({r.name})",
                     zorder=4)
     ax.plot(_column(result, "track_x"), _column(result, "track_y"), color="#d62728", lw=1.2, label="track", zorder=4)
+    ax.plot(_column(result, "smooth_x"), _column(result, "smooth_y"), color="#2ca02c", lw=1.0,
+            label="smoothed track", zorder=4)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     s = result.summary
     ax.set_title(f"{s['scene']}: {s['sweeps']} sweeps, fixes {s['fixes']}, track RMSE "
-                 f"{(s['track_rmse_m'] or math.nan) * 100:.1f} cm", fontsize=9)
+                 f"{(s['track_rmse_m'] or math.nan) * 100:.2f} cm, smoothed "
+                 f"{(s['smoothed']['rmse_m'] or math.nan) * 100:.2f} cm", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return save_figure(fig, path)
 
 
 def plot_error(result: Any, path: str | Path) -> Path:
-    """Position error against time: the single fixes (by RIS), the track, and the track's 1σ.
+    """Position error against time: the single fixes (by RIS), the track and the smoothed track, each with its 1σ.
 
     Parameters
     ----------
@@ -101,6 +104,8 @@ def plot_error(result: Any, path: str | Path) -> Path:
         ax.semilogy(t[sel], _column(result, "fix_error")[sel], ls="none", marker=".", ms=4, label=f"fix ({name})")
     ax.semilogy(t, _column(result, "track_error"), color="#d62728", lw=1.2, label="track")
     ax.semilogy(t, _column(result, "track_sigma"), color="#d62728", lw=0.8, ls=":", label="track 1σ (sqrt trace)")
+    ax.semilogy(t, _column(result, "smooth_error"), color="#2ca02c", lw=1.0, label="smoothed track")
+    ax.semilogy(t, _column(result, "smooth_sigma"), color="#2ca02c", lw=0.8, ls=":", label="smoothed 1σ")
     coast = np.array([r["update"] in ("coast", "flagged", "gated") for r in result.rows])  # predicted only
     for tc in t[coast]:
         ax.axvline(tc, color="#cccccc", lw=0.5, zorder=0)
@@ -112,7 +117,8 @@ def plot_error(result: Any, path: str | Path) -> Path:
 
 
 def plot_consistency(result: Any, path: str | Path) -> Path:
-    """NEES and NIS per sweep against their 95 % χ² bands (per sweep, and of the walk's mean).
+    """NEES (the track's and the smoothed track's) and NIS per sweep against their 95 % χ² bands (per sweep, and
+    of the walk's mean, the track's).
 
     Parameters
     ----------
@@ -142,6 +148,11 @@ def plot_consistency(result: Any, path: str | Path) -> Path:
                 ax.semilogy(t[gated], v[gated] / dof[gated], ls="none", marker="x", ms=5, color="#d62728",
                             label="gated (not used)")
         ax.semilogy(t[ok], v[ok] / dof[ok], ls="none", marker=".", ms=4, label=f"{name} / dof")
+        if key == "nees":
+            sm = _column(result, "smooth_nees")
+            good = np.isfinite(sm) & (dof > 0)
+            ax.semilogy(t[good], sm[good] / dof[good], ls="none", marker="+", ms=4, color="#2ca02c",
+                        label="smoothed track's NEES / dof")
         if ok.any():
             d = int(np.median(dof[ok]))
             lo, hi = nees_band(d, 1)

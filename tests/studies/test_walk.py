@@ -61,14 +61,15 @@ def quiet_walk():
 @pytest.mark.slow
 def test_same_seed_same_rows(quiet_walk):
     """Slot k's noise is default_rng([seed, k]): the first three sweeps again, measured on two worker
-    processes ahead of the tracker, give the same rows, bit for bit."""
+    processes ahead of the tracker, give the same rows, bit for bit (but for the smoothed track's columns:
+    the smoother uses the sweeps after each, which the shorter walk does not have)."""
     tr, first = quiet_walk
     again = run_walk("l_hall_2ris", tr, seed=3, tx_power_dbm=-10.0, trace=CHEAP, sweep=COARSE, max_sweeps=3,
                      workers=2)
     assert len(first.rows) == 5 and len(again.rows) == 3
     for a, b in zip(first.rows, again.rows):
         for key in COLUMNS:
-            if key.startswith("seconds_") or key == "elapsed":
+            if key.startswith(("seconds_", "smooth")) or key == "elapsed":
                 continue
             assert (a[key] == b[key]) or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key])), key
 
@@ -110,6 +111,26 @@ def test_the_track_error_is_within_its_covariance_and_the_outputs_are_written(qu
     table = pq.read_table(tmp_path / "walk.parquet")
     assert table.num_rows == 5 and table.column_names == list(COLUMNS)
     assert table.column("ris").to_pylist() == ["ris0", "ris1"] * 2 + ["ris0"]
+
+
+@pytest.mark.slow
+def test_the_smoothed_track_knows_more_than_the_causal_one_and_says_so(quiet_walk):
+    """The smoothed track (dsp.smoothing) joins the forward track with a backward one over the later sweeps:
+    where it is their product its covariance is no larger than the causal track's (information only adds,
+    the coasted sweeps most of all, having a fix on each side), its error within its covariance (NEES of
+    (x, y, vx, vy) within χ²(4)'s 99.9 % band), and the summary reports it."""
+    _, walk = quiet_walk
+    hi = scipy.stats.chi2.ppf(0.9995, 4)
+    kinds = [r["smooth"] for r in walk.rows]
+    assert kinds == ["joined"] * 4 + ["forward"]  # the last sweep has nothing after it
+    for r in walk.rows:
+        assert r["smooth_sigma"] <= r["track_sigma"] * (1 + 1e-9) and r["smooth_nees"] <= hi, r
+    coasted = [r for r in walk.rows if r["update"] == "coast"]
+    assert all(r["smooth_sigma"] < 0.9 * r["track_sigma"] for r in coasted), [(r["smooth_sigma"], r["track_sigma"])
+                                                                              for r in coasted]
+    sm = walk.summary["smoothed"]
+    assert sm["kinds"]["joined"] == 4 and sm["turns"] == []
+    assert sm["rmse_m"] == pytest.approx(math.sqrt(np.mean([r["smooth_error"] ** 2 for r in walk.rows])))
 
 
 def test_a_trajectory_is_refused_before_anything_is_traced():
