@@ -44,21 +44,15 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from dsp.budget import check_memory
-from dsp.fusion import DOUBT_CODES
-from dsp.tracking import Manoeuvres, nees_band
 
 from .trajectory import Trajectory, TrajectoryError
 from .walk_figures import plot_consistency, plot_error, plot_plan
+from .walk_summary import walk_summary
+from .walk_tracker import SKIP_FLAGS, UPDATE_KINDS, WALK_MANOEUVRES, WalkTracker, smooth_walk
 
 __all__ = ["WalkSlot", "WalkResult", "plan_walk", "run_walk", "write_walk", "COLUMNS", "UPDATE_KINDS",
            "default_schedule", "load_schedule", "MOVING_FLOORS", "NO_POSITION", "SKIP_FLAGS", "SWEEP_BYTES",
            "WALK_MANOEUVRES", "WalkTracker"]
-
-#: What the tracker did in a slot: ``start`` (the track began on this fix), ``used``, ``gated`` (the
-#: NIS was beyond the gate: not used), ``restart`` (gated too often in a row: a new track from this
-#: fix), ``flagged`` (the fix carries a :data:`SKIP_FLAGS` code: predicted only), ``coast`` (no
-#: detection, or the radar behind the RIS: predicted only), ``none`` (no track yet).
-UPDATE_KINDS = ("start", "used", "gated", "restart", "flagged", "coast", "none")
 
 #: The columns of ``walk.parquet`` (one row per slot) and their units.
 COLUMNS = {
@@ -96,10 +90,6 @@ COLUMNS = {
 #: 0.016 mm/s before).
 MOVING_FLOORS = (6.9e-5, math.radians(0.0143), 0.0)
 
-#: Fixes carrying one of these flag codes are not given to the tracker (the row says ``flagged``): the
-#: gross-error codes the fusion leaves out too (``dsp.fusion.DOUBT_CODES``: ``beam-edge``, an AoD at the edge
-#: of the swept span; ``aliased``, a distance folded at the unambiguous range; ``grating-lobe``; ``floor-leg``; …).
-SKIP_FLAGS = tuple(sorted(DOUBT_CODES))
 #: What a slot's measurement is when the DSP detected a return but gave no distance > 0 at the sweep's
 #: middle (a return earlier than the RIS's own loop-back delay, flag ``before-ris-delay``): the row says
 #: ``no-position`` and the tracker predicts only.
@@ -439,151 +429,6 @@ def _track_row(slot: WalkSlot, job: _SlotJob, meas: Any, fix_sigma: float, secs:
     return row
 
 
-#: The two-model tracker's models for a walker (``docs/tracking.md``, "Manoeuvres"): a quiet model of
-#: q = 1e-4 m²/s³ (straight walking: the largest q of a grid whose track RMSE ≥ 1.5 s from a turn on the
-#: calibration walk is within 5 % of the grid's best, ``benchmarks/calibrate_walk_floors.py``: 0.50 cm
-#: against 0.49 cm at 1e-6), a turning model of q = v²/T = 2.56 m²/s³ (a 90° turn at v = 1 m/s changes
-#: each horizontal velocity component by up to v within one slot T = 0.3904 s), a mean time between turns
-#: of 8.4 s (the calibration walk's 42 s in 5 legs) and a turn lasting one slot.
-WALK_MANOEUVRES = Manoeuvres(quiet=1e-4, turning=1.0 / 0.3904, quiet_time=42.0 / 5, turning_time=0.3904)
-
-
-class WalkTracker:
-    """The walk's tracker: what :func:`run_walk` does with each slot's measurement, in slot order.
-
-    The first usable measurement starts the track; a measurement carrying a :data:`SKIP_FLAGS` code is not
-    used (``flagged``), no measurement is coasted through (``coast``); otherwise the filter updates on it
-    (``used``) or gates it (``gated``), and ``restart_after`` gated measurements in a row restart the track
-    from the next one (``restart``). The filter is the two-model IMM of :mod:`dsp.tracking` (``manoeuvres``,
-    default :data:`WALK_MANOEUVRES`), or one nearly-constant-velocity model when ``accel_density`` is given.
-
-    Parameters
-    ----------
-    manoeuvres : dsp.tracking.Manoeuvres, optional
-        The two models (default :data:`WALK_MANOEUVRES`).
-    accel_density : float, optional
-        q [m²/s³] of a single-model filter instead (not with ``manoeuvres``).
-    gate_pfa : float
-        Probability that a consistent measurement is gated out (χ² on the NIS).
-    restart_after : int
-        Gated measurements in a row after which the track restarts.
-
-    Attributes
-    ----------
-    state : dsp.tracking.TrackState or dsp.tracking.ImmState or None
-        The track after the last step (None before the first measurement).
-    """
-
-    def __init__(self, *, manoeuvres: Any = None, accel_density: float | None = None, gate_pfa: float = 1e-3,
-                 restart_after: int = 3) -> None:
-        from dsp import tracking
-
-        if manoeuvres is not None and accel_density is not None:
-            raise ValueError("give manoeuvres (two models) or accel_density (one model), not both")
-        if accel_density is not None:
-            accel_density = float(accel_density)
-            if not (math.isfinite(accel_density) and accel_density > 0):
-                raise ValueError(f"accel_density={accel_density!r} must be > 0 [m²/s³], e.g. 0.5")
-        elif manoeuvres is None:
-            manoeuvres = WALK_MANOEUVRES
-        if manoeuvres is not None and not isinstance(manoeuvres, tracking.Manoeuvres):
-            raise ValueError(f"manoeuvres must be a dsp.tracking.Manoeuvres, got {type(manoeuvres).__name__}")
-        if not 0 < gate_pfa < 1:
-            raise ValueError(f"gate_pfa={gate_pfa!r} must lie in (0, 1), e.g. 1e-3")
-        if isinstance(restart_after, bool) or not isinstance(restart_after, int) or restart_after < 1:
-            raise ValueError(f"restart_after={restart_after!r} must be an integer >= 1 (gated measurements in a row)")
-        self.manoeuvres, self.accel_density = manoeuvres, accel_density
-        self.gate_pfa, self.restart_after = float(gate_pfa), restart_after
-        self.state: Any = None
-        self._gated_run = 0
-
-    def describe(self) -> dict[str, Any]:
-        """The filter and its parameters, for ``summary.json`` [m²/s³, s].
-
-        Returns
-        -------
-        dict
-        """
-        if self.manoeuvres is None:
-            return {"models": "nearly constant velocity", "accel_density_m2_s3": self.accel_density}
-        m = self.manoeuvres
-        return {"models": "IMM: quiet and turning nearly constant velocity", "quiet_m2_s3": m.quiet,
-                "turning_m2_s3": m.turning, "quiet_time_s": m.quiet_time, "turning_time_s": m.turning_time}
-
-    @property
-    def motion(self) -> Any:
-        """The filter's motion model: its :class:`dsp.tracking.Manoeuvres`, or the one model's q [m²/s³]."""
-        return self.manoeuvres if self.manoeuvres is not None else self.accel_density
-
-    def twin(self) -> "WalkTracker":
-        """A new tracker with this one's parameters and no track (the smoother's backward filter).
-
-        Returns
-        -------
-        WalkTracker
-        """
-        return WalkTracker(manoeuvres=self.manoeuvres, accel_density=self.accel_density, gate_pfa=self.gate_pfa,
-                           restart_after=self.restart_after)
-
-    def _start(self, meas: Any, known: Any) -> Any:
-        from dsp import tracking
-
-        if self.manoeuvres is None:
-            return tracking.start_track(meas, height=known)
-        return tracking.imm_start(meas, height=known)
-
-    def _predict(self, time: float) -> Any:
-        from dsp import tracking
-
-        if self.manoeuvres is None:
-            return tracking.predict(self.state, time, accel_density=self.accel_density)
-        return tracking.imm_predict(self.state, time, self.manoeuvres)
-
-    def step(self, time: float, meas: Any, *, height: Any = None) -> tuple[str, float, int]:
-        """One slot: the track moved to ``time`` and updated on ``meas`` (module notes).
-
-        Parameters
-        ----------
-        time : float
-            The slot's reference time [s].
-        meas : dsp.tracking.RisMeasurement or None
-            The slot's measurement (None: no detection, no position, or the radar behind the RIS).
-        height : (float, float), optional
-            A known height ``(h, σ_h)`` [m].
-
-        Returns
-        -------
-        (str, float, int)
-            What was done (:data:`UPDATE_KINDS`), the NIS [unitless] (NaN when nothing was measured) and
-            its degrees of freedom.
-        """
-        from dsp import tracking
-
-        flagged = meas is not None and bool(set(meas.fix.flags) & set(SKIP_FLAGS))
-        if self.state is None:
-            if meas is None or flagged:
-                return "none", math.nan, 0
-            self.state = self._start(meas, height)
-            return "start", math.nan, 0
-        if meas is None or flagged:
-            self.state = self._predict(time)
-            return ("flagged" if flagged else "coast"), math.nan, 0
-        if self.manoeuvres is None:
-            up = tracking.update(self.state, meas, accel_density=self.accel_density, gate_pfa=self.gate_pfa,
-                                 height=height)
-        else:
-            up = tracking.imm_update(self.state, meas, self.manoeuvres, gate_pfa=self.gate_pfa, height=height)
-        if up.accepted:
-            self.state, self._gated_run = up.state, 0
-            return "used", up.nis, up.dof
-        self._gated_run += 1
-        if self._gated_run >= self.restart_after:
-            self.state, self._gated_run = self._start(meas, height), 0
-            return "restart", up.nis, up.dof
-        self.state = up.state
-        return "gated", up.nis, up.dof
-
-
 def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None, seed: int = 0,
              tx_power_dbm: float | None = None, trace: Any = None, cache: Any = None, height: Any = "path",
              height_std: float = 0.01, accel_density: float | None = None, manoeuvres: Any = None,
@@ -717,30 +562,14 @@ def run_walk(scene: str | Path, trajectory: Trajectory, *, schedule: Any = None,
                 fixes = sum(r["status"] == "fix" for r in rows)
                 progress(f"sweep {n + 1}/{len(slots)} (t = {slot.time:.2f} s): {fixes} fix(es), "
                          f"{time.perf_counter() - begin:.0f} s")
-    smoothed = _smoothed(slots, seen, tracker, axes)
+    smoothed = smooth_walk([slot.time for slot in slots], seen, tracker, axes)
     for row, slot, est, kind in zip(rows, slots, smoothed.states, smoothed.kinds):
         row.update(_smoothed_columns(slot, est, kind, axes))
     rows = [{k: row[k] for k in COLUMNS} for row in rows]
-    summary = _summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
-                       height=height, height_std=height_std, tracker=tracker, gate_pfa=gate_pfa,
-                       wall=time.perf_counter() - begin, turns=smoothed.turns)
+    summary = walk_summary(rows, scene=folder, trajectory=trajectory, schedule=schedule, seed=seed, radar=radar,
+                           height=height, height_std=height_std, tracker=tracker, gate_pfa=gate_pfa,
+                           wall=time.perf_counter() - begin, turns=smoothed.turns)
     return WalkResult(rows=rows, summary=summary, scene=folder, trajectory=trajectory)
-
-
-def _smoothed(slots: list[WalkSlot], seen: list[tuple[Any, Any, Any, bool]], tracker: WalkTracker,
-              axes: tuple[int, ...]) -> Any:
-    """The walk's smoothed track (:mod:`dsp.smoothing`): the tracker's twin run over the slots' measurements
-    last first, in reversed time, joined with the forward track's estimates ``seen`` (per slot: the
-    measurement, the known height, the forward estimate, whether it was used)."""
-    from dsp.smoothing import reversed_measurement, smooth_track
-
-    back, backward = tracker.twin(), [None] * len(slots)
-    for k in range(len(slots) - 1, -1, -1):
-        meas, known = seen[k][0], seen[k][1]
-        back.step(-slots[k].time, None if meas is None else reversed_measurement(meas), height=known)
-        backward[k] = back.state
-    return smooth_track([s.time for s in slots], [x[2] for x in seen], backward, [x[3] for x in seen],
-                        motion=tracker.motion, axes=axes, gate_pfa=tracker.gate_pfa)
 
 
 def _smoothed_columns(slot: WalkSlot, est: Any, kind: str, axes: tuple[int, ...]) -> dict[str, Any]:
@@ -760,118 +589,6 @@ def _smoothed_columns(slot: WalkSlot, est: Any, kind: str, axes: tuple[int, ...]
                    smooth_nees=nees(est, truth, axes=axes))
     out["smooth"] = kind
     return out
-
-
-def _rms(x: np.ndarray) -> float | None:
-    x = x[np.isfinite(x)]
-    return float(np.sqrt(np.mean(x**2))) if x.size else None
-
-
-def _corner_error(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 2.0,
-                  column: str = "track_error") -> float | None:
-    """The largest track error [m] (``column``) within ``window`` [s] of an inner waypoint (a turn of the path)."""
-    t = np.array([r["time"] for r in rows])
-    err = np.array([r[column] for r in rows])
-    near = np.zeros(len(rows), dtype=bool)
-    for tw in trajectory.times[1:-1]:
-        near |= np.abs(t - tw) <= window
-    sel = near & np.isfinite(err)
-    return float(err[sel].max()) if sel.any() else None
-
-
-def _split_figures(rows: list[dict[str, Any]], trajectory: Trajectory, window: float = 1.5,
-                   columns: tuple[str, str] = ("track_error", "nees")) -> dict[str, Any]:
-    """The track's RMSE [m] over the sweeps updated on a fix, and its RMSE and mean NEES (with the 95 % band of
-    that many χ² values) at least ``window`` [s] from a turn (an inner waypoint) and within it; ``columns``
-    name the error and NEES columns (the smoothed track's: ``smooth_error``, ``smooth_nees``)."""
-    t = np.array([r["time"] for r in rows])
-    err = np.array([r[columns[0]] for r in rows])
-    nees = np.array([r[columns[1]] for r in rows])
-    dof = next((int(r["nees_dof"]) for r in rows if r["nees_dof"]), 0)
-    turns = np.asarray(trajectory.times[1:-1], dtype=float)
-    near = (np.min(np.abs(t[:, None] - turns[None, :]), axis=1) < window) if turns.size else np.zeros(t.size, bool)
-    used = np.array([r["update"] == "used" for r in rows])
-    out: dict[str, Any] = {"track_rmse_updated_m": _rms(err[used]), "turn_window_s": window}
-    for name, sel in (("far_from_turns", ~near), ("near_turns", near)):
-        ok = sel & np.isfinite(nees)
-        out[name] = {"sweeps": int(sel.sum()), "track_rmse_m": _rms(err[sel]),
-                     "nees_mean": float(np.mean(nees[ok])) if ok.any() else None,
-                     "nees_band_95": list(nees_band(dof, int(ok.sum()))) if ok.any() and dof else None}
-    return out
-
-
-def _smoothed_summary(rows: list[dict[str, Any]], trajectory: Trajectory, dof: int, turns: Any) -> dict[str, Any]:
-    """``summary.json``'s ``smoothed``: the smoothed track's RMSE [m], largest error [m], mean NEES with its
-    95 % band, the same split by turns as the track's, how its estimates were made, the turns it placed [s]."""
-    from dsp.smoothing import SMOOTH_KINDS
-
-    err = np.array([r["smooth_error"] for r in rows])
-    nees = np.array([r["smooth_nees"] for r in rows])
-    ok = np.isfinite(nees)
-    band = nees_band(dof, int(ok.sum())) if ok.any() and dof else (math.nan, math.nan)
-    mean = float(np.mean(nees[ok])) if ok.any() else None
-    split = _split_figures(rows, trajectory, columns=("smooth_error", "smooth_nees"))
-    split["rmse_updated_m"] = split.pop("track_rmse_updated_m")
-    for part in ("far_from_turns", "near_turns"):
-        split[part]["rmse_m"] = split[part].pop("track_rmse_m")
-    kinds = [r["smooth"] for r in rows]
-    return {"rmse_m": _rms(err), "max_error_m": float(np.nanmax(err)) if np.isfinite(err).any() else None,
-            "corner_max_error_m": _corner_error(rows, trajectory, column="smooth_error"),
-            "nees_mean": mean, "nees_band_95": list(band),
-            "nees_mean_in_band": bool(mean is not None and band[0] <= mean <= band[1]), **split,
-            "kinds": {k: kinds.count(k) for k in SMOOTH_KINDS},
-            "turns": [{"gap_s": [t.start, t.end], "time_s": t.time, "std_time_s": t.std_time} for t in turns]}
-
-
-def _summary(rows: list[dict[str, Any]], *, scene: Path, trajectory: Trajectory, schedule: Any, seed: int,
-             radar: Any, height: Any, height_std: float, tracker: Any, gate_pfa: float,
-             wall: float, turns: Any = ()) -> dict[str, Any]:
-    """``summary.json``: the walk's figures (units in the keys' names or docs/tracking.md)."""
-    col = {k: np.array([r[k] for r in rows]) for k in ("fix_error", "track_error", "nees", "nis", "nees_dof",
-                                                       "nis_dof")}
-    status = [r["status"] for r in rows]
-    kinds = [r["update"] for r in rows]
-    view = np.array([r["in_view"] for r in rows], dtype=bool)
-    fix = np.array([s == "fix" for s in status])
-    tracked = np.isfinite(col["nees"])
-    nees_dof = int(col["nees_dof"][tracked][0]) if tracked.any() else 0
-    n_nees = int(tracked.sum())
-    used = np.isfinite(col["nis"]) & np.array([k == "used" for k in kinds])  # the NIS of the updates made
-    nis_dof = int(np.sum(col["nis_dof"][used]))
-    band = nees_band(nees_dof, n_nees) if n_nees else (math.nan, math.nan)
-    single = nees_band(nees_dof, 1) if n_nees else (math.nan, math.nan)
-    inside = float(np.mean((col["nees"][tracked] >= single[0]) & (col["nees"][tracked] <= single[1]))) if n_nees else None
-    nis_band = nees_band(1, nis_dof) if nis_dof else (math.nan, math.nan)
-    fix_err = col["fix_error"][fix]
-    return {
-        "scene": scene.name, "trajectory": trajectory.source, "seed": int(seed), "length_m": trajectory.length,
-        "duration_s": trajectory.duration, "sweeps": len(rows), "schedule": schedule.to_dict(),
-        "tx_power_dbm": float(radar.tx_power_dbm),
-        "height": height if height is None or isinstance(height, str) else float(height), "height_std_m": height_std,
-        "tracker": tracker.describe(), "gate_pfa": gate_pfa,
-        "sweeps_per_ris": {name: sum(r["ris"] == name for r in rows) for name in schedule.order},
-        "sweeps_in_view": int(view.sum()), "fixes": int(fix.sum()), "fixes_in_view": int((fix & view).sum()),
-        "fixes_out_of_view": int((fix & ~view).sum()),
-        "fix_share_in_view": float((fix & view).sum() / view.sum()) if view.any() else None,
-        "behind": status.count("behind"), "no_detection": status.count("no-detection"),
-        "no_position": status.count("no-position"),
-        "updates": {k: kinds.count(k) for k in UPDATE_KINDS},
-        "fix_rmse_m": _rms(fix_err), "fix_median_error_m": float(np.median(fix_err)) if fix_err.size else None,
-        "fix_rmse_in_view_m": _rms(col["fix_error"][fix & view]),
-        "track_rmse_m": _rms(col["track_error"]),
-        "track_max_error_m": float(np.nanmax(col["track_error"])) if tracked.any() else None,
-        "corner_max_error_m": _corner_error(rows, trajectory), **_split_figures(rows, trajectory),
-        "nees_dof": nees_dof, "nees_mean": float(np.mean(col["nees"][tracked])) if n_nees else None,
-        "nees_band_95": list(band), "nees_mean_in_band": bool(band[0] <= np.mean(col["nees"][tracked]) <= band[1])
-        if n_nees else False, "nees_share_in_single_band_95": inside, "nees_single_band_95": list(single),
-        "smoothed": _smoothed_summary(rows, trajectory, nees_dof, turns),
-        "nis_sum": float(np.sum(col["nis"][used])), "nis_dof": nis_dof,
-        "nis_mean_per_dof": float(np.sum(col["nis"][used]) / nis_dof) if nis_dof else None,
-        "nis_band_95_per_dof": list(nis_band),
-        "seconds": {"trace": float(sum(r["seconds_trace"] for r in rows)),
-                    "simulate": float(sum(r["seconds_simulate"] for r in rows)),
-                    "dsp": float(sum(r["seconds_dsp"] for r in rows)), "total": float(wall)},
-    }
 
 
 def write_walk(result: WalkResult, folder: str | Path) -> list[Path]:

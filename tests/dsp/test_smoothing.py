@@ -45,7 +45,7 @@ def _walk(rng, steps, turn_times, turn_length):
         return h
 
     mid = heading(grid[:-1] + dt / 2)
-    pos = np.concatenate([[0.0], np.cumsum(np.cos(mid))]) * SPEED * dt, np.concatenate([[0.0], np.cumsum(np.sin(mid))]) * SPEED * dt
+    pos = [np.concatenate([[0.0], np.cumsum(f(mid))]) * SPEED * dt for f in (np.cos, np.sin)]
     start = np.array([6.0, 5.0]) + rng.uniform(-0.5, 0.5, 2)
     k = np.round(np.arange(steps) * STEP / dt).astype(int)
     h = heading(grid[k])
