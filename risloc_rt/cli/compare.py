@@ -28,7 +28,7 @@ def _run(args: argparse.Namespace) -> int:
     """
     out = Path(args.output)
     with output_folder(out, force=args.force, flag="-o", expect=("index.html", "comparison.json")) as stage:
-        comparison, baseline, position, source = _compare(args, stage)
+        comparison, baseline, sweep_mean, position, source = _compare(args, stage)
     s = comparison.summary
     if baseline is not None:
         b = baseline.summary
@@ -41,6 +41,13 @@ def _run(args: argparse.Namespace) -> int:
           f"residual rms {_num(s['delay_residual_rms_mm'])} mm, power residual rms {_num(s['power_residual_rms_db'])}"
           f" dB; P_ave rms difference {_num(s['pave_rms_difference_db'])} dB; radar at "
           f"{[round(float(v), 3) for v in position]} m ({source})")
+    before = ""
+    if "baseline" in sweep_mean:
+        before = (f" (baseline scene: {_num(sweep_mean['baseline']['power_residual_rms_db'])} dB, "
+                  f"{_num(sweep_mean['baseline']['delay_residual_rms_mm'])} mm)")
+    print(f"sweep mean over {sweep_mean['beams']} beams: {len(sweep_mean['peaks'])} static peak(s), power residual rms "
+          f"{_num(sweep_mean['power_residual_rms_db'])} dB, delay residual rms "
+          f"{_num(sweep_mean['delay_residual_rms_mm'])} mm{before}")
     return 0
 
 
@@ -54,15 +61,16 @@ def _compare(args: argparse.Namespace, stage: Path):
 
     Returns
     -------
-    (Comparison, Comparison or None, ndarray, str)
-        The comparison, the one against ``--baseline-scene`` (None without it), the radar position used [m]
-        and where it came from.
+    (Comparison, Comparison or None, dict, ndarray, str)
+        The comparison, the one against ``--baseline-scene`` (None without it), the sweep mean's static peaks
+        (``comparison.json``'s ``sweep_mean``), the radar position used [m] and where it came from.
     """
     from ..io.capture_file import load_capture
     from ..io.report import process_capture
     from ..measured.compare.calibration_file import read_calibration
     from ..measured.compare.comparison import compare_capture
-    from ..measured.compare.comparison_page import write_comparison
+    from ..measured.compare.comparison_page import sweep_mean_document, write_comparison
+    from ..measured.compare.sweep_mean_peaks import sweep_mean_residuals
     from ..measured.compare.traced_hall import hall_model, ue_position_of
 
     capture = load_capture(args.capture)
@@ -85,11 +93,14 @@ def _compare(args: argparse.Namespace, stage: Path):
                                 cache=trace_cache(args)) for scene in dict.fromkeys([args.scene, args.baseline_scene])
               if scene is not None}
     comparison = compare_capture(capture, models[args.scene], calibration=cal)
-    baseline = None
+    sweep_mean = sweep_mean_residuals(capture, models[args.scene], comparison, cal)
+    baseline = base_mean = None
     if args.baseline_scene is not None:  # the same capture, calibration and noise seed against the other hall
         baseline = compare_capture(capture, models[args.baseline_scene], calibration=cal)
-    write_comparison(comparison, stage, baseline=baseline)
-    return comparison, baseline, position, source
+        base_mean = sweep_mean_residuals(capture, models[args.baseline_scene], baseline, cal)
+    sweep_mean = sweep_mean_document(sweep_mean, base_mean)
+    write_comparison(comparison, stage, baseline=baseline, sweep_mean=sweep_mean)
+    return comparison, baseline, sweep_mean, position, source
 
 
 def add_parser(sub) -> None:

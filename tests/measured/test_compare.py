@@ -284,6 +284,19 @@ def test_baseline_scene_sets_the_residuals_before_and_after(injected_hall, pages
     assert "Before and after" in page and "power residual, baseline [dB]" in page
     assert f"{before['summary']['power_residual_rms_db']:.3f}" in page
 
+    # the sweep mean's static peaks (the material fit's): the same oracles, on the complex mean over the beams
+    sm, sm_before, sm_after = both["sweep_mean"], before["sweep_mean"], after["sweep_mean"]
+    assert sm["beams"] == injected_hall["capture"].cube.shape[0]
+    assert {k: sm[k] for k in ("peaks", "power_residual_rms_db")} == {k: sm_after[k] for k in ("peaks",
+                                                                                              "power_residual_rms_db")}
+    assert sm["baseline"]["power_residual_rms_db"] == sm_before["power_residual_rms_db"]
+    i = next(i for i, p in enumerate(sm["peaks"]) if "wall_1" in p["label"]
+             and sm["baseline"]["peaks"][i]["power_residual_db"] is not None)
+    moved = sm["peaks"][i]["power_residual_db"] - sm["baseline"]["peaks"][i]["power_residual_db"]
+    assert moved == pytest.approx(-gain_db, abs=0.1), (moved, gain_db)
+    assert sm["peaks"][i]["sigma_db"] < 0.5 * abs(gain_db)  # the mean reads it well inside the change
+    assert 'id="sweep-mean"' in page and "Static peaks of the sweep mean" in page
+
 
 @pytest.mark.slow
 def test_a_capture_of_the_second_ris_is_compared_in_its_slot(tmp_path, monkeypatch):

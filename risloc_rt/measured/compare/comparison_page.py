@@ -19,7 +19,7 @@ from ..._files import atomic_write_bytes
 from ...plotting import new_figure, save_figure
 from .comparison import Comparison
 
-__all__ = ["BASELINE_KEYS", "FIGURES", "baseline_document", "write_comparison"]
+__all__ = ["BASELINE_KEYS", "FIGURES", "baseline_document", "sweep_mean_document", "write_comparison"]
 
 FIGURES = {"range_profiles": "range_profiles.png", "delay_doppler": "delay_doppler.png", "sweep": "sweep_power.png"}
 DPI = 90
@@ -127,7 +127,7 @@ numbers in <a href="comparison.json">comparison.json</a>. Figures loaded: <span 
 <th>delay residual [mm]</th><th>power residual [dB]</th>{base_heads}</tr>
 {rows}
 </table>
-{figs}
+{_sweep_mean_html(doc)}{figs}
 <script>
 function markFigures() {{
   var imgs = document.querySelectorAll("img[data-figure]"), ok = 0;
@@ -198,7 +198,67 @@ def _baseline_html(doc: dict[str, Any]) -> str:
             f"{rows}\n</table>\n")
 
 
-def write_comparison(c: Comparison, folder: str | Path, *, baseline: Comparison | None = None) -> dict[str, Path]:
+def sweep_mean_document(scene: dict[str, Any], baseline: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``comparison.json``'s ``sweep_mean``: the static peaks of the sweep's complex mean against the hall, and
+    against the baseline hall beside them.
+
+    Parameters
+    ----------
+    scene : dict
+        :func:`~.sweep_mean_peaks.sweep_mean_residuals` against the scene.
+    baseline : dict, optional
+        The same against the baseline scene. Its peaks are matched to ``scene``'s by their measured range
+        (the measured mean is the same; which peaks a hall explains may differ).
+
+    Returns
+    -------
+    dict
+        ``scene``'s document, with ``baseline`` (its ``power_residual_rms_db`` [dB], ``delay_residual_rms_mm`` [mm],
+        ``peaks``: per peak of ``scene`` the baseline's ``power_residual_db`` and ``delay_residual_mm``, None where
+        the baseline hall leaves that peak out) when a baseline is given.
+    """
+    doc = dict(scene)
+    if baseline is not None:
+        by_range = {round(p["distance_m"], 9): p for p in baseline["peaks"]}
+        doc["baseline"] = {
+            "power_residual_rms_db": baseline["power_residual_rms_db"],
+            "delay_residual_rms_mm": baseline["delay_residual_rms_mm"],
+            "peaks": [{k: (by_range.get(round(p["distance_m"], 9)) or {}).get(k)
+                       for k in ("power_residual_db", "delay_residual_mm")} for p in scene["peaks"]]}
+    return doc
+
+
+def _sweep_mean_html(doc: dict[str, Any]) -> str:
+    """The page's table of the sweep mean's static peaks (with the baseline's residuals beside them)."""
+    sm = doc.get("sweep_mean")
+    if sm is None:
+        return ""
+    base = sm.get("baseline")
+    heads = "<th>power residual, baseline [dB]</th><th>delay residual, baseline [mm]</th>" if base else ""
+    rows = "\n".join(
+        f"<tr><td>{_fmt(p['distance_m'], 4)}</td><td>{_fmt(p['label'])}</td><td>{_fmt(p['snr_db'], 1)}</td>"
+        f"<td>{_fmt(p['sigma_db'], 2)}</td><td>{_fmt(p['power_residual_db'], 2)}</td>"
+        f"<td>{_fmt(p['delay_residual_mm'], 2)}</td><td>{_fmt(p['delay_sigma_mm'], 2)}</td>"
+        + (f"<td>{_fmt(base['peaks'][i]['power_residual_db'], 2)}</td><td>{_fmt(base['peaks'][i]['delay_residual_mm'], 2)}"
+           f"</td>" if base else "") + "</tr>"
+        for i, p in enumerate(sm["peaks"]))
+    rms = (f"power residual rms {_fmt(sm['power_residual_rms_db'], 3)} dB, delay residual rms "
+           f"{_fmt(sm['delay_residual_rms_mm'], 3)} mm")
+    if base:
+        rms += (f" (baseline scene: {_fmt(base['power_residual_rms_db'], 3)} dB, "
+                f"{_fmt(base['delay_residual_rms_mm'], 3)} mm)")
+    left = len(sm["left_out"])
+    return (f"<h2>Static peaks of the sweep mean</h2>\n<p>The complex mean over the sweep's {sm['beams']} beams: a "
+            f"static echo keeps its power, the noise falls by the beam count (the peaks a material fit uses; "
+            f"docs/calibration-materials.md). {len(sm['peaks'])} static peak(s), {left} other peak(s) of the mean left "
+            f"out (reasons in comparison.json); <span id=\"sweep-mean-rms\">{rms}</span>.</p>\n"
+            f"<table id=\"sweep-mean\"><tr><th>range [m]</th><th>traced path</th><th>SNR in the mean [dB]</th>"
+            f"<th>power σ [dB]</th><th>power residual [dB]</th><th>delay residual [mm]</th><th>delay σ [mm]</th>"
+            f"{heads}</tr>\n{rows}\n</table>\n")
+
+
+def write_comparison(c: Comparison, folder: str | Path, *, baseline: Comparison | None = None,
+                     sweep_mean: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write the figures, ``comparison.json`` and ``index.html`` into ``folder``, each atomically.
 
     Parameters
@@ -211,6 +271,9 @@ def write_comparison(c: Comparison, folder: str | Path, *, baseline: Comparison 
         The same capture against another hall (before a material fit, say): its residuals are set beside
         ``c``'s (:func:`baseline_document`; the page's "Before and after" table, the peak table's
         baseline columns, ``comparison.json``'s ``baseline``).
+    sweep_mean : dict, optional
+        :func:`sweep_mean_document`: the static peaks of the sweep mean (the page's "Static peaks of the sweep
+        mean", ``comparison.json``'s ``sweep_mean``).
 
     Returns
     -------
@@ -221,6 +284,8 @@ def write_comparison(c: Comparison, folder: str | Path, *, baseline: Comparison 
     doc = c.to_json()
     if baseline is not None:
         doc["baseline"] = baseline_document(c, baseline)
+    if sweep_mean is not None:
+        doc["sweep_mean"] = sweep_mean
     folder.mkdir(parents=True, exist_ok=True)
     _figures(c, folder)
     doc["figures"] = dict(FIGURES)

@@ -76,7 +76,7 @@ from .material_peaks import DEFAULT_MODEL_SIGMA_DB, CapturePeaks, path_weights, 
 from .traced_hall import HallModel
 
 __all__ = ["MAX_BLEND_DB", "MIN_SNR_DB", "SweepMeanProfiles", "sweep_mean_observation", "sweep_mean_power_sigma_db",
-           "sweep_mean_profile", "sweep_mean_profiles"]
+           "sweep_mean_profile", "sweep_mean_profiles", "sweep_mean_residuals"]
 
 #: A peak whose expected power exceeds the coherent sum of its own static paths by more than this [dB] is left out.
 MAX_BLEND_DB: float = 1.0
@@ -258,6 +258,77 @@ def _mean_peaks(capture: Any, model: HallModel, prof: SweepMeanProfiles, calibra
     return candidates, left
 
 
+def _measured(c: dict[str, Any], prof: SweepMeanProfiles, noise: float, capture: Any,
+              model_sigma_db: float) -> dict[str, Any]:
+    """A candidate peak's measured numbers: its power over the mean's floor [counts², dB], SNR [dB], power σ [dB],
+    power and delay residuals against the expected peak [dB, mm] and the delay's σ [mm]."""
+    signal = 10 ** (c["power_db"] / 10) - prof.noise_floor
+    snr_db = 10 * math.log10(signal / prof.noise_floor) if signal > 0 else -math.inf
+    power_db = 10 * math.log10(signal) if signal > 0 else -math.inf
+    sigma = sweep_mean_power_sigma_db(signal, prof.noise_floor * prof.beams, prof.beams, model_sigma_db)
+    return {"signal": signal, "snr_db": snr_db, "power_db": power_db, "sigma_db": sigma, "beams": prof.beams,
+            "power_residual_db": power_db - c["expected_power_db"],
+            "delay_residual_mm": 1e3 * (c["distance_m"] - c["expected_distance_m"]),
+            "delay_sigma_mm": 1e3 * delay_sigma(max(signal, 1e-300), noise / prof.beams, capture.radar,
+                                                capture.processing)}
+
+
+def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
+                         calibration: Calibration | None = None, *, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
+                         prominence_db: float = 6.0, floor_db: float = 12.0) -> dict[str, Any]:
+    """The sweep mean's static peaks measured against the traced hall, for ``risloc compare``'s page.
+
+    The peaks :func:`sweep_mean_observation` would use, chosen without the material tracer (the same
+    thresholds, association, blend test and :data:`MIN_SNR_DB`), each with its power residual (the
+    measured peak of the mean, its floor taken off, minus the noise-free expected peak) and delay
+    residual, and their σ.
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture [ADC counts].
+    model : HallModel
+        The traced hall at the capture's radar position (with the calibrated RIS when a calibration is given).
+    comparison : Comparison
+        :func:`~.comparison.compare_capture` of the two (its G and noise floor are used).
+    calibration : Calibration, optional
+        As given to the comparison.
+    model_sigma_db : float
+        Model error in quadrature with each peak's noise σ [dB].
+    prominence_db, floor_db : float
+        Peak thresholds on the mean profile [dB] (prominence, height above its median).
+
+    Returns
+    -------
+    dict
+        ``beams`` (M); ``peaks``: per static peak ``distance_m`` [m], ``label``, ``snr_db``, ``sigma_db`` [dB],
+        ``power_residual_db`` [dB], ``delay_residual_mm``, ``delay_sigma_mm`` [mm]; ``left_out``: ``distance_m`` and
+        ``reason`` of every other peak of the mean; ``power_residual_rms_db`` [dB] and ``delay_residual_rms_mm`` [mm]
+        over ``peaks`` (None without any).
+    """
+    prof = sweep_mean_profiles(capture, model, comparison, calibration)
+    candidates, left = _mean_peaks(capture, model, prof, calibration, prominence_db=prominence_db, floor_db=floor_db)
+    noise = float(comparison.summary["noise_counts2"])
+    peaks = []
+    for c in candidates:
+        m = _measured(c, prof, noise, capture, model_sigma_db)
+        if m["snr_db"] < MIN_SNR_DB:
+            left.append((c["distance_m"], f"{c['label']}: {m['snr_db']:.1f} dB over the mean's noise floor, below "
+                                          f"{MIN_SNR_DB:g} dB"))
+            continue
+        peaks.append({"distance_m": c["distance_m"], "label": c["label"],
+                      **{k: m[k] for k in ("snr_db", "sigma_db", "power_residual_db", "delay_residual_mm",
+                                           "delay_sigma_mm")}})
+    peaks.sort(key=lambda p: p["distance_m"])
+
+    def rms(key: str) -> float | None:
+        return float(np.sqrt(np.mean([p[key] ** 2 for p in peaks]))) if peaks else None
+
+    return {"beams": prof.beams, "peaks": peaks,
+            "left_out": [{"distance_m": d, "reason": r} for d, r in sorted(left)],
+            "power_residual_rms_db": rms("power_residual_db"), "delay_residual_rms_mm": rms("delay_residual_mm")}
+
+
 def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
                            calibration: Calibration | None = None, settings: Any = None,
                            window: float = DEFAULT_WINDOW, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
@@ -316,20 +387,15 @@ def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
             left.append((c["distance_m"], f"no monostatic path of the material tracer within {window * 1e9:.3g} ns"))
             continue
         model_db = _DB * math.log(float(np.sum(weight[members] * np.abs(jac.a[members]) ** 2)))
-        signal = 10 ** (c["power_db"] / 10) - prof.noise_floor
-        snr_db = 10 * math.log10(signal / prof.noise_floor) if signal > 0 else -math.inf
-        if snr_db < MIN_SNR_DB:
-            left.append((c["distance_m"], f"{c['label']}: {snr_db:.1f} dB over the mean's noise floor, below "
+        m = _measured(c, prof, noise, capture, model_sigma_db)
+        if m["snr_db"] < MIN_SNR_DB:
+            left.append((c["distance_m"], f"{c['label']}: {m['snr_db']:.1f} dB over the mean's noise floor, below "
                                           f"{MIN_SNR_DB:g} dB (its power is biased by the threshold and the noise)"))
             continue
-        sigma = sweep_mean_power_sigma_db(signal, prof.noise_floor * prof.beams, prof.beams, model_sigma_db)
-        power_db = 10 * math.log10(signal)
         used.append({"distance_m": c["distance_m"], "label": c["label"], "delay_s": c["delay_s"],
-                     "power_db": power_db, "offset_db": c["expected_power_db"] - model_db, "sigma_db": sigma,
-                     "snr_db": snr_db, "paths": int(members.sum()),
-                     "beams": prof.beams, "power_residual_db": power_db - c["expected_power_db"],
-                     "delay_residual_mm": 1e3 * (c["distance_m"] - c["expected_distance_m"]),
-                     "delay_sigma_mm": 1e3 * delay_sigma(signal, noise / prof.beams, capture.radar, capture.processing)})
+                     "power_db": m["power_db"], "offset_db": c["expected_power_db"] - model_db,
+                     "sigma_db": m["sigma_db"], "snr_db": m["snr_db"], "paths": int(members.sum()),
+                     **{k: m[k] for k in ("beams", "power_residual_db", "delay_residual_mm", "delay_sigma_mm")}})
     if not used:
         reasons = "; ".join(f"{d:.3f} m: {r}" for d, r in left) or "the sweep-mean profile has no peak"
         raise ValueError(f"no sweep-mean peak of this capture can constrain the materials ({reasons})")
