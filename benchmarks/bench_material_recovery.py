@@ -71,7 +71,7 @@ _TRACED: dict = {}
 _MODELS: dict = {}
 
 
-def record(scene: Path, position: np.ndarray, folder: Path, seed: int):
+def record(scene: Path, position: np.ndarray, folder: Path, seed):
     """One emulated DCA1000 capture of ``scene`` with the radar at ``position`` [m], imported (trace reused per position)."""
     hs = hall_scenario(str(scene), ue_position=position, radar=dca1000_radar(RadarConfig()), trace=SETTINGS)
     key = (str(scene), tuple(np.round(position, 9)))
@@ -94,11 +94,25 @@ def model_of(capture, scene):
     return _MODELS[key]
 
 
-def observe(capture, scene, profile: str, model_sigma: float):
-    """The capture's observation with the chosen peak profile (``best-beam`` or ``sweep-mean``)."""
+def recordings(scene: Path, position: np.ndarray, root: Path, name: str, seed: int, repeats: int) -> list:
+    """``repeats`` captures of one position (noise seeds ``seed``, then ``[seed, r]``), each imported and its
+    recording folder removed."""
+    out = []
+    for r in range(repeats):
+        folder = root / f"{name}_r{r}"
+        out.append(record(scene, position, folder, seed if r == 0 else [seed, r]))
+        shutil.rmtree(folder, ignore_errors=True)
+    return out
+
+
+def observe(captures: list, scene, profile: str, model_sigma: float):
+    """The observation of one position's captures (the first, and the others as repeats of its sweep mean) with
+    the chosen peak profile (``best-beam``: the first capture only)."""
+    capture = captures[0]
     model = model_of(capture, scene)
     if profile == "sweep-mean":
-        return sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS, model_sigma_db=model_sigma)
+        return sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS, model_sigma_db=model_sigma,
+                                      repeats=captures[1:])
     return capture_observation(capture, model, [MATERIAL], settings=SETTINGS, model_sigma_db=model_sigma)
 
 
@@ -118,11 +132,13 @@ def incidence_angles(scene: Path, position: np.ndarray, delay: float, label: str
     return angles
 
 
-def static_residuals(capture, scene, profile: str) -> tuple[list[float], list[float], list[float]]:
-    """Power [dB] and delay [mm] residuals of the explained static (non-RIS) peaks, and of every explained peak [dB]."""
+def static_residuals(captures: list, scene, profile: str) -> tuple[list[float], list[float], list[float]]:
+    """Power [dB] and delay [mm] residuals of the explained static (non-RIS) peaks, and of every explained peak [dB]
+    (the sweep mean of all ``captures``, repeats of one position; the best beam of the first)."""
+    capture = captures[0]
     model = hall_model(capture, scene, capture.truth.ue_position, trace=SETTINGS)
     if profile == "sweep-mean":
-        peaks = sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS).used
+        peaks = sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS, repeats=captures[1:]).used
         power = [p["power_residual_db"] for p in peaks]
         return power, [p["delay_residual_mm"] for p in peaks], power
     comp = compare_capture(capture, model)
@@ -159,20 +175,22 @@ def free_fit(scene: Path, obs: list, seed: int) -> dict:
 
 
 def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma: float = 0.3,
-                  held_out: bool = True) -> dict:
+                  held_out: bool = True, repeats: int = 1) -> dict:
     """Part 1 for one receiver-noise seed (module docstring)."""
     true_scene = root / "true_hall"
     if not true_scene.exists():
         write_fitted_scene("paper_hall", true_scene, TRUE, {"truth": TRUE})
     spec_positions = [np.array([6.0, 9.0, 1.2]), np.array([6.888693893467439, 4.205036835083882, 1.2])]
     t0 = time.perf_counter()
-    caps = [record(true_scene, p, root / f"rec{seed}_{i}", seed * 10 + i) for i, p in enumerate(spec_positions)]
+    groups = [recordings(true_scene, p, root, f"rec{seed}_{i}", seed * 10 + i, repeats)
+              for i, p in enumerate(spec_positions)]
     t_rec = time.perf_counter() - t0
     scene = scene_directory("paper_hall")
     t0 = time.perf_counter()
     obs = []
-    for cap in caps:
-        peaks = observe(cap, scene, profile, model_sigma)
+    for group in groups:
+        cap = group[0]
+        peaks = observe(group, scene, profile, model_sigma)
         obs.append(peaks.observation)
         used = "; ".join(f"{u['label'].removeprefix('hall: ')} SNR {u['snr_db']:.1f} dB sigma {u['sigma_db']:.2f} dB at "
                          f"{', '.join(f'{a:.0f}' for a in incidence_angles(scene, cap.truth.ue_position, u['delay_s'], u['label']))} deg"
@@ -201,7 +219,7 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
     fitted = root / f"fitted{seed}"
     shutil.rmtree(fitted, ignore_errors=True)
     write_fitted_scene("paper_hall", fitted, {MATERIAL: values}, {"seed": seed})
-    held = record(true_scene, HELD_OUT, root / f"rec{seed}_held", seed * 10 + 9)
+    held = recordings(true_scene, HELD_OUT, root, f"rec{seed}_held", seed * 10 + 9, repeats)
     p0, d0, a0 = static_residuals(held, scene, profile)
     p1, d1, a1 = static_residuals(held, fitted, profile)
     p_true = static_residuals(held, true_scene, profile)[0]
@@ -273,15 +291,19 @@ def main() -> None:
     ap.add_argument("--held-out-seeds", type=int, default=None,
                     help="do the held-out prediction for the first N seeds only (default: every seed)")
     ap.add_argument("--log", type=Path, default=None, help="append one JSON line per seed to this file")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="captures per radar position, their sweep means averaged (sweep-mean profile; default 1)")
     args = ap.parse_args()
     root = Path(tempfile.mkdtemp(prefix="bench_material_recovery-"))
     try:
+        if args.repeats < 1:
+            raise SystemExit("--repeats must be >= 1")
         print(f"part 1: paper_hall, concrete true {TRUE[MATERIAL]}, ITU start (5.24, 1.136); depth 3, 2e4 rays; "
-              f"profile {args.profile}, model sigma {args.model_sigma} dB")
+              f"profile {args.profile}, model sigma {args.model_sigma} dB, {args.repeats} capture(s) per position")
         rows = []
         for n, seed in enumerate(range(args.first_seed, args.first_seed + args.seeds)):
             held = args.held_out_seeds is None or n < args.held_out_seeds
-            rows.append(captures_part(root, seed, args.profile, args.model_sigma, held_out=held))
+            rows.append(captures_part(root, seed, args.profile, args.model_sigma, held_out=held, repeats=args.repeats))
             if args.log is not None:
                 with open(args.log, "a") as f:
                     f.write(json.dumps(rows[-1], default=float) + "\n")

@@ -12,7 +12,8 @@ Room 5 of :mod:`risloc_rt.measured` (imports :mod:`..sweep`, :mod:`..errors`, ``
 - :mod:`.material_peaks`: a capture's explained static peaks as the material fit's observation
   (delays, powers with their 1σ and per-peak offsets; ``risloc calibrate --materials``);
 - :mod:`.sweep_mean_peaks`: the same observation from the complex mean over the sweep's beams (the
-  static echoes ~18 dB further above the noise; the default of ``risloc calibrate --materials``).
+  static echoes ~18 dB further above the noise, more with repeats; the default of ``risloc calibrate
+  --materials``; its static peaks' residuals on ``risloc compare``'s page).
 
 The names load on first use: ``import risloc_rt.measured.compare`` loads neither the hall nor ``io``.
 """
@@ -28,7 +29,7 @@ _EXPORTS = {
     "calibrate_capture": "calibration_fit",
     "Comparison": "comparison", "compare_capture": "comparison", "parabolic_peak": "comparison",
     "FIGURES": "comparison_page", "write_comparison": "comparison_page", "BASELINE_KEYS": "comparison_page",
-    "baseline_document": "comparison_page",
+    "baseline_document": "comparison_page", "sweep_mean_document": "comparison_page",
     "BudgetTerm": "uncertainty_budget", "RisTolerances": "uncertainty_budget",
     "UncertaintyBudget": "uncertainty_budget", "apply_budget": "uncertainty_budget",
     "measured_budget": "uncertainty_budget", "ris_tolerances": "uncertainty_budget",
@@ -37,6 +38,7 @@ _EXPORTS = {
     "MAX_BLEND_DB": "sweep_mean_peaks", "MIN_SNR_DB": "sweep_mean_peaks", "SweepMeanProfiles": "sweep_mean_peaks",
     "sweep_mean_observation": "sweep_mean_peaks", "sweep_mean_power_sigma_db": "sweep_mean_peaks",
     "sweep_mean_profile": "sweep_mean_peaks", "sweep_mean_profiles": "sweep_mean_peaks",
+    "sweep_mean_residuals": "sweep_mean_peaks", "joint_mean_frame": "sweep_mean_peaks",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -49,6 +49,16 @@ noise adds to it: measured, single wall bounces at 10–11 dB SNR read 2.9 and 3
 
 **Observed power.** The measured peak of the mean minus the mean's noise floor, ``|s + n̄|² − N/M``
 (the expected value of ``|s + n̄|²`` is ``P + N/M``; the expected side is noise-free).
+
+**Repeats.** Captures of the same sweep from the same radar position (``repeats``: recorded one
+after another, the radar not moved) hold the same static echoes with independent noise, so the
+mean over all their beams, C captures of M beams each, lowers the floor by 10 log10(C·M): 16
+captures add 12 dB, enough to lift the p-polarised floor > wall > ceiling bounce of the default hall
+(4 dB over one sweep's mean floor) past :data:`MIN_SNR_DB` (``docs/calibration-materials.md``,
+"Repeats"). Each repeat's beam mean is turned onto the first one's phase first (the phase of their
+inner product, which the strong static echoes set: a common phase drift of the radar between
+recordings, none in an emulated one); a radar moved by a fraction of the wavelength between them
+would average its echoes away, which is why the radar must not move.
 """
 
 from __future__ import annotations
@@ -76,7 +86,7 @@ from .material_peaks import DEFAULT_MODEL_SIGMA_DB, CapturePeaks, path_weights, 
 from .traced_hall import HallModel
 
 __all__ = ["MAX_BLEND_DB", "MIN_SNR_DB", "SweepMeanProfiles", "sweep_mean_observation", "sweep_mean_power_sigma_db",
-           "sweep_mean_profile", "sweep_mean_profiles", "sweep_mean_residuals"]
+           "sweep_mean_profile", "sweep_mean_profiles", "sweep_mean_residuals", "joint_mean_frame"]
 
 #: A peak whose expected power exceeds the coherent sum of its own static paths by more than this [dB] is left out.
 MAX_BLEND_DB: float = 1.0
@@ -135,13 +145,38 @@ def sweep_mean_power_sigma_db(peak_power: float, noise_floor: float, beams: int,
     return peak_power_sigma_db(peak_power, noise_floor / beams, model_sigma_db)
 
 
-def sweep_mean_profile(cube: Any, radar: Any, processing: Any) -> np.ndarray:
-    """Zero-Doppler range profile [counts²] of the complex mean over the beams of a cube.
+def joint_mean_frame(cubes: Any) -> np.ndarray:
+    """The complex mean over every beam of one or several cubes of the same sweep, each cube's beam mean turned
+    onto the first one's phase (module docstring, "Repeats").
 
     Parameters
     ----------
-    cube : array [M, K, N]
-        M beams' frames of K chirps of N samples [counts].
+    cubes : array [M, K, N] or sequence of them
+        One capture's cube, or the cubes of repeats [counts], all of one shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        The mean frame [K, N] [counts].
+    """
+    if hasattr(cubes, "ndim") and np.ndim(cubes) == 3:
+        cubes = [cubes]
+    means = [np.asarray(c).mean(axis=0) for c in cubes]
+    if not means or any(m.shape != means[0].shape for m in means):
+        raise ValueError("repeats must be cubes of the same sweep and chirp: their shapes differ "
+                         f"({[list(np.shape(c)) for c in cubes]})")
+    first = means[0]
+    turned = [first] + [m * np.exp(-1j * np.angle(np.vdot(first, m))) for m in means[1:]]
+    return np.mean(turned, axis=0)
+
+
+def sweep_mean_profile(cube: Any, radar: Any, processing: Any) -> np.ndarray:
+    """Zero-Doppler range profile [counts²] of the complex mean over the beams of a cube (or of repeats).
+
+    Parameters
+    ----------
+    cube : array [M, K, N], or a sequence of them
+        M beams' frames of K chirps of N samples [counts]; several: repeats (:func:`joint_mean_frame`).
     radar : dsp.RadarConfig
     processing : dsp.ProcessingConfig
 
@@ -150,8 +185,21 @@ def sweep_mean_profile(cube: Any, radar: Any, processing: Any) -> np.ndarray:
     numpy.ndarray
         ``|DDM(mean_m cube[m])|²`` at zero Doppler on the processing's range axis [counts²].
     """
-    mean = np.asarray(cube).mean(axis=0)
-    return delay_doppler_map(mean, radar, processing).profile(0.0)
+    return delay_doppler_map(joint_mean_frame(cube), radar, processing).profile(0.0)
+
+
+def _check_repeats(capture: Any, repeats: Any) -> list[Any]:
+    """``repeats`` as a list, each of the capture's radar, sweep, RIS and cube shape (a one-line error else)."""
+    repeats = list(repeats or ())
+    for k, r in enumerate(repeats):
+        same = (r.radar == capture.radar and np.shape(r.cube) == np.shape(capture.cube)
+                and np.allclose(r.sweep.angles, capture.sweep.angles)
+                and np.allclose(r.ris.pose.position, capture.ris.pose.position))
+        if not same:
+            raise ValueError(f"repeat {k + 1} is not a capture of the same radar, sweep and RIS as the first (its radar "
+                             "configuration, sweep angles, RIS position or cube shape differ): give repeats of one "
+                             "experiment only")
+    return repeats
 
 
 def _model_paths(model: HallModel, calibration: Calibration | None, carrier: float) -> tuple[Any, Any]:
@@ -167,7 +215,7 @@ def _model_paths(model: HallModel, calibration: Calibration | None, carrier: flo
 
 
 def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
-                        calibration: Calibration | None = None) -> SweepMeanProfiles:
+                        calibration: Calibration | None = None, repeats: Any = ()) -> SweepMeanProfiles:
     """Both sides' complex-mean profiles, the expected one noise-free with the comparison's G (module docstring).
 
     Parameters
@@ -180,6 +228,9 @@ def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
         :func:`~.comparison.compare_capture` of the capture and model (its G and noise floor are used).
     calibration : Calibration, optional
         As given to the comparison.
+    repeats : sequence of Capture
+        Further captures of the same sweep from the same position (module docstring, "Repeats"): the
+        measured mean is over all their beams, the floor divided by all of them.
 
     Returns
     -------
@@ -193,9 +244,10 @@ def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
     if leak.get("method") == "gate":
         clean = apply_range_gate(clean[None], range_gate_basis(radar, float(leak["gate_range"])))[0]
     expected = delay_doppler_map(clean, radar, processing).profile(0.0)
-    measured = sweep_mean_profile(capture.cube, radar, processing)
+    repeats = _check_repeats(capture, repeats)
+    measured = sweep_mean_profile([capture.cube] + [r.cube for r in repeats], radar, processing)
     w_k, w_n, coherent = dft_windows(radar, processing)
-    beams = int(np.asarray(capture.cube).shape[0])
+    beams = int(np.asarray(capture.cube).shape[0]) * (1 + len(repeats))
     floor = float(comparison.summary["noise_counts2"]) * float(np.sum(w_k ** 2) * np.sum(w_n ** 2)) / coherent ** 2
     return SweepMeanProfiles(distance=np.asarray(comparison.distance), measured=measured, expected=expected,
                              noise_floor=floor / beams, beams=beams, gain=gain)
@@ -275,7 +327,7 @@ def _measured(c: dict[str, Any], prof: SweepMeanProfiles, noise: float, capture:
 
 def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
                          calibration: Calibration | None = None, *, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
-                         prominence_db: float = 6.0, floor_db: float = 12.0) -> dict[str, Any]:
+                         prominence_db: float = 6.0, floor_db: float = 12.0, repeats: Any = ()) -> dict[str, Any]:
     """The sweep mean's static peaks measured against the traced hall, for ``risloc compare``'s page.
 
     The peaks :func:`sweep_mean_observation` would use, chosen without the material tracer (the same
@@ -297,16 +349,18 @@ def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
         Model error in quadrature with each peak's noise σ [dB].
     prominence_db, floor_db : float
         Peak thresholds on the mean profile [dB] (prominence, height above its median).
+    repeats : sequence of Capture
+        Further captures of the same sweep from the same position, averaged in (module docstring, "Repeats").
 
     Returns
     -------
     dict
-        ``beams`` (M); ``peaks``: per static peak ``distance_m`` [m], ``label``, ``snr_db``, ``sigma_db`` [dB],
+        ``beams`` (M, over all repeats); ``peaks``: per static peak ``distance_m`` [m], ``label``, ``snr_db``, ``sigma_db`` [dB],
         ``power_residual_db`` [dB], ``delay_residual_mm``, ``delay_sigma_mm`` [mm]; ``left_out``: ``distance_m`` and
         ``reason`` of every other peak of the mean; ``power_residual_rms_db`` [dB] and ``delay_residual_rms_mm`` [mm]
         over ``peaks`` (None without any).
     """
-    prof = sweep_mean_profiles(capture, model, comparison, calibration)
+    prof = sweep_mean_profiles(capture, model, comparison, calibration, repeats)
     candidates, left = _mean_peaks(capture, model, prof, calibration, prominence_db=prominence_db, floor_db=floor_db)
     noise = float(comparison.summary["noise_counts2"])
     peaks = []
@@ -333,7 +387,7 @@ def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
                            calibration: Calibration | None = None, settings: Any = None,
                            window: float = DEFAULT_WINDOW, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
                            comparison: Comparison | None = None, prominence_db: float = 6.0,
-                           floor_db: float = 12.0) -> CapturePeaks:
+                           floor_db: float = 12.0, repeats: Any = ()) -> CapturePeaks:
     """The material fit's observation of one capture from its sweep-mean static peaks (module docstring).
 
     Parameters
@@ -356,6 +410,9 @@ def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
         A comparison already made (else :func:`~.comparison.compare_capture`); its G and noise floor are used.
     prominence_db, floor_db : float
         Peak thresholds on the mean profile [dB] (prominence, height above its median).
+    repeats : sequence of Capture
+        Further captures of the same sweep from the same position, averaged in (module docstring, "Repeats");
+        the comparison (G, noise floor) is the first capture's.
 
     Returns
     -------
@@ -375,7 +432,7 @@ def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
     jac = material_jacobian(model.scenario.scene_xml, model.ue_position, materials, settings=settings)
     comp = comparison if comparison is not None else compare_capture(
         capture, model, calibration=calibration, prominence_db=prominence_db, floor_db=floor_db)
-    prof = sweep_mean_profiles(capture, model, comp, calibration)
+    prof = sweep_mean_profiles(capture, model, comp, calibration, repeats)
     candidates, left = _mean_peaks(capture, model, prof, calibration, prominence_db=prominence_db, floor_db=floor_db)
     assign = assign_paths(jac.delay, np.array([c["delay_s"] for c in candidates]), window)
     noise = float(comp.summary["noise_counts2"])
