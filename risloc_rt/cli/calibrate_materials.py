@@ -1,7 +1,9 @@
 """``risloc calibrate CAPTURE... --scene HALL --materials NAME,... --out DIR``: the hall's materials from captures.
 
 Each capture (at its known radar position: ``--ue`` or its truth; with its ``--calibration`` if
-given) is compared with the traced hall; its explained static peaks become the fit's observation,
+given) is compared with the traced hall; its explained static peaks become the fit's observation
+(captures from the same position with the same calibration are repeats: their sweep means are
+averaged into one observation, :func:`repeat_groups`),
 read from the complex mean over the sweep's beams (``--peak-profile sweep-mean``, the default:
 :mod:`risloc_rt.measured.compare.sweep_mean_peaks`) or from the comparison's best beam
 (``best-beam``: :mod:`risloc_rt.measured.compare.material_peaks`); the named materials' ε_r and σ [S/m] are fitted
@@ -28,7 +30,8 @@ import numpy as np
 
 from .common import CliError, trace_cache, trace_settings, vector
 
-__all__ = ["run_materials", "material_names", "peak_profile", "SIGMA_RANGE", "PEAK_PROFILES", "DEFAULT_PEAK_PROFILE"]
+__all__ = ["run_materials", "material_names", "peak_profile", "repeat_groups", "SIGMA_RANGE", "PEAK_PROFILES",
+           "DEFAULT_PEAK_PROFILE", "REPEAT_TOLERANCE"]
 
 #: Where the static peaks are read: the complex mean over the sweep's beams, or the comparison's best beam.
 PEAK_PROFILES: tuple[str, ...] = ("sweep-mean", "best-beam")
@@ -101,8 +104,40 @@ def _per_capture(values: list[str] | None, n: int, flag: str) -> list[str | None
     return list(values)
 
 
+#: Captures whose radar positions lie within this of each other [m] (and share a calibration) are repeats of one
+#: position: their sweep means are averaged (``docs/calibration-materials.md``, "Repeats").
+REPEAT_TOLERANCE: float = 1e-3
+
+
+def repeat_groups(keys: list[tuple[Any, str | None]]) -> list[list[int]]:
+    """Which captures are repeats of one radar position: groups of indices, in the captures' order.
+
+    Parameters
+    ----------
+    keys : list of (array [3], str or None)
+        Per capture its radar position [m] and its calibration file (None: none).
+
+    Returns
+    -------
+    list of list of int
+        Each group's indices, the first capture of the group first; captures join the first group whose
+        position is within :data:`REPEAT_TOLERANCE` of theirs and whose calibration is theirs.
+    """
+    groups: list[list[int]] = []
+    for i, (ue, cal) in enumerate(keys):
+        for g in groups:
+            ue0, cal0 = keys[g[0]]
+            if cal == cal0 and float(np.max(np.abs(np.asarray(ue, float) - np.asarray(ue0, float)))) <= REPEAT_TOLERANCE:
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    return groups
+
+
 def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tuple[list[Any], list[dict[str, Any]]]:
-    """Every capture's observation, and its provenance record (path, sha256, radar position, peaks)."""
+    """Every radar position's observation (repeats averaged, :func:`repeat_groups`), and its provenance record
+    (path, sha256, its repeats', radar position, peaks)."""
     from dataclasses import replace
 
     from .._files import file_sha256
@@ -118,21 +153,31 @@ def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tu
     ues = _per_capture(args.ue, len(args.capture), "--ue")
     cals = _per_capture(args.calibration, len(args.capture), "--calibration")
     settings = trace_settings(args)
-    observe = sweep_mean_observation if peak_profile(args) == "sweep-mean" else capture_observation
-    observations, records = [], []
+    mean = peak_profile(args) == "sweep-mean"
+    loaded = []
     for path, ue_text, cal_path in zip(args.capture, ues, cals):
         capture = load_capture(path)
         ue, source = ue_position_of(capture, None if ue_text is None else vector(ue_text, "--ue"))
+        loaded.append((path, capture, ue, source, cal_path))
+    observations, records = [], []
+    for group in repeat_groups([(x[2], x[4]) for x in loaded]) if mean else [[i] for i in range(len(loaded))]:
+        path, capture, ue, source, cal_path = loaded[group[0]]
+        repeats = [loaded[i] for i in group[1:]]
         cal = None if cal_path is None else read_calibration(cal_path)
         ris = None if cal is None else replace(capture.ris, loopback_delay=cal.loopback_delay,
                                                amplification_db=cal.amplification_db)
         model = hall_model(capture, scene, ue, ue_source=source, ris=ris, trace=settings, cache=trace_cache(args))
-        peaks = observe(capture, model, names, calibration=cal, settings=settings,
-                                    model_sigma_db=args.model_sigma, prominence_db=args.peak_prominence,
-                                    floor_db=args.peak_floor)
+        common = dict(calibration=cal, settings=settings, model_sigma_db=args.model_sigma,
+                      prominence_db=args.peak_prominence, floor_db=args.peak_floor)
+        if mean:
+            peaks = sweep_mean_observation(capture, model, names, repeats=[r[1] for r in repeats], **common)
+        else:
+            peaks = capture_observation(capture, model, names, **common)
         res = [u["power_residual_db"] for u in peaks.used if "power_residual_db" in u]
         rms = float(np.sqrt(np.mean(np.square(res)))) if res else peaks.comparison.summary["power_residual_rms_db"]
-        print(f"{path}: radar at {[round(float(x), 3) for x in ue]} m ({source}); {len(peaks.used)} peak(s) used "
+        also = (f" and {len(repeats)} repeat(s) at the same position ({', '.join(str(r[0]) for r in repeats)}: the "
+                f"sweep means of {len(group)} captures averaged)") if repeats else ""
+        print(f"{path}{also}: radar at {[round(float(x), 3) for x in ue]} m ({source}); {len(peaks.used)} peak(s) used "
               f"({peak_profile(args)}), {len(peaks.left_out)} left out; power residual rms at the scene's materials "
               f"{_fmt(rms)} dB")
         for u in peaks.used:
@@ -140,7 +185,9 @@ def _observations(args: argparse.Namespace, scene: Path, names: list[str]) -> tu
         for d, why in peaks.left_out:
             print(f"  left out {d:.3f} m: {why}")
         observations.append(peaks.observation)
-        records.append({"capture": str(path), "sha256": file_sha256(path), "radar_position_m": [float(x) for x in ue],
+        records.append({"capture": str(path), "sha256": file_sha256(path),
+                        "repeats": [{"capture": str(r[0]), "sha256": file_sha256(r[0])} for r in repeats],
+                        "radar_position_m": [float(x) for x in ue],
                         "radar_position_source": source, "calibration": cal_path,
                         "calibration_sha256": None if cal_path is None else file_sha256(cal_path),
                         "peaks": [dict(p) for p in peaks.used],

@@ -219,3 +219,55 @@ def test_cli_refuses_a_weak_fit_unless_allowed(changed_hall, tmp_path, capsys, m
     assert main(base + ["--allow-weak"]) == 0
     prov = json.loads((out / "material-fit.json").read_text())
     assert "concrete-200mm:ln_sigma" in prov["identifiability"]["weak"]
+
+
+def test_repeat_groups_are_one_position_and_one_calibration():
+    from risloc_rt.cli.calibrate_materials import REPEAT_TOLERANCE, repeat_groups
+
+    a, b = np.array([6.0, 9.0, 1.2]), np.array([6.888, 4.205, 1.2])
+    near = a + [0.5 * REPEAT_TOLERANCE, 0.0, 0.0]
+    off = a + [2 * REPEAT_TOLERANCE, 0.0, 0.0]
+    keys = [(a, None), (b, None), (near, None), (a, "cal.toml"), (off, None), (a, None)]
+    assert repeat_groups(keys) == [[0, 2, 5], [1], [3], [4]]
+
+
+@pytest.mark.slow
+def test_cli_averages_repeats_of_one_position_into_one_observation(changed_hall, tmp_path, capsys, monkeypatch):
+    """Two captures from radar position 0 (two noise draws of one emulated experiment) are repeats: one
+    observation from the mean over both sweeps' 122 beams. Oracles: each static peak's SNR over the mean's floor
+    rises by 10 log10 2 = 3.0 dB (±0.5 dB of the peaks' own noise) and the noise part of its power σ falls by
+    √2 (±15 %), against the same command on the first capture alone; material-fit.json names the repeat."""
+    from risloc_rt.hall.raytrace.tracer import TraceSettings
+    from risloc_rt.hall.scenario import hall_paths, hall_scenario
+    from risloc_rt.io.capture_file import save_capture
+    from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
+
+    root = changed_hall["root"]
+    hs = hall_scenario(str(root / "true_hall"), radar_index=0, radar=dca1000_radar(RadarConfig()),
+                       trace=TraceSettings(max_depth=2, samples_per_src=20000))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        traced = hall_paths(hs, cache=changed_hall["cache"])
+    plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2)
+    rec = emulate_recording(hs.base, tmp_path / "rec", plan=plan, paths=traced.paths, rng=np.random.default_rng(97))
+    exp = rec.experiment
+    again = save_capture(import_capture(exp.raw_path, exp.config_path, exp.schedule_path,
+                                        first_frame=round(plan.start(plan.program(hs.base.sweep.num_beams)))),
+                         tmp_path / "again.npz")
+    monkeypatch.setenv("RISLOC_CACHE_DIR", str(changed_hall["cache"].directory))
+    cap0 = str(changed_hall["paths"][0])
+    base = ["calibrate", "--scene", "paper_hall", "--materials", "concrete-200mm", "--fixed", "concrete-200mm:eps_r",
+            "--allow-weak", *TRACE]
+    assert main([*base, cap0, "--out", str(tmp_path / "one")]) == 0
+    assert main([*base, cap0, str(again), "--out", str(tmp_path / "two")]) == 0
+    assert "1 repeat(s) at the same position" in capsys.readouterr().out
+    one = json.loads((tmp_path / "one" / "material-fit.json").read_text())["captures"]
+    two = json.loads((tmp_path / "two" / "material-fit.json").read_text())["captures"]
+    assert len(one) == 1 and len(two) == 1 and two[0]["repeats"][0]["capture"] == str(again)
+    by_label = {p["label"]: p for p in one[0]["peaks"]}
+    pairs = [(by_label[p["label"]], p) for p in two[0]["peaks"] if p["label"] in by_label]
+    assert pairs and all(p["beams"] == 2 * q["beams"] for q, p in pairs)
+    for q, p in pairs:
+        assert p["snr_db"] - q["snr_db"] == pytest.approx(10 * math.log10(2), abs=0.5), (q, p)
+        noise_one, noise_two = (math.sqrt(x["sigma_db"] ** 2 - 0.3 ** 2) for x in (q, p))
+        assert noise_two == pytest.approx(noise_one / math.sqrt(2), rel=0.15), (q, p)
