@@ -246,6 +246,7 @@ def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[d
         "identifiability": {"condition": rep.condition, "singular_values": np.asarray(rep.singular_values).tolist(),
                             "not_identifiable": dict(rep.not_identifiable), "weak": dict(rep.weak),
                             "profile_cost": {k: list(v) for k, v in rep.profile_cost.items()},
+                            "profile_cost_2sigma": {k: list(v) for k, v in rep.profile_cost_2sigma.items()},
                             "peaks_per_material": {m: int(np.asarray(rep.constrains)[:, q].sum())
                                                    for q, m in enumerate(fit.materials)}},
     }

@@ -177,3 +177,53 @@ def test_a_thick_low_loss_walls_sigma_is_reported_weak():
     assert "not quadratic" in report.weak[f"{CONCRETE}:ln_sigma"]
     rise = report.profile_cost[f"{CONCRETE}:ln_sigma"]
     assert max(rise) / min(rise) > 3
+
+
+def test_a_likelihood_quadratic_over_one_sigma_and_flat_beyond_is_reported_weak(monkeypatch):
+    """Regression (2026-11-27): the profile check re-traced ±1σ only, and a likelihood that is quadratic-looking
+    there but flat further out passed it (16-repeat emulated recordings put concrete's σ at 3.5 ± 1.2 S/m,
+    true 0.6, not flagged). A stand-in tracer whose two σ-peaks move by A·tanh((ln σ − s₀)/w) [dB] (σ_p = 0.5 dB
+    each, A chosen so that the Fisher 1σ in ln σ is 0.8 w): the cost rises by 0.5·(tanh 0.8/0.8)² = 0.34 at
+    ±1σ (inside [0.25, 1], as the old check wanted) and 2·(tanh 1.6/1.6)² = 0.66 at ±2σ (not 2): weak now.
+    ε_r, on a peak linear in it (a quadratic likelihood), is not."""
+    import math
+    from types import SimpleNamespace
+
+    import risloc_rt.hall.material_fit as engine
+
+    s0, w, sigma_p = math.log(0.6), 0.5, 0.5
+    amp = sigma_p / (0.8 * math.sqrt(2.0))  # Fisher 1σ of ln σ = σ_p w / (A √2) = 0.8 w
+    delays = np.array([40e-9, 60e-9, 80e-9])
+
+    def powers(eps, s):  # [dB] of the three paths, and their derivatives in ε_r and ln σ
+        t = np.tanh((s - s0) / w)
+        p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + amp * t, -75.0 + amp * t])
+        dp_eps = np.array([3.0, 0.0, 0.0])
+        dp_s = np.array([0.0, 1.0, 1.0]) * amp * (1.0 - t * t) / w
+        return p, dp_eps, dp_s
+
+    def fake_jacobian(scene, position, materials, *, values=None, settings=None):
+        name = materials[0] if not isinstance(materials, str) else materials
+        eps, sigma = (values or {}).get(name, (5.24, 1.136))
+        p, dp_eps, dp_s = powers(eps, math.log(sigma))
+        a = 10 ** (p / 20)
+        scale = a * math.log(10) / 20  # d|a| per dB
+        return SimpleNamespace(materials=(name,), relative_permittivity=np.array([eps]), conductivity=np.array([sigma]),
+                               delay=delays, a=a.astype(complex), d_eps=(scale * dp_eps)[:, None].astype(complex),
+                               d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
+                               touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)))
+
+    monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
+    truth, _, _ = powers(6.1, s0)
+    obs = [Observation([1.0, 2.0, 1.2], delays, truth, [sigma_p] * 3)]
+    fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.8)})
+    rep = fit.identifiability
+    assert fit.value("concrete")[0] == pytest.approx(6.1, abs=1e-3)
+    assert fit.log_conductivity_sigma[0] == pytest.approx(0.8 * w, rel=0.05)
+    lo, hi = rep.profile_cost["concrete:ln_sigma"]
+    assert 0.25 <= lo <= 1.0 and 0.25 <= hi <= 1.0 and lo == pytest.approx(0.34, abs=0.03)  # the old check passed
+    lo2, hi2 = rep.profile_cost_2sigma["concrete:ln_sigma"]
+    assert lo2 == pytest.approx(0.66, abs=0.05) and hi2 == pytest.approx(0.66, abs=0.05)
+    assert "concrete:ln_sigma" in rep.weak and "2 sigma" in rep.weak["concrete:ln_sigma"]
+    assert "concrete:eps_r" not in rep.weak
+    assert rep.profile_cost_2sigma["concrete:eps_r"] == pytest.approx((2.0, 2.0), abs=0.05)
