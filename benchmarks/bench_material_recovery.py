@@ -221,7 +221,9 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
           f"{held_fit.rms_db:.3f} dB over {len(held_fit.residuals_db)} peaks; {held_fit.iterations} iterations, "
           f"{held_fit.evaluations} evaluations, {held_fit.seconds:.1f} s (peaks from the captures: {t_obs:.1f} s)")
     use_free = "eps" in row and not row["at_bound"] and not row["weak"]
-    values = (row["eps"], row["sigma"]) if use_free else (eps, sigma)
+    use_d = not use_free and not row["weak_d"]  # eps_r alone, sigma held at ITU: when its fit is not weak
+    values = (row["eps"], row["sigma"]) if use_free else (row["eps_d"], 1.136) if use_d else (eps, sigma)
+    which = "a" if use_free else "d" if use_d else "b"
     fitted = root / f"fitted{seed}"
     shutil.rmtree(fitted, ignore_errors=True)
     write_fitted_scene("paper_hall", fitted, {MATERIAL: values}, {"seed": seed})
@@ -229,11 +231,11 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
     p0, d0, a0 = static_residuals(held, scene, profile)
     p1, d1, a1 = static_residuals(held, fitted, profile)
     p_true = static_residuals(held, true_scene, profile)[0]
-    print(f"  held-out {np.round(HELD_OUT, 3).tolist()} with fit ({'a' if use_free else 'b'}): static power residuals "
+    print(f"  held-out {np.round(HELD_OUT, 3).tolist()} with fit ({which}): static power residuals "
           f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}; against "
           f"the true hall {rms(p_true):.3f}); delay {np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every "
           f"explained peak rms {rms(a0):.3f} -> {rms(a1):.3f} dB (recording {t_rec:.1f} s)")
-    row.update(held_sigma=sigma, held_d_sigma=d_sigma, held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1),
+    row.update(held_with=which, held_values=list(values), held_sigma=sigma, held_d_sigma=d_sigma, held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1),
                delay_before=rms(d0), delay_after=rms(d1), true_hall=rms(p_true))
     return row
 
