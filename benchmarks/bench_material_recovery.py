@@ -235,8 +235,9 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
           f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}; against "
           f"the true hall {rms(p_true):.3f}); delay {np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every "
           f"explained peak rms {rms(a0):.3f} -> {rms(a1):.3f} dB (recording {t_rec:.1f} s)")
-    row.update(held_with=which, held_values=list(values), held_sigma=sigma, held_d_sigma=d_sigma, held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1),
-               delay_before=rms(d0), delay_after=rms(d1), true_hall=rms(p_true))
+    row.update(held_with=which, held_values=list(values), held_sigma=sigma, held_d_sigma=d_sigma,
+               held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1), delay_before=rms(d0), delay_after=rms(d1),
+               true_hall=rms(p_true))
     return row
 
 
