@@ -10,41 +10,46 @@ filters give it:
   s = −t. A state [p, v] is [p, −v] there and a measured radial velocity changes sign
   (:func:`reversed_measurement`, :func:`reversed_state`); at slot k it knows the measurements from k on.
 
-They share no measurement, so their estimates are independent and the smoothed state is their
-product (:func:`fuse_estimates`; the two-filter form of the fixed-interval smoother):
-x = x_f + K (x_b − x_f), P = P_f − K P_f, K = P_f (P_f + P_b)⁻¹.
+At slot k the forward estimate after k and the backward estimate after k + 1, predicted to t_k by
+the filters' own motion model (``motion``), share no measurement, so they are independent and the
+smoothed state is their product (:func:`fuse_estimates`; the two-filter form of the fixed-interval
+smoother): x = x_f + K (x_b − x_f), P = P_f − K P_f, K = P_f (P_f + P_b)⁻¹ (``"joined"``). Two-model
+estimates enter by their mixture's mean and covariance (:func:`gaussian`). Where one filter has no
+estimate the other's is taken (``"forward"``, ``"backward"``).
 
-**Gaps.** Between two consecutive slots whose measurement the forward filter used, a < b at t_a < t_b
-(slots between them flagged or without a detection), the forward estimate at a (measurements ≤ a)
-and the backward one at b (measurements ≥ b) bracket the gap; each is carried into it by the quiet
-model (nearly constant velocity, white acceleration q₀, ``accel_density``):
+**A turn between two measurements.** A nearly-constant-velocity smoother cannot place a corner that
+no measurement saw: it rounds it, half-way between the two legs (an RTS pass tried on the benchmark
+walk: 6 cm off at the slot just past the corner). Between two consecutive slots whose measurement
+the forward filter used, a < b at t_a < t_b (the slots between flagged or without a detection), the
+forward estimate at a (measurements ≤ a) and the backward one at b (measurements ≥ b) bracket the
+gap; each is carried into it by the quiet model (nearly constant velocity, white acceleration q₀).
+The turn is placed when
 
-- **straight**: the forward estimate carried to t_b agrees with the backward one (χ² of their
-  difference over ``axes`` within its level at ``gate_pfa``). Slot a and every slot in the gap get
-  the product of the two carried estimates (``"joined"``).
-- **a turn**: they disagree. The walker turned inside the gap, where nothing measured it. A
-  nearly-constant-velocity smoother cannot place such a corner: it rounds it, half-way between the
-  two legs (tried on the benchmark walk: 6 cm off at the slot just past the corner). The path of a
-  walk is straight legs joined at turns; the turn is at the time τ where the two legs meet,
-  p_a + v_a (τ − t_a) = p_b − v_b (t_b − τ), in least squares over the three axes:
+- the forward estimate carried to t_b disagrees with the backward one (χ² of their difference over
+  ``axes`` beyond its level at ``gate_pfa``), and
+- each filter is on a straight leg at its end of the gap (its quiet model's probability is at least
+  ``quiet_share``): the turn lies inside the gap. A turn that the slots around it see (a slow one)
+  has the turning model take over there, and the gap is joined as any other.
 
-      τ = (g · u) / (u · u),   g = p_a − v_a t_a − p_b + v_b t_b,   u = v_b − v_a,
+The path of a walk is straight legs joined at turns; the turn is at the time τ where the two legs
+meet, p_a + v_a (τ − t_a) = p_b − v_b (t_b − τ), in least squares over the three axes:
 
-  its 1σ σ_τ to first order from the two estimates' covariances (:func:`turn_time`). A slot at t in
-  the gap is on the first leg with probability Φ((τ − t)/σ_τ) and on the second otherwise; its
-  estimate is that mixture of the two carried estimates, mean and covariance (the spread between
-  them included; ``"corner"``). Slot a keeps its forward estimate (``"forward"``): the later
-  measurements reach it only through a corner whose time and turn are both unknown, so leaving them
-  out loses little and states no more than is known.
+    τ = (g · u) / (u · u),   g = p_a − v_a t_a − p_b + v_b t_b,   u = v_b − v_a,
 
-Slots before the first used measurement take the backward filter's estimate (``"backward"``), slots
-after the last the forward filter's (``"forward"``).
+its 1σ σ_τ to first order from the two estimates' covariances (:func:`turn_time`). A slot at t in the
+gap is on the first leg with probability Φ((τ − t)/σ_τ) and on the second otherwise; its estimate is
+that mixture of the two carried estimates, mean and covariance (the spread between them included;
+``"corner"``). Slot a keeps its forward estimate (``"forward"``): the later measurements reach it
+only through a corner whose time and turn are both unknown, so leaving them out loses little and
+states no more than is known.
 
 **What the turn model assumes.** One turn in a gap, and the turn sharp against the gap: exact for the
-trajectories ``risloc track`` walks (straight segments between waypoints). A real walker turns over
-a second or so; where that arc falls between two measurements, the corner of the two tangents lies
-outside the arc, by r (sec(θ/2) − 1) for a turn of θ on a radius r (4 cm for 45° of a 0.5 m radius
-between two slots). ``docs/tracking.md``, "The smoothed track", has the measured effect.
+trajectories ``risloc track`` walks (straight segments between waypoints). A turn that takes time and
+lies wholly between two measurements cannot be told from a corner by any data: the corner of the two
+tangents lies outside the arc, by r (sec(θ/2) − 1) for a turn of θ on a radius r (13 cm for 90° on
+0.32 m, a 0.5 s turn at 1 m/s). ``max_turn`` widens the corner's estimates by what such a turn can
+put between walker and corner path. ``docs/tracking.md``, "The smoothed track", has the measured
+effect of both.
 """
 
 from __future__ import annotations
