@@ -84,7 +84,6 @@ def test_repeats_lower_the_mean_floor_by_their_count_and_a_common_phase_does_not
     plain = joint_mean_frame([a, b])
     turned = joint_mean_frame([a, b * np.exp(1.1j)])
     np.testing.assert_allclose(turned, plain, rtol=0, atol=1e-12)
-    assert np.mean(np.abs(joint_mean_frame([a, b * np.exp(1.1j)]) - joint_mean_frame([a, b]))) < 1e-12
     with pytest.raises(ValueError, match="shapes differ") as err:
         joint_mean_frame([a, b[:, :8]])
     assert "\n" not in str(err.value)
