@@ -49,6 +49,7 @@ from risloc_rt.authoring.fitted_scene import write_fitted_scene
 from risloc_rt.authoring.scene_folder import scene_directory
 from risloc_rt.hall.antenna import RadarAntenna
 from risloc_rt.hall.material_fit import fit_materials, synthetic_observations
+from risloc_rt.hall.material_profile import LEVELS, profile_interval
 from risloc_rt.hall.multipath import monostatic_paths
 from risloc_rt.hall.raytrace.material_gradients import material_jacobian
 from risloc_rt.hall.raytrace.result import TraceSettings
@@ -152,8 +153,24 @@ def rms(xs) -> float:
     return float(np.sqrt(np.mean(np.square(xs)))) if len(xs) else math.nan
 
 
-def free_fit(scene: Path, obs: list, seed: int) -> dict:
-    """(a): ε_r and σ free; the recovered values, their 1σ, |error|/σ and the identifiability report."""
+def profile_rows(scene: Path, obs: list, free) -> dict:
+    """The profile-likelihood intervals of ε_r and σ of the free fit (module docstring): ends at 1, 2, 3σ-equivalents,
+    whether each holds the truth, the scan's cost."""
+    out = {}
+    for kind, truth in (("eps_r", TRUE[MATERIAL][0]), ("sigma", TRUE[MATERIAL][1])):
+        prof = profile_interval(scene, obs, free, f"{MATERIAL}:{kind}", settings=SETTINGS)
+        out[f"profile_{kind}"] = {"best": prof.best_physical, "moved": prof.moved, "evaluations": prof.evaluations,
+                                  "seconds": prof.seconds, "points": int(prof.grid.size),
+                                  **{f"n{n}": list(prof.physical(n)) for n in LEVELS},
+                                  **{f"covers{n}": prof.covers(truth, n) for n in LEVELS}}
+        print(f"      profile: {prof.describe(1)}; {prof.describe(2).split(': ', 1)[1]} (true {truth}; "
+              f"{prof.grid.size} points, {prof.evaluations} evaluations, {prof.seconds:.1f} s)")
+    return out
+
+
+def free_fit(scene: Path, obs: list, seed: int, profiles: bool = False) -> dict:
+    """(a): ε_r and σ free; the recovered values, their 1σ, |error|/σ and the identifiability report; with
+    ``profiles``, the profile-likelihood intervals of both."""
     free = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS)
     rep = free.identifiability
     row = {"seed": seed, "condition": rep.condition, "flagged": bool(rep.not_identifiable), "weak": sorted(rep.weak),
@@ -163,6 +180,8 @@ def free_fit(scene: Path, obs: list, seed: int) -> dict:
           f"weak: {sorted(rep.weak) or 'none'}")
     if rep.not_identifiable:
         return row
+    if profiles:
+        row.update(profile_rows(scene, obs, free))
     e, g, de, dg = free.value(MATERIAL)
     dl = float(free.log_conductivity_sigma[0])
     z_eps = (e - TRUE[MATERIAL][0]) / de
@@ -175,7 +194,7 @@ def free_fit(scene: Path, obs: list, seed: int) -> dict:
 
 
 def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma: float = 0.3,
-                  held_out: bool = True, repeats: int = 1) -> dict:
+                  held_out: bool = True, repeats: int = 1, profiles: bool = False, free_only: bool = False) -> dict:
     """Part 1 for one receiver-noise seed (module docstring)."""
     true_scene = root / "true_hall"
     if not true_scene.exists():
@@ -198,8 +217,10 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
         print(f"  seed {seed}: position {np.round(cap.truth.ue_position, 3).tolist()}: {len(peaks.used)} peak(s) used "
               f"({used}), {len(peaks.left_out)} left out")
     t_obs = time.perf_counter() - t0
-    row = free_fit(scene, obs, seed)
+    row = free_fit(scene, obs, seed, profiles)
     row.update(record_s=t_rec, observe_s=t_obs)
+    if free_only:
+        return row
     eps_only = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS, fixed=[f"{MATERIAL}:sigma"])
     e_d, _, de_d, _ = eps_only.value(MATERIAL)
     row.update(eps_d=e_d, d_eps_d=de_d, z_eps_d=(e_d - TRUE[MATERIAL][0]) / de_d if de_d > 0 else math.nan,
@@ -258,6 +279,15 @@ def coverage(rows: list) -> None:
         print(f"coverage of ln sigma with eps_r held at the truth over {known.size} fits: within 1 sigma "
               f"{np.mean(known <= 1):.3f}, 2 sigma {np.mean(known <= 2):.3f}, 3 sigma {np.mean(known <= 3):.3f}; median "
               f"|error|/sigma {np.median(known):.2f}")
+    for kind in ("eps_r", "sigma"):
+        prof = [r[f"profile_{kind}"] for r in rows if f"profile_{kind}" in r]
+        if prof:
+            shares = " / ".join(f"{np.mean([p[f'covers{n}'] for p in prof]):.3f}" for n in LEVELS)
+            open_ = sum(math.isinf(p["n1"][1]) or p["n1"][0] <= (1.0 if kind == "eps_r" else 0.0) for p in prof)
+            print(f"coverage of the profile intervals of {kind} over {len(prof)} free fits: the truth within the "
+                  f"1/2/3 sigma-equivalent intervals {shares} (Wilks 0.683 / 0.954 / 0.997); the 1 sigma one open on a "
+                  f"side in {open_}; moved off the fit in {sum(p['moved'] for p in prof)}; median "
+                  f"{np.median([p['evaluations'] for p in prof]):.0f} evaluations, {np.median([p['seconds'] for p in prof]):.1f} s")
     fits = [r for r in rows if "z_eps" in r]
     if not fits:
         print("coverage: no identifiable free fit")
@@ -310,6 +340,9 @@ def main() -> None:
     ap.add_argument("--held-out-seeds", type=int, default=None,
                     help="do the held-out prediction for the first N seeds only (default: every seed)")
     ap.add_argument("--log", type=Path, default=None, help="append one JSON line per seed to this file")
+    ap.add_argument("--profile-intervals", action="store_true",
+                    help="trace the profile likelihood of eps_r and sigma of every free fit (their intervals' coverage)")
+    ap.add_argument("--free-only", action="store_true", help="only the free fit (a) per seed: no (b), (c), (d), held-out")
     ap.add_argument("--repeats", type=int, default=1,
                     help="captures per radar position, their sweep means averaged (sweep-mean profile; default 1)")
     args = ap.parse_args()
@@ -322,7 +355,8 @@ def main() -> None:
         rows = []
         for n, seed in enumerate(range(args.first_seed, args.first_seed + args.seeds)):
             held = args.held_out_seeds is None or n < args.held_out_seeds
-            rows.append(captures_part(root, seed, args.profile, args.model_sigma, held_out=held, repeats=args.repeats))
+            rows.append(captures_part(root, seed, args.profile, args.model_sigma, held_out=held, repeats=args.repeats,
+                                      profiles=args.profile_intervals, free_only=args.free_only))
             if args.log is not None:
                 with open(args.log, "a") as f:
                     f.write(json.dumps(rows[-1], default=float) + "\n")

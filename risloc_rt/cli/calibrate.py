@@ -124,7 +124,8 @@ def add_parser(sub) -> None:
                           "as compare does (docs/calibration-materials.md)")
     cal.add_argument("--allow-weak", action="store_true",
                      help="with --materials: write the fitted scene even when a parameter's 1-sigma is only a local "
-                          "figure (the profile check's 'weak'; material-fit.json marks it); default: refuse")
+                          "figure (the profile check's 'weak'): material-fit.json marks it and states its "
+                          "profile-likelihood intervals; default: refuse")
     cal.add_argument("--peak-prominence", type=float, default=6.0, metavar="DB",
                      help="with --materials: a measured peak's prominence [dB] (default: %(default)s)")
     cal.add_argument("--peak-floor", type=float, default=12.0, metavar="DB",

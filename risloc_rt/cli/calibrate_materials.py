@@ -13,8 +13,13 @@ table per material (ε_r ± 1σ, σ ± 1σ [S/m]), the correlation matrix and th
 report. A material that is not identifiable is never written as a number: the report names the
 reason and no scene is written (exit 2); so is a fit that ends at the edge of what the tracer accepts
 (ε_r = 1, σ at :data:`SIGMA_RANGE`'s ends), where the Fisher 1σ means nothing, and one whose 1σ the
-profile check calls weak (the cost does not rise by ½ over ±1σ: a local figure; on emulated recordings
-such 1σ covered 28–45 % of the errors) unless ``--allow-weak``. Otherwise the fitted scene folder is written atomically
+profile check calls weak (the cost does not rise by ½ over ±1σ or by 2 over ±2σ: a local figure; on emulated
+recordings such 1σ covered 12–45 % of the errors) unless ``--allow-weak``. A weak parameter, and every free one
+correlated with it (|ρ| ≥ :data:`PROFILE_CORRELATION`), gets its profile-likelihood interval
+(:func:`risloc_rt.hall.material_profile.profile_interval`: the parameter held at a grid of values, the others
+fitted again at each), printed at 68.3 and 95.4 % and quoted in the refusal; with ``--allow-weak`` the scene gets the
+lowest χ² found (a profile that finds a lower one than the fit moves it there) and ``material-fit.json`` its
+intervals (``profile_intervals``, open ends null). Otherwise the fitted scene folder is written atomically
 (:func:`risloc_rt.authoring.fitted_scene.write_fitted_scene`) with ``material-fit.json``.
 """
 
@@ -31,12 +36,16 @@ import numpy as np
 from .common import CliError, trace_cache, trace_settings, vector
 
 __all__ = ["run_materials", "material_names", "peak_profile", "repeat_groups", "SIGMA_RANGE", "PEAK_PROFILES",
-           "DEFAULT_PEAK_PROFILE", "REPEAT_TOLERANCE"]
+           "DEFAULT_PEAK_PROFILE", "REPEAT_TOLERANCE", "PROFILE_CORRELATION"]
 
 #: Where the static peaks are read: the complex mean over the sweep's beams, or the comparison's best beam.
 PEAK_PROFILES: tuple[str, ...] = ("sweep-mean", "best-beam")
 #: The default (``docs/calibration-materials.md``, "Measured": more static peaks, each with a smaller σ).
 DEFAULT_PEAK_PROFILE: str = "sweep-mean"
+
+#: A free parameter correlated with a weak one at least this much (|ρ|) gets its profile interval too: its Fisher 1σ
+#: assumes the weak one's likelihood is quadratic.
+PROFILE_CORRELATION: float = 0.5
 
 #: The conductivities the fit can reach [S/m] (ln σ within the engine's bounds, -40..20): a fitted σ at either end
 #: is refused, as is ε_r at its bound 1.
@@ -224,11 +233,41 @@ def _print_fit(fit: Any) -> None:
     print("identifiability: " + fit.identifiability.summary().replace("\n", "\n  "))
 
 
-def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[dict[str, Any]]) -> dict[str, Any]:
+def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str, str],
+                       args: argparse.Namespace) -> dict[str, Any]:
+    """Profile-likelihood intervals of every weak parameter and of every free one correlated with it (|ρ| ≥
+    :data:`PROFILE_CORRELATION`), progress on stderr, the 68.3 and 95.4 % intervals printed; ``{}`` when none is weak."""
+    from ..hall.material_profile import profile_interval
+
+    rep = fit.identifiability
+    params = rep.parameters
+    chosen = [p for p in params if p in weak]
+    for p in params:
+        if p in chosen or p in rep.fixed or p in rep.not_identifiable:
+            continue
+        i = params.index(p)
+        if any(abs(fit.correlation[i, params.index(w)]) >= PROFILE_CORRELATION for w in weak):
+            chosen.append(p)
+    out = {}
+    for p in chosen:
+        def progress(value: float, delta: float, p: str = p) -> None:
+            unit = "" if p.endswith(":eps_r") else " S/m"
+            print(f"  profile of {p.replace('ln_sigma', 'sigma')}: {value:.4g}{unit}, chi2 - chi2(fit) = {delta:.4g}",
+                  file=sys.stderr, flush=True)
+
+        out[p] = profile_interval(scene, observations, fit, p, settings=trace_settings(args), progress=progress)
+        print(f"profile likelihood: {out[p].describe(1)}; {out[p].describe(2).split(': ', 1)[1]} "
+              f"({out[p].grid.size} points, {out[p].evaluations} evaluations, {out[p].seconds:.1f} s)")
+    return out
+
+
+def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[dict[str, Any]],
+                profiles: dict[str, Any] | None = None, written: dict[str, Any] | None = None) -> dict[str, Any]:
     """The ``material-fit.json`` document."""
     from .._version import __version__
 
     rep = fit.identifiability
+    profiles = profiles or {}
     return {
         "format": "risloc-material-fit", "version": 1, "risloc_rt_version": __version__,
         "source_scene": str(scene), "captures": records,
@@ -249,7 +288,21 @@ def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[d
                             "profile_cost_2sigma": {k: list(v) for k, v in rep.profile_cost_2sigma.items()},
                             "peaks_per_material": {m: int(np.asarray(rep.constrains)[:, q].sum())
                                                    for q, m in enumerate(fit.materials)}},
+        "profile_intervals": {
+            p.replace("ln_sigma", "sigma"): {
+                "unit": "unitless" if p.endswith(":eps_r") else "S/m", "best": prof.best_physical,
+                **{f"interval_{n}sigma": [_json_number(x) for x in prof.physical(n)] for n in prof.intervals},
+                "grid": [float(c) if p.endswith(":eps_r") else math.exp(c) for c in prof.grid],
+                "delta_chi2": [float(d) for d in prof.delta_chi2], "moved": prof.moved,
+                "evaluations": prof.evaluations, "seconds": prof.seconds}
+            for p, prof in profiles.items()},
+        "written": {m: list(v) for m, v in (written or {}).items()},
     }
+
+
+def _json_number(x: float) -> float | None:
+    """A float for JSON: an open interval end (inf) is null."""
+    return float(x) if math.isfinite(x) else None
 
 
 def run_materials(args: argparse.Namespace) -> int:
@@ -307,14 +360,22 @@ def run_materials(args: argparse.Namespace) -> int:
                        "eps_r >= 1, sigma within 4e-18..5e8 S/m): the peaks do not hold it there, so its 1-sigma means "
                        "nothing; hold it with --fixed NAME:eps_r (or NAME:sigma), or add radar positions")
     weak = {p: r for p, r in fit.identifiability.weak.items() if p not in held}
+    profiles = _profile_intervals(scene, observations, fit, weak, args)
     if weak and not getattr(args, "allow_weak", False):
         names_weak = ", ".join(p.replace("ln_sigma", "sigma") for p in weak)
-        raise CliError(f"no scene written: {names_weak}: {next(iter(weak.values()))}; such a sigma covered 28-45 % "
-                       "of the errors at 1 sigma on 58 emulated recordings "
-                       "(docs/calibration-materials.md): hold one parameter with --fixed NAME:eps_r, add radar "
-                       "positions that see the material at other angles, or give --allow-weak to write it with "
-                       "material-fit.json marking it weak")
-    write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records), force=args.force,
+        first = profiles[next(iter(weak))]
+        raise CliError(f"no scene written: {names_weak}: {next(iter(weak.values()))}; what the peaks do say is its "
+                       f"profile likelihood, {first.describe(1)}, {first.describe(2).split(': ', 1)[1]} "
+                       "(docs/calibration-materials.md): hold one parameter with --fixed NAME:sigma or NAME:eps_r, "
+                       "add radar positions that see the material at other angles, or give --allow-weak to write the "
+                       "profile's best value with material-fit.json stating these intervals")
+    moved = [p for p in profiles.values() if p.moved]
+    if moved:  # the fit had stopped in a local valley: the scene gets the lowest chi2 any profile found
+        best = min(moved, key=lambda p: p.chi2_min)
+        values = dict(best.values[int(np.argmin(best.delta_chi2))])
+        print(f"the profile of {best.parameter} found chi2 {best.chi2_min:.4g} < the fit's {fit.chi2:.4g}: written are "
+              "its values, " + ", ".join(f"{m} ({e:.4g}, {g:.4g} S/m)" for m, (e, g) in values.items()))
+    write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records, profiles, values), force=args.force,
                        note="captures: " + ", ".join(Path(c).name for c in args.capture))
     print(f"wrote {out} (spec.toml, scene.xml, meshes/, material-fit.json): use it as --scene {out}")
     return 0

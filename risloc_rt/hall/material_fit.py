@@ -518,7 +518,7 @@ def synthetic_observations(
     return observations, truths
 
 
-def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian) -> np.ndarray:
+def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian | None) -> np.ndarray:
     theta = np.empty(2 * len(materials))
     start = {} if start is None else start
     if not isinstance(start, Mapping):
@@ -527,7 +527,7 @@ def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian) 
         if name not in materials:
             raise ValueError(f"start names {name!r}, which is not among the fitted materials {', '.join(materials)}")
     for q, m in enumerate(materials):
-        eps, sigma = start.get(m, (own.relative_permittivity[q], own.conductivity[q]))
+        eps, sigma = start[m] if own is None else start.get(m, (own.relative_permittivity[q], own.conductivity[q]))
         if not (math.isfinite(eps) and eps >= 1.0):
             raise ValueError(f"start[{m!r}] eps_r={eps!r} must be finite and >= 1")
         if not (math.isfinite(sigma) and sigma > 0.0):
@@ -680,6 +680,7 @@ def fit_materials(
                     unexplained.append((i, k))
         q2 = 2 * len(names)
         return dict(residual=np.array(rows), jdb=np.array(jrows).reshape(-1, q2), w=np.array(wrows),
+                    theta_given=theta is not None,
                     touches=np.array(touch, dtype=bool).reshape(-1, len(names)), peaks=tuple(peaks),
                     unexplained=tuple(unexplained), jacs=jacs)
 
@@ -687,9 +688,16 @@ def fit_materials(
         names = tuple(m.strip() for m in materials.split(","))
     else:
         names = tuple(materials)
-    first = evaluate(None)
-    names = first["jacs"][0].materials
-    theta = _check_start(names, start, first["jacs"][0])
+    if isinstance(start, Mapping) and names and all(isinstance(m, str) and m in start for m in names):
+        # Every material starts from a given value (e.g. the profile scan's conditional fits): no trace at the
+        # scene's own values is needed.
+        theta = _check_start(names, start, None)
+        first = evaluate(theta)
+        names = first["jacs"][0].materials
+    else:
+        first = evaluate(None)
+        names = first["jacs"][0].materials
+        theta = _check_start(names, start, first["jacs"][0])
     params = tuple(f"{m}:{k}" for m in names for k in ("eps_r", "ln_sigma"))
     held = _fixed_parameters(fixed, names)
     mask = np.array([p in held for p in params], dtype=bool)
@@ -702,7 +710,7 @@ def fit_materials(
             why = ("its traced paths fall in no observed peak's window" if seen
                    else "no traced path from these radar positions interacts with its objects")
             raise ValueError(f"material {m!r} cannot be fitted: no explained peak touches it ({why})")
-    cur = first if start is None else evaluate(theta)
+    cur = first if start is None or first["theta_given"] else evaluate(theta)
     start_values = _values_of(names, theta)
     residual_start = cur["residual"].copy()
 

@@ -212,13 +212,31 @@ def test_cli_refuses_a_weak_fit_unless_allowed(changed_hall, tmp_path, capsys, m
     base = ["calibrate", cap0, "--scene", "paper_hall", "--materials", "concrete-200mm", "--out", str(out),
             "--fixed", "concrete-200mm:eps_r", *TRACE]
     assert main(base) == 2
-    last = capsys.readouterr().err.strip().splitlines()[-1]
+    captured = capsys.readouterr()
+    last = captured.err.strip().splitlines()[-1]
     assert last.startswith("risloc calibrate: error: no scene written: concrete-200mm:sigma: the cost rises by 0.05")
     assert "--allow-weak" in last and "--fixed" in last
+    # ... and says what the peaks do tell: σ's profile likelihood (ε_r held: the cost itself along ln σ).
+    assert "profile likelihood, concrete-200mm:sigma " in last and "68.3 % profile interval" in last
+    assert "profile of concrete-200mm:sigma: " in captured.err  # progress on stderr
     assert not out.exists()
     assert main(base + ["--allow-weak"]) == 0
     prov = json.loads((out / "material-fit.json").read_text())
     assert "concrete-200mm:ln_sigma" in prov["identifiability"]["weak"]
+    prof = prov["profile_intervals"]["concrete-200mm:sigma"]
+    assert prof["unit"] == "S/m" and set(prof) >= {"interval_1sigma", "interval_2sigma", "interval_3sigma", "grid"}
+    written = prov["written"]["concrete-200mm"][1]
+    assert written == pytest.approx(prov["materials"]["concrete-200mm"]["sigma_s_per_m"]) or prof["moved"]
+    grid, delta = np.array(prof["grid"]), np.array(prof["delta_chi2"])
+    assert np.all(np.diff(grid) > 0) and delta.min() == 0.0 and grid[np.argmin(delta)] == pytest.approx(written)
+    for n in (1, 2, 3):  # nested intervals around the written value; where closed, Δχ² = n² at the end (linear in
+        lo, hi = prof[f"interval_{n}sigma"]  # Δχ² between the two grid values around it)
+        assert (lo or 0.0) <= written <= (math.inf if hi is None else hi)
+        for end in (lo, hi):
+            if end not in (None, 0.0):
+                i = np.searchsorted(grid, end)  # the profile is traced in ln σ
+                assert np.interp(math.log(end), np.log(grid[i - 1:i + 1]), delta[i - 1:i + 1]) == pytest.approx(n * n,
+                                                                                                                 abs=1e-6)
 
 
 def test_repeat_groups_are_one_position_and_one_calibration():
