@@ -23,11 +23,11 @@ one of two valleys), the free fit is run again from there, χ²_min is its minim
 Coordinates: ε_r [unitless] as it is, σ in ln σ [ln(S/m)], the fit's own parameters. Intervals are
 returned in both (``interval`` in the coordinate, ``physical`` in ε_r or S/m).
 
-Cost: one conditional fit per grid point (relative tolerance 1e-4, 1–6 tracer evaluations each: every
-radar position traced and differentiated once per evaluation). The step starts at the Fisher 1σ,
+Cost: one conditional fit per grid point (stopped when a step lowers χ² by less than 0.01, or by 0.2 %;
+mostly 2–3 tracer evaluations each: every radar position traced and differentiated once per evaluation). The step starts at the Fisher 1σ,
 doubles while the profile rises by less than 0.5 in χ² per step and halves where it rises by more
 than 3, so a flat side reaches its limit in a few steps; then every interval end is bisected (at most
-6 times) until the grid values around it differ by at most 0.25 in Δχ², and the end is interpolated
+6 times) until the grid values around it differ by at most 0.5 in Δχ², and the end is interpolated
 linearly in Δχ² between them.
 """
 
@@ -57,9 +57,10 @@ EPS_R_SCAN: tuple[float, float] = (1.0, 30.0)
 #: Step bounds in the coordinate: ln σ [ln(S/m)], ε_r [unitless].
 _STEP = {"ln_sigma": (0.05, 1.5), "eps_r": (0.002, 2.0)}
 _MOVED = 0.05  # a conditional fit lower than the fit by more than this in χ² moves the reference
-_TOLERANCE = 1e-4  # the conditional fits' relative convergence (χ² to ~0.01 at the halls' χ² of 20-100)
+_COST_TOLERANCE = 0.005  # the conditional fits stop when a step lowers ½χ² by less than this (χ² to ~0.01) ...
+_TOLERANCE = 1e-3  # ... or by less than this share of it
 _BISECTIONS = 6  # most bisections per interval end
-_RESOLUTION = 0.25  # Δχ² between the two grid values an interval end is interpolated between, at most
+_RESOLUTION = 0.5  # Δχ² between the two grid values an interval end is interpolated between, at most
 
 
 @dataclass(frozen=True)
@@ -328,6 +329,7 @@ def profile_interval(
     sd = float(fit.relative_permittivity_sigma[q] if kind == "eps_r" else fit.log_conductivity_sigma[q])
     h0 = min(max(sd if math.isfinite(sd) and sd > 0 else h_max, h_min), h_max)
     stop = max(LEVELS) ** 2 + 1.0
+    tolerance = min(_TOLERANCE, _COST_TOLERANCE / max(0.5 * fit.chi2, 1e-9))
     points: dict[float, tuple[float, dict[str, tuple[float, float]]]] = {theta_fit: (fit.chi2, fit_values)}
     evaluations = 0
 
@@ -343,7 +345,7 @@ def profile_interval(
         # Nothing else free (one material, its other parameter held): the profile is the cost itself.
         cond = fit_materials(scene, observations, fit.materials, start=set_value(values, c), settings=settings,
                              window=window, threshold=threshold, max_iter=max_iter if others else 0,
-                             tolerance=_TOLERANCE, profile_check=False,
+                             tolerance=tolerance, profile_check=False,
                              fixed=[*held, name.replace("ln_sigma", "sigma")] if others else held)
         evaluations += cond.evaluations
         out = {m: (float(cond.relative_permittivity[i]), float(cond.conductivity[i])) for i, m in enumerate(cond.materials)}
@@ -363,7 +365,7 @@ def profile_interval(
                 break
             rise = abs(points[c][0] - before)
             h = min(2.0 * h, h_max) if rise < 0.5 else max(0.5 * h, h_min) if rise > 3.0 else h
-    # 2. Every interval end bisected until the grid values around it differ by at most 0.25 in Δχ² (or lie h_min
+    # 2. Every interval end bisected until the grid values around it differ by at most 0.5 in Δχ² (or lie h_min
     # apart). 3. If the scan or the bisections found a lower valley than the fit's: the free fit again from its best
     # grid value, so that Δχ² is measured from that valley's minimum, and the ends bisected again.
     refitted = False
@@ -383,7 +385,7 @@ def profile_interval(
             break
         refitted = True
         refit = fit_materials(scene, observations, fit.materials, start=points[grid[i_best]][1], settings=settings,
-                              window=window, threshold=threshold, max_iter=max_iter, tolerance=_TOLERANCE,
+                              window=window, threshold=threshold, max_iter=max_iter, tolerance=tolerance,
                               profile_check=False, fixed=held)
         evaluations += refit.evaluations
         c = float(refit.relative_permittivity[q]) if kind == "eps_r" else math.log(float(refit.conductivity[q]))
