@@ -156,14 +156,16 @@ def rms(xs) -> float:
 def profile_rows(scene: Path, obs: list, free) -> dict:
     """The profile-likelihood intervals of ε_r and σ of the free fit (module docstring): ends at 1, 2, 3σ-equivalents,
     whether each holds the truth, the scan's cost."""
-    out = {}
+    at_truth = fit_materials(scene, obs, [MATERIAL], settings=SETTINGS, start=TRUE, max_iter=0, profile_check=False)
+    out = {"chi2_fit": free.chi2, "chi2_truth": at_truth.chi2, "dof": len(free.residuals_db) - 2}
+    print(f"      chi2 {free.chi2:.2f} at the fit, {at_truth.chi2:.2f} at the truth ({out['dof']} degrees of freedom)")
     for kind, truth in (("eps_r", TRUE[MATERIAL][0]), ("sigma", TRUE[MATERIAL][1])):
         prof = profile_interval(scene, obs, free, f"{MATERIAL}:{kind}", settings=SETTINGS)
         out[f"profile_{kind}"] = {"best": prof.best_physical, "moved": prof.moved, "evaluations": prof.evaluations,
                                   "seconds": prof.seconds, "points": int(prof.grid.size),
                                   **{f"n{n}": list(prof.physical(n)) for n in LEVELS},
                                   **{f"covers{n}": prof.covers(truth, n) for n in LEVELS}}
-        print(f"      profile: {prof.describe(1)}; {prof.describe(2).split(': ', 1)[1]} (true {truth}; "
+        print(f"      profile: {prof.describe(1)}; 95.4 %: {prof.span(2)} (true {truth}; "
               f"{prof.grid.size} points, {prof.evaluations} evaluations, {prof.seconds:.1f} s)")
     return out
 

@@ -256,7 +256,7 @@ def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str
                   file=sys.stderr, flush=True)
 
         out[p] = profile_interval(scene, observations, fit, p, settings=trace_settings(args), progress=progress)
-        print(f"profile likelihood: {out[p].describe(1)}; {out[p].describe(2).split(': ', 1)[1]} "
+        print(f"profile likelihood: {out[p].describe(1)}; 95.4 %: {out[p].span(2)}; 99.7 %: {out[p].span(3)} "
               f"({out[p].grid.size} points, {out[p].evaluations} evaluations, {out[p].seconds:.1f} s)")
     return out
 
@@ -365,7 +365,7 @@ def run_materials(args: argparse.Namespace) -> int:
         names_weak = ", ".join(p.replace("ln_sigma", "sigma") for p in weak)
         first = profiles[next(iter(weak))]
         raise CliError(f"no scene written: {names_weak}: {next(iter(weak.values()))}; what the peaks do say is its "
-                       f"profile likelihood, {first.describe(1)}, {first.describe(2).split(': ', 1)[1]} "
+                       f"profile likelihood, {first.describe(1)}; 95.4 %: {first.span(2)} "
                        "(docs/calibration-materials.md): hold one parameter with --fixed NAME:sigma or NAME:eps_r, "
                        "add radar positions that see the material at other angles, or give --allow-weak to write the "
                        "profile's best value with material-fit.json stating these intervals")

@@ -162,8 +162,8 @@ class ProfileInterval:
         lo, hi = self.physical(level)
         return lo <= value <= hi
 
-    def describe(self, level: int = 1) -> str:
-        """One line: the parameter, its best value and the level-n interval (open ends said as bounds).
+    def span(self, level: int = 1) -> str:
+        """The level-n interval in words, open ends said as bounds.
 
         Parameters
         ----------
@@ -173,21 +173,36 @@ class ProfileInterval:
         Returns
         -------
         str
-            E.g. ``"concrete:sigma 0.31 S/m, 68.3 % profile interval: sigma <= 2.4 S/m"``.
+            E.g. ``"0.121 <= sigma <= 1.27 S/m"``, ``"sigma >= 0.1 S/m (no upper bound up to 1e+03 S/m)"``.
         """
         lo, hi = self._interval(level)
         name, unit = (("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m"))
-        share = {1: "68.3", 2: "95.4", 3: "99.7"}[level]
         lo_p, hi_p = self.physical(level)
         if math.isinf(lo) and math.isinf(hi):
-            span = f"not bounded within the scan ({_fmt(self._limit_physical(0))}..{_fmt(self._limit_physical(1))}{unit})"
-        elif math.isinf(hi):
-            span = f"{name} >= {_fmt(lo_p)}{unit} (no upper bound up to {_fmt(self._limit_physical(1))}{unit})"
-        elif math.isinf(lo):
-            span = f"{name} <= {_fmt(hi_p)}{unit} (no lower bound down to {_fmt(self._limit_physical(0))}{unit})"
-        else:
-            span = f"{_fmt(lo_p)} <= {name} <= {_fmt(hi_p)}{unit}"
-        return (f"{self.material}:{name} {_fmt(self.best_physical)}{unit}, {share} % profile interval: {span}"
+            return f"not bounded within the scan ({_fmt(self._limit_physical(0))}..{_fmt(self._limit_physical(1))}{unit})"
+        if math.isinf(hi):
+            return f"{name} >= {_fmt(lo_p)}{unit} (no upper bound up to {_fmt(self._limit_physical(1))}{unit})"
+        if math.isinf(lo):
+            return f"{name} <= {_fmt(hi_p)}{unit} (no lower bound down to {_fmt(self._limit_physical(0))}{unit})"
+        return f"{_fmt(lo_p)} <= {name} <= {_fmt(hi_p)}{unit}"
+
+    def describe(self, level: int = 1) -> str:
+        """One line: the parameter, its best value and the level-n interval (:meth:`span`).
+
+        Parameters
+        ----------
+        level : int
+            One of :data:`LEVELS`.
+
+        Returns
+        -------
+        str
+            E.g. ``"concrete-200mm:sigma 0.144 S/m, 68.3 % profile interval: 0.121 <= sigma <= 1.27 S/m"``, and
+            a note when the profile found a lower χ² than the fit.
+        """
+        name, unit = (("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m"))
+        share = {1: "68.3", 2: "95.4", 3: "99.7"}[level] if level in (1, 2, 3) else str(level)
+        return (f"{self.material}:{name} {_fmt(self.best_physical)}{unit}, {share} % profile interval: {self.span(level)}"
                 + ("; the scan found a lower chi2 than the fit (the fit had stopped in a local valley)" if self.moved else ""))
 
     def _interval(self, level: int) -> tuple[float, float]:

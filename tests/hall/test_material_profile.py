@@ -89,7 +89,7 @@ def test_a_bound_on_one_side_only(monkeypatch):
         lo, hi = prof.intervals[n]
         assert hi == math.inf
         assert lo == pytest.approx(S0 - n, abs=0.05)
-        assert prof.describe(n).split(": ", 1)[1].startswith("sigma >= ")
+        assert prof.span(n).startswith("sigma >= ") and prof.span(n) in prof.describe(n)
         assert "no upper bound up to 1e+03 S/m" in prof.describe(n)
 
 
