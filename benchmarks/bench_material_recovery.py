@@ -57,7 +57,7 @@ from risloc_rt.hall.scenario import hall_paths, hall_scenario
 from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
 from risloc_rt.measured.compare.comparison import compare_capture
 from risloc_rt.measured.compare.material_peaks import capture_observation
-from risloc_rt.measured.compare.sweep_mean_peaks import sweep_mean_observation
+from risloc_rt.measured.compare.sweep_mean_peaks import sweep_mean_observation, weighted_power_residuals
 from risloc_rt.measured.compare.traced_hall import hall_model
 
 MATERIAL = "concrete-200mm"
@@ -133,19 +133,20 @@ def incidence_angles(scene: Path, position: np.ndarray, delay: float, label: str
     return angles
 
 
-def static_residuals(captures: list, scene, profile: str) -> tuple[list[float], list[float], list[float]]:
-    """Power [dB] and delay [mm] residuals of the explained static (non-RIS) peaks, and of every explained peak [dB]
-    (the sweep mean of all ``captures``, repeats of one position; the best beam of the first)."""
+def static_residuals(captures: list, scene, profile: str) -> tuple[list[float], list[float], list[float], list[float]]:
+    """Power [dB] and delay [mm] residuals of the explained static (non-RIS) peaks, of every explained peak [dB],
+    and the static peaks' power σ [dB] (sweep mean only; [] for the best beam) (the sweep mean of all ``captures``,
+    repeats of one position; the best beam of the first)."""
     capture = captures[0]
     model = hall_model(capture, scene, capture.truth.ue_position, trace=SETTINGS)
     if profile == "sweep-mean":
         peaks = sweep_mean_observation(capture, model, [MATERIAL], settings=SETTINGS, repeats=captures[1:]).used
         power = [p["power_residual_db"] for p in peaks]
-        return power, [p["delay_residual_mm"] for p in peaks], power
+        return power, [p["delay_residual_mm"] for p in peaks], power, [p["sigma_db"] for p in peaks]
     comp = compare_capture(capture, model)
     static = [p for p in comp.peaks if p["explained"] and p["label"].startswith("hall:")]
     every = [p["power_residual_db"] for p in comp.peaks if p["explained"]]
-    return [p["power_residual_db"] for p in static], [p["delay_residual_mm"] for p in static], every
+    return [p["power_residual_db"] for p in static], [p["delay_residual_mm"] for p in static], every, []
 
 
 def rms(xs) -> float:
@@ -251,16 +252,24 @@ def captures_part(root: Path, seed: int, profile: str = "best-beam", model_sigma
     shutil.rmtree(fitted, ignore_errors=True)
     write_fitted_scene("paper_hall", fitted, {MATERIAL: values}, {"seed": seed})
     held = recordings(true_scene, HELD_OUT, root, f"rec{seed}_held", seed * 10 + 9, repeats)
-    p0, d0, a0 = static_residuals(held, scene, profile)
-    p1, d1, a1 = static_residuals(held, fitted, profile)
-    p_true = static_residuals(held, true_scene, profile)[0]
+    p0, d0, a0, s0 = static_residuals(held, scene, profile)
+    p1, d1, a1, s1 = static_residuals(held, fitted, profile)
+    p_true, _, _, s_true = static_residuals(held, true_scene, profile)
+    judged = {name: weighted_power_residuals(p, sd) if sd else (None, None)
+              for name, p, sd in (("before", p0, s0), ("after", p1, s1), ("true", p_true, s_true))}
     print(f"  held-out {np.round(HELD_OUT, 3).tolist()} with fit ({which}): static power residuals "
           f"{np.round(p0, 3).tolist()} -> {np.round(p1, 3).tolist()} dB (rms {rms(p0):.3f} -> {rms(p1):.3f}; against "
           f"the true hall {rms(p_true):.3f}); delay {np.round(d0, 3).tolist()} -> {np.round(d1, 3).tolist()} mm; every "
           f"explained peak rms {rms(a0):.3f} -> {rms(a1):.3f} dB (recording {t_rec:.1f} s)")
+    if s1:
+        print("      weighted by 1/sigma^2: " + "; ".join(
+            f"{name} {w:.3f} dB, chi2 {c:.2f} for {n} peaks" for name, (w, c), n in
+            zip(judged, judged.values(), (len(p0), len(p1), len(p_true)))))
     row.update(held_with=which, held_values=list(values), held_sigma=sigma, held_d_sigma=d_sigma,
                held_fit_s=held_fit.seconds, before=rms(p0), after=rms(p1), delay_before=rms(d0), delay_after=rms(d1),
-               true_hall=rms(p_true))
+               true_hall=rms(p_true), peaks_held=[len(p0), len(p1), len(p_true)],
+               **{f"weighted_{k}": v[0] for k, v in judged.items()}, **{f"chi2_{k}": v[1] for k, v in judged.items()},
+               strong_delay_after=[d for d, sd in zip(d1, s1) if sd <= 0.5])
     return row
 
 
@@ -365,6 +374,14 @@ def main() -> None:
             for sub in root.glob(f"rec{seed}_*"):
                 shutil.rmtree(sub, ignore_errors=True)
         helds = [r for r in rows if "before" in r]
+        if helds and helds[0].get("weighted_after") is not None:
+            print(f"over {len(helds)} seeds, each peak weighted by 1/sigma^2: held-out power "
+                  f"{np.mean([r['weighted_before'] for r in helds]):.3f} -> {np.mean([r['weighted_after'] for r in helds]):.3f}"
+                  f" dB (mean; the true hall {np.mean([r['weighted_true'] for r in helds]):.3f}); chi2 per peak "
+                  f"{np.mean([r['chi2_before'] / r['peaks_held'][0] for r in helds]):.2f} -> "
+                  f"{np.mean([r['chi2_after'] / r['peaks_held'][1] for r in helds]):.2f} (the true hall "
+                  f"{np.mean([r['chi2_true'] / r['peaks_held'][2] for r in helds]):.2f}); delays of the peaks with "
+                  f"sigma <= 0.5 dB: rms {rms([d for r in helds for d in r['strong_delay_after']]):.3f} mm")
         if len(helds) > 1:
             print(f"over {len(helds)} seeds: held-out static power rms before {np.mean([r['before'] for r in helds]):.3f}, "
                   f"after {np.mean([r['after'] for r in helds]):.3f} dB (mean); fell in "

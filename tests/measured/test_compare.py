@@ -296,6 +296,36 @@ def test_baseline_scene_sets_the_residuals_before_and_after(injected_hall, pages
     assert moved == pytest.approx(-gain_db, abs=0.1), (moved, gain_db)
     assert sm["peaks"][i]["sigma_db"] < 0.5 * abs(gain_db)  # the mean reads it well inside the change
     assert 'id="sweep-mean"' in page and "Static peaks of the sweep mean" in page
+    # each residual judged by its own σ: recomputed here from the table, before and after
+    for doc in (sm, sm_before):
+        r = np.array([p["power_residual_db"] for p in doc["peaks"]])
+        w = 1.0 / np.array([p["sigma_db"] for p in doc["peaks"]]) ** 2
+        assert doc["power_chi2"] == pytest.approx(float(np.sum(w * r * r)), rel=1e-12)
+        assert doc["power_residual_weighted_rms_db"] == pytest.approx(float(np.sqrt(np.sum(w * r * r) / np.sum(w))),
+                                                                      rel=1e-12)
+    assert sm["baseline"]["power_chi2"] == sm_before["power_chi2"]
+    assert sm["baseline"]["peaks_explained"] == len(sm_before["peaks"])
+    assert f"χ² {sm['power_chi2']:.3f} for {len(sm['peaks'])} peak(s)" in page
+    assert f"χ² {sm_before['power_chi2']:.3f} for {len(sm_before['peaks'])} peak(s)" in page
+
+
+def test_weighted_power_residuals_follow_chi2():
+    """Residuals drawn with their stated σ: χ² has mean K and variance 2K (χ²_K), the weighted rms equals the plain
+    one when every σ is equal; bad input is one line."""
+    from risloc_rt.measured.compare.sweep_mean_peaks import weighted_power_residuals
+
+    rng = np.random.default_rng(5)
+    sd = np.array([0.3, 0.3, 0.5, 0.8, 1.0])
+    chi2 = np.array([weighted_power_residuals(rng.normal(0.0, sd), sd)[1] for _ in range(4000)])
+    assert chi2.mean() == pytest.approx(5.0, abs=4 * np.sqrt(10 / 4000))
+    assert chi2.var() == pytest.approx(10.0, rel=0.15)
+    r = np.array([0.2, -0.4, 0.1])
+    assert weighted_power_residuals(r, [0.5] * 3)[0] == pytest.approx(float(np.sqrt(np.mean(r ** 2))), rel=1e-12)
+    assert weighted_power_residuals([], []) == (None, None)
+    for bad, words in ((([0.1], [0.0]), "sigma_db finite and > 0"), (([0.1, 0.2], [0.5]), "one entry per peak")):
+        with pytest.raises(ValueError, match=words) as err:
+            weighted_power_residuals(*bad)
+        assert "\n" not in str(err.value)
 
 
 @pytest.mark.slow

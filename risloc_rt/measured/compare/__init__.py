@@ -39,6 +39,7 @@ _EXPORTS = {
     "sweep_mean_observation": "sweep_mean_peaks", "sweep_mean_power_sigma_db": "sweep_mean_peaks",
     "sweep_mean_profile": "sweep_mean_peaks", "sweep_mean_profiles": "sweep_mean_peaks",
     "sweep_mean_residuals": "sweep_mean_peaks", "joint_mean_frame": "sweep_mean_peaks",
+    "weighted_power_residuals": "sweep_mean_peaks",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import html
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -214,6 +215,7 @@ def sweep_mean_document(scene: dict[str, Any], baseline: dict[str, Any] | None =
     -------
     dict
         ``scene``'s document, with ``baseline`` (its ``power_residual_rms_db`` [dB], ``delay_residual_rms_mm`` [mm],
+        ``power_residual_weighted_rms_db`` [dB], ``power_chi2`` over its ``peaks_explained`` peaks,
         ``peaks``: per peak of ``scene`` the baseline's ``power_residual_db`` and ``delay_residual_mm``, None where
         the baseline hall leaves that peak out) when a baseline is given.
     """
@@ -221,8 +223,9 @@ def sweep_mean_document(scene: dict[str, Any], baseline: dict[str, Any] | None =
     if baseline is not None:
         by_range = {round(p["distance_m"], 9): p for p in baseline["peaks"]}
         doc["baseline"] = {
-            "power_residual_rms_db": baseline["power_residual_rms_db"],
-            "delay_residual_rms_mm": baseline["delay_residual_rms_mm"],
+            **{k: baseline.get(k) for k in ("power_residual_rms_db", "delay_residual_rms_mm",
+                                            "power_residual_weighted_rms_db", "power_chi2")},
+            "peaks_explained": len(baseline["peaks"]),
             "peaks": [{k: (by_range.get(round(p["distance_m"], 9)) or {}).get(k)
                        for k in ("power_residual_db", "delay_residual_mm")} for p in scene["peaks"]]}
     return doc
@@ -242,11 +245,15 @@ def _sweep_mean_html(doc: dict[str, Any]) -> str:
         + (f"<td>{_fmt(base['peaks'][i]['power_residual_db'], 2)}</td><td>{_fmt(base['peaks'][i]['delay_residual_mm'], 2)}"
            f"</td>" if base else "") + "</tr>"
         for i, p in enumerate(sm["peaks"]))
-    rms = (f"power residual rms {_fmt(sm['power_residual_rms_db'], 3)} dB, delay residual rms "
+    n = len(sm["peaks"])
+    rms = (f"power residual rms {_fmt(sm['power_residual_rms_db'], 3)} dB, weighted by 1/σ² "
+           f"{_fmt(sm.get('power_residual_weighted_rms_db'), 3)} dB, χ² {_fmt(sm.get('power_chi2'), 3)} for {n} peak(s) "
+           f"(a hall that predicts every peak within its noise: {n} ± {_fmt(math.sqrt(2 * n), 2)}); delay residual rms "
            f"{_fmt(sm['delay_residual_rms_mm'], 3)} mm")
     if base:
-        rms += (f" (baseline scene: {_fmt(base['power_residual_rms_db'], 3)} dB, "
-                f"{_fmt(base['delay_residual_rms_mm'], 3)} mm)")
+        rms += (f" (baseline scene: {_fmt(base['power_residual_rms_db'], 3)} dB, weighted "
+                f"{_fmt(base.get('power_residual_weighted_rms_db'), 3)} dB, χ² {_fmt(base.get('power_chi2'), 3)} for "
+                f"{base.get('peaks_explained', n)} peak(s); {_fmt(base['delay_residual_rms_mm'], 3)} mm)")
     left = len(sm["left_out"])
     return (f"<h2>Static peaks of the sweep mean</h2>\n<p>The complex mean over the sweep's {sm['beams']} beams: a "
             f"static echo keeps its power, the noise falls by the beam count (the peaks a material fit uses; "

@@ -86,7 +86,8 @@ from .material_peaks import DEFAULT_MODEL_SIGMA_DB, CapturePeaks, path_weights, 
 from .traced_hall import HallModel
 
 __all__ = ["MAX_BLEND_DB", "MIN_SNR_DB", "SweepMeanProfiles", "sweep_mean_observation", "sweep_mean_power_sigma_db",
-           "sweep_mean_profile", "sweep_mean_profiles", "sweep_mean_residuals", "joint_mean_frame"]
+           "sweep_mean_profile", "sweep_mean_profiles", "sweep_mean_residuals", "joint_mean_frame",
+           "weighted_power_residuals"]
 
 #: A peak whose expected power exceeds the coherent sum of its own static paths by more than this [dB] is left out.
 MAX_BLEND_DB: float = 1.0
@@ -325,6 +326,39 @@ def _measured(c: dict[str, Any], prof: SweepMeanProfiles, noise: float, capture:
                                                 capture.processing)}
 
 
+def weighted_power_residuals(residual_db: Any, sigma_db: Any) -> tuple[float | None, float | None]:
+    """How well a hall predicts peak powers, judged by each peak's own σ.
+
+    A plain rms is set by the weakest peaks (σ 0.8–1 dB at 17–19 dB SNR, for the true hall too); weighted by
+    1/σ², the well-measured peaks count as they should.
+
+    Parameters
+    ----------
+    residual_db : float array [K]
+        Measured − predicted power of each peak [dB].
+    sigma_db : float array [K]
+        Each peak's 1σ [dB], > 0.
+
+    Returns
+    -------
+    weighted_rms_db : float or None
+        sqrt(Σ r²/σ² / Σ 1/σ²) [dB]; None for no peak.
+    chi2 : float or None
+        Σ (r/σ)² [unitless]: for a hall that predicts every peak within its noise, χ² is distributed as
+        χ²_K (mean K, sd √(2K)); None for no peak.
+    """
+    r = np.asarray(residual_db, dtype=float).reshape(-1)
+    sd = np.asarray(sigma_db, dtype=float).reshape(-1)
+    if r.size != sd.size:
+        raise ValueError(f"residual_db and sigma_db must have one entry per peak; got {r.size} and {sd.size}")
+    if not r.size:
+        return None, None
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(sd)) and np.all(sd > 0)):
+        raise ValueError("residual_db must be finite and sigma_db finite and > 0 [dB]")
+    w = 1.0 / sd ** 2
+    return float(np.sqrt(np.sum(w * r * r) / np.sum(w))), float(np.sum(w * r * r))
+
+
 def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
                          calibration: Calibration | None = None, *, model_sigma_db: float = DEFAULT_MODEL_SIGMA_DB,
                          prominence_db: float = 6.0, floor_db: float = 12.0, repeats: Any = ()) -> dict[str, Any]:
@@ -358,7 +392,8 @@ def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
         ``beams`` (M, over all repeats); ``peaks``: per static peak ``distance_m`` [m], ``label``, ``snr_db``, ``sigma_db`` [dB],
         ``power_residual_db`` [dB], ``delay_residual_mm``, ``delay_sigma_mm`` [mm]; ``left_out``: ``distance_m`` and
         ``reason`` of every other peak of the mean; ``power_residual_rms_db`` [dB] and ``delay_residual_rms_mm`` [mm]
-        over ``peaks`` (None without any).
+        over ``peaks``, ``power_residual_weighted_rms_db`` [dB] and ``power_chi2`` (each residual over its σ:
+        :func:`weighted_power_residuals`) (None without any).
     """
     prof = sweep_mean_profiles(capture, model, comparison, calibration, repeats)
     candidates, left = _mean_peaks(capture, model, prof, calibration, prominence_db=prominence_db, floor_db=floor_db)
@@ -378,9 +413,11 @@ def sweep_mean_residuals(capture: Any, model: HallModel, comparison: Comparison,
     def rms(key: str) -> float | None:
         return float(np.sqrt(np.mean([p[key] ** 2 for p in peaks]))) if peaks else None
 
+    weighted, chi2 = weighted_power_residuals([p["power_residual_db"] for p in peaks], [p["sigma_db"] for p in peaks])
     return {"beams": prof.beams, "peaks": peaks,
             "left_out": [{"distance_m": d, "reason": r} for d, r in sorted(left)],
-            "power_residual_rms_db": rms("power_residual_db"), "delay_residual_rms_mm": rms("delay_residual_mm")}
+            "power_residual_rms_db": rms("power_residual_db"), "delay_residual_rms_mm": rms("delay_residual_mm"),
+            "power_residual_weighted_rms_db": weighted, "power_chi2": chi2}
 
 
 def sweep_mean_observation(capture: Any, model: HallModel, materials: Any, *,
