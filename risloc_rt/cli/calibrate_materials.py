@@ -249,6 +249,9 @@ def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str
         if any(abs(fit.correlation[i, params.index(w)]) >= PROFILE_CORRELATION for w in weak):
             chosen.append(p)
     out = {}
+    if chosen:
+        print("the 1-sigma of " + ", ".join(p.replace("ln_sigma", "sigma") for p in chosen) + " in the table above is a "
+              "local figure (weak, or correlated with a weak parameter); their profile likelihoods follow")
     for p in chosen:
         def progress(value: float, delta: float, p: str = p) -> None:
             unit = "" if p.endswith(":eps_r") else " S/m"
