@@ -5,8 +5,10 @@ solution. Its profile check re-traces ±1σ and ±2σ and calls a parameter **we
 not rise like a parabola there. That happens for a concrete wall's conductivity at 60 GHz: the loss
 tangent enters a reflection at second order, a decade of σ moves the peaks by ≤ 0.4 dB, and the
 likelihood is a long flat valley that climbs only where the wall turns transparent (σ ≲ 0.2 S/m for
-0.2 m) or metallic. A local 1σ there covered 12–38 % of the errors over 50 fits of emulated
-recordings (``docs/calibration-materials.md``): it is no statement a paper can carry.
+0.2 m) or metallic. A local 1σ there held 12 % of the errors at 1σ and 38 % at 3σ over 50 fits of
+emulated recordings (``docs/calibration-materials.md``): no statement a paper can carry. Over 28 such
+fits the profile intervals below held the truth in 96 / 100 / 100 % (σ) and 75 / 96 / 100 % (ε_r) at
+1σ / 2σ / 3σ.
 
 This module states what the data do say, the **profile likelihood**: the parameter is stepped
 outward from the fit on both sides; at every step it is held while every other free parameter is
@@ -21,14 +23,17 @@ one of two valleys), the free fit is run again from there, χ²_min is its minim
 (the scan stops there).
 
 Coordinates: ε_r [unitless] as it is, σ in ln σ [ln(S/m)], the fit's own parameters. Intervals are
-returned in both (``interval`` in the coordinate, ``physical`` in ε_r or S/m).
+returned in both (:attr:`ProfileInterval.intervals` in the coordinate, :meth:`ProfileInterval.physical`
+in ε_r or S/m).
 
-Cost: one conditional fit per grid point (stopped when a step lowers χ² by less than 0.01, or by 0.2 %;
-mostly 2–3 tracer evaluations each: every radar position traced and differentiated once per evaluation). The step starts at the Fisher 1σ,
-doubles while the profile rises by less than 0.5 in χ² per step and halves where it rises by more
-than 3, so a flat side reaches its limit in a few steps; then every interval end is bisected (at most
-6 times) until the grid values around it differ by at most 0.5 in Δχ², and the end is interpolated
-linearly in Δχ² between them.
+Cost: one conditional fit per grid point, stopped when a step lowers χ² by less than 0.01 or 0.1 %,
+whichever is smaller (mostly 1–3 tracer evaluations each: every radar position traced and
+differentiated once per evaluation). The step starts at the Fisher 1σ, doubles while the profile
+rises by less than 0.5 in χ² per step and halves where it rises by more than 3, so a flat side
+reaches its limit in a few steps; then every interval end is bisected (at most 6 times) until the
+grid values around it differ by at most 0.5 in Δχ², and the end is interpolated linearly in Δχ²
+between them. Measured on 28 fits of emulated recordings: 38–82 evaluations for σ of concrete,
+39–268 for its ε_r (at each ε_r the conditional fit moves σ along its flat valley).
 """
 
 from __future__ import annotations
@@ -81,7 +86,8 @@ class ProfileInterval:
     best : float
         The grid value with the lowest χ² [coordinate].
     chi2_min : float
-        The lowest χ² found (the fit's, or a conditional fit's when lower) [unitless].
+        The lowest χ² found (the fit's, or a conditional fit's or the fit run again from it when lower by more
+        than 0.05) [unitless].
     moved : bool
         A conditional fit found a χ² lower than the fit's by more than 0.05: the fit had stopped in a
         local valley, and ``best`` / ``values`` there are the better solution.
