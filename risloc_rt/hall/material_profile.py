@@ -6,8 +6,8 @@ not rise like a parabola there. That happens for a concrete wall's conductivity 
 tangent enters a reflection at second order, a decade of σ moves the peaks by ≤ 0.4 dB, and the
 likelihood is a long flat valley that climbs only where the wall turns transparent (σ ≲ 0.2 S/m for
 0.2 m) or metallic. A local 1σ there held 12 % of the errors at 1σ and 38 % at 3σ over 50 fits of
-emulated recordings (``docs/calibration-materials.md``): no statement a paper can carry. Over 28 such
-fits the profile intervals below held the truth in 96 / 100 / 100 % (σ) and 75 / 96 / 100 % (ε_r) at
+emulated recordings (``docs/calibration-materials.md``): no statement a paper can carry. Over 40 such
+fits the profile intervals below held the truth in 93 / 100 / 100 % (σ) and 78 / 98 / 100 % (ε_r) at
 1σ / 2σ / 3σ.
 
 This module states what the data do say, the **profile likelihood**: the parameter is stepped
@@ -32,7 +32,7 @@ differentiated once per evaluation). The step starts at the Fisher 1σ, doubles 
 rises by less than 0.5 in χ² per step and halves where it rises by more than 3, so a flat side
 reaches its limit in a few steps; then every interval end is bisected (at most 6 times) until the
 grid values around it differ by at most 0.5 in Δχ², and the end is interpolated linearly in Δχ²
-between them. Measured on 28 fits of emulated recordings: 38–82 evaluations for σ of concrete,
+between them. Measured on 40 fits of emulated recordings: 38–95 evaluations for σ of concrete,
 39–268 for its ε_r (at each ε_r the conditional fit moves σ along its flat valley).
 """
 
