@@ -65,6 +65,7 @@ _MOVED = 0.05  # a conditional fit lower than the fit by more than this in χ² 
 _COST_TOLERANCE = 0.005  # the conditional fits stop when a step lowers ½χ² by less than this (χ² to ~0.01) ...
 _TOLERANCE = 1e-3  # ... or by less than this share of it
 _BISECTIONS = 6  # most bisections per interval end
+_SHARES = {1: "68.3", 2: "95.4", 3: "99.7"}  # the share [%] of each level's interval
 _RESOLUTION = 0.5  # Δχ² between the two grid values an interval end is interpolated between, at most
 
 
@@ -182,7 +183,7 @@ class ProfileInterval:
             E.g. ``"0.121 <= sigma <= 1.27 S/m"``, ``"sigma >= 0.1 S/m (no upper bound up to 1e+03 S/m)"``.
         """
         lo, hi = self._interval(level)
-        name, unit = (("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m"))
+        name, unit = self._name_unit
         lo_p, hi_p = self.physical(level)
         if math.isinf(lo) and math.isinf(hi):
             return f"not bounded within the scan ({_fmt(self._limit_physical(0))}..{_fmt(self._limit_physical(1))}{unit})"
@@ -206,10 +207,14 @@ class ProfileInterval:
             E.g. ``"concrete-200mm:sigma 0.144 S/m, 68.3 % profile interval: 0.121 <= sigma <= 1.27 S/m"``, and
             a note when the profile found a lower χ² than the fit.
         """
-        name, unit = (("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m"))
-        share = {1: "68.3", 2: "95.4", 3: "99.7"}[level] if level in (1, 2, 3) else str(level)
-        return (f"{self.material}:{name} {_fmt(self.best_physical)}{unit}, {share} % profile interval: {self.span(level)}"
+        span = self.span(level)  # checks the level
+        name, unit = self._name_unit
+        return (f"{self.material}:{name} {_fmt(self.best_physical)}{unit}, {_SHARES[level]} % profile interval: {span}"
                 + ("; the scan found a lower chi2 than the fit (the fit had stopped in a local valley)" if self.moved else ""))
+
+    @property
+    def _name_unit(self) -> tuple[str, str]:
+        return ("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m")
 
     def _interval(self, level: int) -> tuple[float, float]:
         if level not in self.intervals:

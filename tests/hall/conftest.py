@@ -3,6 +3,9 @@
 The hall spans ``[0, L] × [0, W] × [0, H]``; each wall is a separate two-triangle mesh written with
 trimesh's PLY export, so sionna-rt keeps every wall as its own object (``merge_shapes=False``).
 ``box_hall.planes`` gives each wall's plane, from which the tests build image sources.
+
+``stand_in_tracer`` replaces the material tracer by three paths with closed-form powers, for the material
+fit's and the profile's tests whose likelihood must be known exactly.
 """
 
 from __future__ import annotations
@@ -111,3 +114,42 @@ def box_hall() -> BoxHall:
     thickness=0.2) -> hall.xml path`` (XML scene + six PLY walls) and ``write_wall(path, name, size)``
     (one wall as a binary PLY, for a hall of any ``size``)."""
     return BoxHall()
+
+
+#: The stand-in tracer's peaks: delays [s], the truth (ε_r 6.1, ln σ of 0.6 S/m) and each peak's 1σ [dB].
+STAND_IN_DELAYS = np.array([40e-9, 60e-9, 80e-9])
+
+
+@pytest.fixture
+def stand_in_tracer(monkeypatch):
+    """``make(sigma_peaks) -> [Observation]``: the material tracer replaced by three paths, one at
+    -60 + 3 (ε_r - 6.1) dB and two at -70 and -75 dB + f(ln σ), with ``sigma_peaks(ln σ) -> (f [dB], df/d ln σ)``;
+    the returned observation holds the noise-free powers at ε_r 6.1, σ 0.6 S/m, 1σ 0.5 dB per peak."""
+    import math
+    from types import SimpleNamespace
+
+    import risloc_rt.hall.material_fit as engine
+
+    def make(sigma_peaks):
+        def powers(eps, s):
+            f, df = sigma_peaks(s)
+            p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + f, -75.0 + f])
+            return p, np.array([3.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0]) * df
+
+        def fake_jacobian(scene, position, materials, *, values=None, settings=None):
+            name = materials[0] if not isinstance(materials, str) else materials
+            eps, sigma = (values or {}).get(name, (5.24, 1.136))
+            p, dp_eps, dp_s = powers(eps, math.log(sigma))
+            a = 10 ** (p / 20)
+            scale = a * math.log(10) / 20  # d|a| per dB
+            return SimpleNamespace(materials=(name,), relative_permittivity=np.array([eps]),
+                                   conductivity=np.array([sigma]), delay=STAND_IN_DELAYS, a=a.astype(complex),
+                                   d_eps=(scale * dp_eps)[:, None].astype(complex),
+                                   d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
+                                   touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)))
+
+        monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
+        truth, _, _ = powers(6.1, math.log(0.6))
+        return [engine.Observation([1.0, 2.0, 1.2], STAND_IN_DELAYS, truth, [0.5] * 3)]
+
+    return make

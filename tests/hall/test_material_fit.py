@@ -190,7 +190,7 @@ def test_a_thick_low_loss_walls_sigma_is_reported_weak():
     assert hi / lo > 3  # a decade of σ, not the Fisher ±0.035 S/m
 
 
-def test_a_likelihood_quadratic_over_one_sigma_and_flat_beyond_is_reported_weak(monkeypatch):
+def test_a_likelihood_quadratic_over_one_sigma_and_flat_beyond_is_reported_weak(stand_in_tracer):
     """Regression (2026-11-27): the profile check re-traced ±1σ only, and a likelihood that is quadratic-looking
     there but flat further out passed it (16-repeat emulated recordings put concrete's σ at 3.5 ± 1.2 S/m,
     true 0.6, not flagged). A stand-in tracer whose two σ-peaks move by A·tanh((ln σ − s₀)/w) [dB] (σ_p = 0.5 dB
@@ -198,35 +198,12 @@ def test_a_likelihood_quadratic_over_one_sigma_and_flat_beyond_is_reported_weak(
     ±1σ (inside [0.25, 1], as the old check wanted) and 2·(tanh 1.6/1.6)² = 0.66 at ±2σ (not 2): weak now.
     ε_r, on a peak linear in it (a quadratic likelihood), is not."""
     import math
-    from types import SimpleNamespace
 
     import risloc_rt.hall.material_fit as engine
 
     s0, w, sigma_p = math.log(0.6), 0.5, 0.5
     amp = sigma_p / (0.8 * math.sqrt(2.0))  # Fisher 1σ of ln σ = σ_p w / (A √2) = 0.8 w
-    delays = np.array([40e-9, 60e-9, 80e-9])
-
-    def powers(eps, s):  # [dB] of the three paths, and their derivatives in ε_r and ln σ
-        t = np.tanh((s - s0) / w)
-        p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + amp * t, -75.0 + amp * t])
-        dp_eps = np.array([3.0, 0.0, 0.0])
-        dp_s = np.array([0.0, 1.0, 1.0]) * amp * (1.0 - t * t) / w
-        return p, dp_eps, dp_s
-
-    def fake_jacobian(scene, position, materials, *, values=None, settings=None):
-        name = materials[0] if not isinstance(materials, str) else materials
-        eps, sigma = (values or {}).get(name, (5.24, 1.136))
-        p, dp_eps, dp_s = powers(eps, math.log(sigma))
-        a = 10 ** (p / 20)
-        scale = a * math.log(10) / 20  # d|a| per dB
-        return SimpleNamespace(materials=(name,), relative_permittivity=np.array([eps]), conductivity=np.array([sigma]),
-                               delay=delays, a=a.astype(complex), d_eps=(scale * dp_eps)[:, None].astype(complex),
-                               d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
-                               touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)))
-
-    monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
-    truth, _, _ = powers(6.1, s0)
-    obs = [Observation([1.0, 2.0, 1.2], delays, truth, [sigma_p] * 3)]
+    obs = stand_in_tracer(lambda s: (amp * math.tanh((s - s0) / w), amp * (1.0 - math.tanh((s - s0) / w) ** 2) / w))
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.8)})
     rep = fit.identifiability
     assert fit.value("concrete")[0] == pytest.approx(6.1, abs=1e-3)

@@ -1,57 +1,30 @@
 """Profile-likelihood intervals of a fitted material parameter (risloc_rt.hall.material_profile).
 
-Oracles: stand-in tracers whose peak powers are closed-form functions of ε_r and ln σ, so that the profile
-Δχ²(c) and the interval ends are known analytically; and, slow, the real tracer (the L hall, concrete alone,
-peaks made by the tracer at ε_r 6.1, σ 0.6 S/m with 0.5 dB noise), where the interval must hold the truth.
+Oracles: stand-in tracers (``stand_in_tracer`` in conftest.py) whose peak powers are closed-form functions of
+ε_r and ln σ, so that the profile Δχ²(c) and the interval ends are known analytically. The real tracer's
+check (the L hall, concrete alone, peaks made by the tracer at ε_r 6.1, σ 0.6 S/m with 0.5 dB noise, where the
+interval must hold the truth) is in test_material_fit.py's slow weak-σ test.
 """
 
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
 import risloc_rt.hall.material_fit as engine
-from risloc_rt.hall.material_profile import LEVELS, profile_interval
+from risloc_rt.hall.material_profile import profile_interval
 
-S0, W, SIGMA_P = math.log(0.6), 0.5, 0.5
-DELAYS = np.array([40e-9, 60e-9, 80e-9])
-
-
-def stand_in(monkeypatch, sigma_peaks):
-    """Replace the tracer by three paths: one at -60 + 3 (ε_r - 6.1) dB, two at ``sigma_peaks(ln σ)`` [dB] (with its
-    derivative); returns the noise-free observation at ε_r 6.1, σ 0.6 S/m (1σ 0.5 dB per peak)."""
-
-    def powers(eps, s):
-        f, df = sigma_peaks(s)
-        p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + f, -75.0 + f])
-        return p, np.array([3.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0]) * df
-
-    def fake_jacobian(scene, position, materials, *, values=None, settings=None):
-        name = materials[0] if not isinstance(materials, str) else materials
-        eps, sigma = (values or {}).get(name, (5.24, 1.136))
-        p, dp_eps, dp_s = powers(eps, math.log(sigma))
-        a = 10 ** (p / 20)
-        scale = a * math.log(10) / 20  # d|a| per dB
-        return SimpleNamespace(materials=(name,), relative_permittivity=np.array([eps]), conductivity=np.array([sigma]),
-                               delay=DELAYS, a=a.astype(complex), d_eps=(scale * dp_eps)[:, None].astype(complex),
-                               d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
-                               touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)))
-
-    monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
-    truth, _, _ = powers(6.1, S0)
-    return [engine.Observation([1.0, 2.0, 1.2], DELAYS, truth, [SIGMA_P] * 3)]
+S0, W, SIGMA_P = math.log(0.6), 0.5, 0.5  # the stand-in tracer's truth ln σ, its scale here, each peak's 1σ [dB]
 
 
-def test_flat_beyond_one_sigma_gives_the_analytic_interval_and_open_ends(monkeypatch):
+def test_flat_beyond_one_sigma_gives_the_analytic_interval_and_open_ends(stand_in_tracer):
     """The σ-peaks move by A·tanh((ln σ − s₀)/w) with A = σ_p/(0.8√2): χ²(ln σ) = tanh²(u)/0.64, u = (ln σ − s₀)/w,
     whose supremum 1.5625 is below 4. So the 68.3 % interval is where tanh u = ±0.8, ln σ = s₀ ± w·atanh 0.8
     (σ 0.3462 to 1.0398 S/m), and the 95.4 and 99.7 % ones are open on both sides: no bound, said as such.
     ε_r (a peak linear in it, 3 dB per unit, σ_p 0.5 dB) has the parabola's interval 6.1 ± n/6 at every level."""
     amp = SIGMA_P / (0.8 * math.sqrt(2.0))
-    obs = stand_in(monkeypatch, lambda s: (amp * math.tanh((s - S0) / W), amp * (1 - math.tanh((s - S0) / W) ** 2) / W))
+    obs = stand_in_tracer(lambda s: (amp * math.tanh((s - S0) / W), amp * (1 - math.tanh((s - S0) / W) ** 2) / W))
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.8)})
     assert "concrete:ln_sigma" in fit.identifiability.weak
     prof = profile_interval("stand-in", obs, fit, "concrete:sigma")
@@ -72,20 +45,20 @@ def test_flat_beyond_one_sigma_gives_the_analytic_interval_and_open_ends(monkeyp
     assert prof.describe(1).startswith("concrete:sigma 0.6 S/m, 68.3 % profile interval: 0.34")
 
     eps = profile_interval("stand-in", obs, fit, "concrete:eps_r")
-    for n in LEVELS:
+    for n in (1, 2, 3):
         assert eps.physical(n) == pytest.approx((6.1 - n / 6.0, 6.1 + n / 6.0), abs=0.01 * n / 6.0)
     assert eps.best_physical == pytest.approx(6.1, abs=1e-6)
 
 
-def test_a_bound_on_one_side_only(monkeypatch):
+def test_a_bound_on_one_side_only(stand_in_tracer):
     """The σ-peaks fall as A·(ln σ − s₀) below s₀ and do not move above it (a wall that turns transparent when σ
     falls, with no sign of σ above): χ² = 2A²u²/σ_p² below, 0 above. With A = σ_p/√2 per unit ln σ, Δχ² = u², so
     the interval's lower ends are s₀ − n and the upper ones are open: "sigma >= ..." at every level."""
     amp = SIGMA_P / math.sqrt(2.0)
-    obs = stand_in(monkeypatch, lambda s: (amp * min(s - S0, 0.0), amp * (1.0 if s < S0 else 0.0)))
+    obs = stand_in_tracer(lambda s: (amp * min(s - S0, 0.0), amp * (1.0 if s < S0 else 0.0)))
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.5)}, profile_check=False)
     prof = profile_interval("stand-in", obs, fit, "concrete:sigma")
-    for n in LEVELS:
+    for n in (1, 2, 3):
         lo, hi = prof.intervals[n]
         assert hi == math.inf
         assert lo == pytest.approx(S0 - n, abs=0.05)
@@ -93,7 +66,7 @@ def test_a_bound_on_one_side_only(monkeypatch):
         assert "no upper bound up to 1e+03 S/m" in prof.describe(n)
 
 
-def test_a_fit_in_the_shallower_of_two_valleys_is_moved(monkeypatch):
+def test_a_fit_in_the_shallower_of_two_valleys_is_moved(stand_in_tracer):
     """Two valleys in ln σ: the σ-peaks move by f(u) = 0.8 sin²(πu/2) + 0.1 u² [dB], u = (ln σ − s₀)/w, so
     χ² = 8 f² has its minimum 0 at u = 0 (the truth) and a local one of χ² ≈ 1.17 at u ≈ 1.9, behind a barrier
     of χ² ≈ 6.5 at u = 1. A fit that stopped in the local valley (here: placed there, ``max_iter=0``; Levenberg–
@@ -106,7 +79,7 @@ def test_a_fit_in_the_shallower_of_two_valleys_is_moved(monkeypatch):
         return (0.8 * math.sin(math.pi * u / 2.0) ** 2 + 0.1 * u * u,
                 (0.4 * math.pi * math.sin(math.pi * u) + 0.2 * u) / W)
 
-    obs = stand_in(monkeypatch, f)
+    obs = stand_in_tracer(f)
     u_local = brentq(lambda u: f(S0 + W * u)[1], 1.5, 1.99)
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.1, 0.6 * math.exp(u_local * W))},
                                profile_check=False, max_iter=0)
@@ -128,16 +101,16 @@ def test_a_fit_in_the_shallower_of_two_valleys_is_moved(monkeypatch):
     ("concrete:eps_r", {"limits": (0.5, 10.0)}, "eps_r below 1"),
     ("concrete:sigma", {"max_iter": 0}, "max_iter=0"),
 ])
-def test_bad_input_is_a_one_line_error(monkeypatch, parameter, kwargs, words):
-    obs = stand_in(monkeypatch, lambda s: (0.3 * s, 0.3))
+def test_bad_input_is_a_one_line_error(stand_in_tracer, parameter, kwargs, words):
+    obs = stand_in_tracer(lambda s: (0.3 * s, 0.3))
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.8)}, profile_check=False)
     with pytest.raises(ValueError, match=words) as err:
         profile_interval("stand-in", obs, fit, parameter, **kwargs)
     assert "\n" not in str(err.value)
 
 
-def test_a_held_parameter_has_no_profile(monkeypatch):
-    obs = stand_in(monkeypatch, lambda s: (0.3 * s, 0.3))
+def test_a_held_parameter_has_no_profile(stand_in_tracer):
+    obs = stand_in_tracer(lambda s: (0.3 * s, 0.3))
     fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.0, 0.8)}, fixed=["concrete:eps_r"],
                                profile_check=False)
     with pytest.raises(ValueError, match="was held in the fit"):
