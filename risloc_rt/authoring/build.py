@@ -89,10 +89,14 @@ def _float(x: float) -> str:
 
 
 def _bsdf(mat: MaterialSpec, frequency: float) -> list[str]:
+    # S is written only when non-zero, so scenes without scattering keep their bytes (and trace-cache keys).
+    rough = ([f'        <float name="scattering_coefficient" value="{_float(mat.scattering_coefficient)}"/>']
+             if mat.scattering_coefficient > 0 else [])
     if mat.itu is not None and not mat.needs_freeze():
         return [f'    <bsdf type="itu-radio-material" id="{mat.bsdf_id}">',
                 f'        <string name="type" value="{mat.itu}"/>',
                 f'        <float name="thickness" value="{_float(mat.thickness)}"/>',
+                *rough,
                 "    </bsdf>"]
     eps, sigma = mat.properties(frequency)
     lines = []
@@ -103,6 +107,7 @@ def _bsdf(mat: MaterialSpec, frequency: float) -> list[str]:
                     f'        <float name="relative_permittivity" value="{_float(eps)}"/>',
                     f'        <float name="conductivity" value="{_float(sigma)}"/>',
                     f'        <float name="thickness" value="{_float(mat.thickness)}"/>',
+                    *rough,
                     "    </bsdf>"]
 
 

@@ -135,6 +135,11 @@ class MaterialSpec:
         Real relative permittivity ε_r of a custom material [unitless], >= 1.
     conductivity : float or None
         Conductivity σ of a custom material [S/m], >= 0.
+    scattering_coefficient : float
+        sionna-rt's scattering coefficient S in [0, 1] [unitless] (default 0, a smooth surface): a
+        share S² of the reflected power leaves diffusely (Lambertian pattern), the specular
+        reflection keeps √(1 − S²) of its amplitude. A scene with a material of S > 0 is traced with
+        diffuse reflection on (:func:`risloc_rt.hall.raytrace.trace_scene`).
     """
 
     name: str
@@ -142,6 +147,7 @@ class MaterialSpec:
     itu: str | None = None
     permittivity: float | None = None
     conductivity: float | None = None
+    scattering_coefficient: float = 0.0
 
     @property
     def bsdf_id(self) -> str:
@@ -164,7 +170,8 @@ class MaterialSpec:
     def describe(self) -> str:
         """Short human-readable description, e.g. ``"concrete, 0.2 m"``."""
         kind = self.itu if self.itu is not None else f"ε_r={self.permittivity:g}, σ={self.conductivity:g} S/m"
-        return f"{kind}, {self.thickness:g} m"
+        rough = f", S={self.scattering_coefficient:g}" if self.scattering_coefficient > 0 else ""
+        return f"{kind}, {self.thickness:g} m{rough}"
 
 
 def _mm(thickness: float) -> str:
@@ -188,6 +195,9 @@ def check_name(name: Any, key: str, *, what: str) -> str:
 def parse_material(value: Any, key: str, *, default_thickness: float, frequency: float) -> MaterialSpec:
     """Read a material: ``"concrete"``, ``{itu, thickness, name}`` or ``{permittivity, conductivity, thickness, name}``.
 
+    Either table may add ``scattering_coefficient`` (S in [0, 1], default 0); a material with S > 0
+    and no ``name`` is named with an ``-S<value>`` suffix (``concrete-200mm-S0p3``).
+
     Parameters
     ----------
     value : str or dict
@@ -199,6 +209,7 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
     frequency : float
         Carrier [Hz]; an ITU type undefined there raises :class:`SpecError`.
     """
+    scattering = 0.0
     if isinstance(value, str):
         itu, thickness, name, eps, sigma = value, default_thickness, None, None, None
         itu_key = key
@@ -206,6 +217,12 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
         t = Table(value, key)
         thickness = t.number("thickness", unit="m", default=default_thickness, minimum=0.0, strict=True)
         name = check_name(t.raw("name"), t.key("name"), what="material") if t.has("name") else None
+        if t.has("scattering_coefficient"):
+            scattering = t.number("scattering_coefficient", unit="unitless, sionna-rt's S", minimum=0.0, example="0.3")
+            if not scattering <= 1.0:
+                raise SpecError(t.key("scattering_coefficient"), f"is {scattering:g}: a scattering coefficient lies in "
+                                "[0, 1]", "write e.g. scattering_coefficient = 0.3 (rough concrete), or leave it out "
+                                "for a smooth surface (0)")
         has_itu, has_custom = t.has("itu"), t.has("permittivity") or t.has("conductivity")
         if has_itu and has_custom:
             raise SpecError(key, "gives both 'itu' and 'permittivity'/'conductivity'",
@@ -237,9 +254,12 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
                             f"{float(np.float32(frequency) / np.float32(1e9)):.9g} GHz)",
                             f"use one valid there ({', '.join(valid_at(frequency))}) or a custom "
                             "{permittivity, conductivity, thickness}", code="material.frequency")
-        name = name or f"{itu}-{_mm(thickness)}"
+        default_name = f"{itu}-{_mm(thickness)}"
     else:
-        name = name or f"eps{_tag(eps)}-sig{_tag(sigma)}-{_mm(thickness)}"  # type: ignore[arg-type]
+        default_name = f"eps{_tag(eps)}-sig{_tag(sigma)}-{_mm(thickness)}"  # type: ignore[arg-type]
+    if scattering > 0:
+        default_name += f"-S{_tag(scattering)}"
+    name = name or default_name
     if name in ITU_MATERIALS or name.lower().startswith(("itu_", "itu-")):
         raise SpecError(f"{key}.name", f"material name {name!r} collides with sionna-rt's ITU naming "
                         "(an ITU type name, or the itu_/itu- prefix it turns into an ITU material)",
@@ -248,7 +268,7 @@ def parse_material(value: Any, key: str, *, default_thickness: float, frequency:
         raise SpecError(f"{key}.thickness", "must be finite", "use a thickness in metres")
     return MaterialSpec(name=name, thickness=float(thickness), itu=itu,
                         permittivity=None if eps is None else float(eps),
-                        conductivity=None if sigma is None else float(sigma))
+                        conductivity=None if sigma is None else float(sigma), scattering_coefficient=float(scattering))
 
 
 def register(materials: dict[str, MaterialSpec], material: MaterialSpec, key: str) -> None:

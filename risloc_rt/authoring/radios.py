@@ -184,6 +184,10 @@ def parse_ris(t: Table, index: int, frequency: float, footprint: np.ndarray, hei
         pheight = panel_t.number("height", unit="m", default=0.05, minimum=0.0, strict=True)
         mat = parse_material(panel_t.raw("material", "metal"), panel_t.key("material"), default_thickness=0.002,
                              frequency=frequency)
+        if mat.scattering_coefficient > 0:
+            raise SpecError(panel_t.key("material") + ".scattering_coefficient",
+                            "is not used: the RIS panel is not ray traced but modelled as a flat physical-optics "
+                            "plate (docs/ray-tracing.md)", "leave scattering_coefficient out of the panel's material")
         panel_t.finish()
         panel = RisPanel(width=width, height=pheight, material=mat)
     t.finish()

@@ -27,7 +27,16 @@ constant +3 dB that a measured radar/RIS constant absorbs; the incoherent model 
 fitted material does not depend on sub-mm geometry.)
 
 Parameters are (ε_r, s = ln σ) per material (σ in S/m): σ > 0 by construction, ε_r ≥ 1 by
-projection of every step (what sionna-rt accepts). The fit is Levenberg–Marquardt on the
+projection of every step (what sionna-rt accepts). For the materials named in ``scattering``, a
+third parameter follows the 2Q: the **scattered share** u = S² of the material's reflected power
+(sionna-rt's scattering coefficient S; the specular reflection keeps √(1 − u) of its amplitude per
+bounce), projected onto [``SHARE_RANGE``] (S from 1e-3 to 0.995). u rather than S because the
+specular loss is smooth in u at 0 (∂ ln|a|²/∂u = −1/(1 − u) per bounce) while ∂/∂S vanishes there.
+The model power is that of the specular (and, where asked, diffracted/refracted) paths; the diffuse
+paths are left out unless the settings ask for them (``diffuse_reflection``): sionna-rt samples each
+bounce's interaction type with probabilities set by S, so their set changes with S, and inside a
+peak's window they add a few hundredths of a dB (measured: −19 dB of a 0.2 m concrete wall's echo at
+S = 0.3, ``docs/calibration-materials.md``). The fit is Levenberg–Marquardt on the
 residuals (observed − model) [dB] weighted by 1/σ_dB, with the Jacobian of each peak's dB power
 
     ∂P_k[dB]/∂θ = 10/ln 10 · Σ_{p∈k} 2 Re(a_p* ∂a_p/∂θ) / Σ_{p∈k} |a_p|²,   ∂/∂s = σ ∂/∂σ,
@@ -84,7 +93,7 @@ from .raytrace.result import TraceSettings
 
 __all__ = ["Observation", "MaterialFit", "IdentifiabilityReport", "fit_materials", "synthetic_observations",
            "assign_paths", "DEFAULT_WINDOW", "DEFAULT_THRESHOLD",
-           "PROFILE_RATIO"]
+           "PROFILE_RATIO", "SHARE_RANGE"]
 
 #: Default delay window [s]: half Table I's Rayleigh delay resolution (the paths one beat peak merges).
 DEFAULT_WINDOW: float = RadarConfig().delay_resolution / 2.0
@@ -97,6 +106,10 @@ _COMPONENT = 0.1
 PROFILE_RATIO: float = 2.0
 _DB = 10.0 / math.log(10.0)
 _LOG_SIGMA_BOUNDS = (-40.0, 20.0)  # ln σ [ln(S/m)]: 4e-18 to 5e8 S/m; at e^40 S/m sionna-rt's float32 slab model loses every path
+#: The scattered share u = S² the fit moves within [unitless]: S from 1e-3 (a specular loss of 4e-6 dB per bounce,
+#: nothing a peak shows) to 0.995 (the specular reflection 20 dB down per bounce). A fit at the lower end means
+#: "no scattering seen"; its profile interval gives the upper bound.
+SHARE_RANGE: tuple[float, float] = (1e-6, 0.995 ** 2)
 
 
 @dataclass(frozen=True)
@@ -196,17 +209,18 @@ class IdentifiabilityReport:
     Attributes
     ----------
     parameters : tuple of str
-        The 2Q parameter names, ``"<material>:eps_r"`` [unitless] and ``"<material>:ln_sigma"``
-        [ln(S/m)], in the order of the Jacobian's columns.
+        The 2Q + Q_s parameter names, ``"<material>:eps_r"`` [unitless] and ``"<material>:ln_sigma"``
+        [ln(S/m)] per material, then ``"<material>:scattering"`` (the scattered share S² [unitless])
+        for the Q_s materials whose S is fitted, in the order of the Jacobian's columns.
     peaks : tuple of (int, int)
         (observation index, peak index) of every explained peak, in the order of the rows.
     unexplained : tuple of (int, int)
         The observed peaks no traced path lies within the window of (left out of the fit).
     constrains : bool array [K, Q]
         Explained peak k has a path touching material q.
-    jacobian_db : float array [K, 2Q]
-        ∂P_k[dB]/∂θ at the solution (unweighted) [dB per unit ε_r, dB per unit ln σ].
-    singular_values : float array [2Q]
+    jacobian_db : float array [K, 2Q + Q_s]
+        ∂P_k[dB]/∂θ at the solution (unweighted) [dB per unit ε_r, ln σ or S²].
+    singular_values : float array [2Q + Q_s]
         Of the weighted Jacobian with unit-norm columns, descending [unitless].
     condition : float
         Largest over smallest singular value (inf when the smallest is 0).
@@ -259,7 +273,7 @@ class IdentifiabilityReport:
         """
         lines = [f"condition {self.condition:.3g} (limit {1 / self.threshold:.3g}); singular values "
                  + ", ".join(f"{s:.3g}" for s in self.singular_values)]
-        materials = [p.split(":")[0] for p in self.parameters[::2]]
+        materials = list(dict.fromkeys(p.rpartition(":")[0] for p in self.parameters))
         for q, m in enumerate(materials):
             n = int(self.constrains[:, q].sum())
             flags = [f"{p.split(':')[1]}: {r}" for p, r in self.not_identifiable.items() if p.split(":")[0] == m]
@@ -312,6 +326,14 @@ class MaterialFit:
         Which peaks constrain which material, singular values, flags.
     history : tuple of float
         Cost ½χ² after each iteration.
+    scattering : tuple of str
+        The Q_s materials whose scattering coefficient was fitted (in the order of ``materials``).
+    scattering_share : float array [Q_s]
+        Their fitted scattered share S² [unitless] (``SHARE_RANGE``'s lower end: no scattering seen).
+    scattering_share_sigma : float array [Q_s]
+        1σ of S² from the Fisher information [unitless]; inf when not identifiable.
+
+    The covariance and correlation matrices are [2Q + Q_s]² when S is fitted (the S² columns last).
     """
 
     materials: tuple[str, ...]
@@ -331,6 +353,29 @@ class MaterialFit:
     seconds: float
     identifiability: IdentifiabilityReport
     history: tuple[float, ...] = field(default=())
+    scattering: tuple[str, ...] = ()
+    scattering_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    scattering_share_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def scattering_coefficient(self) -> np.ndarray:
+        """The fitted S = √(S²) of the ``scattering`` materials [unitless], float [Q_s]."""
+        return np.sqrt(self.scattering_share)
+
+    def values(self) -> dict[str, tuple[float, ...]]:
+        """Every fitted material's values as the tracer takes them.
+
+        Returns
+        -------
+        dict
+            ``{material: (ε_r, σ [S/m])}``, with S [unitless] as a third entry for the
+            ``scattering`` materials (meaningless alone for a flagged parameter: see ``value``).
+        """
+        out: dict[str, tuple[float, ...]] = {m: (float(self.relative_permittivity[q]), float(self.conductivity[q]))
+                                             for q, m in enumerate(self.materials)}
+        for j, m in enumerate(self.scattering):
+            out[m] = (*out[m], float(self.scattering_coefficient[j]))
+        return out
 
     @property
     def conductivity_sigma(self) -> np.ndarray:
@@ -414,10 +459,14 @@ def assign_paths(path_delay: np.ndarray, peak_delay: np.ndarray, window: float) 
 
 def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int,
                 weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per-peak power [dB, without offset], its Jacobian [K, 2Q] w.r.t. (ε_r, ln σ), and touches [K, Q]."""
+    """Per-peak power [dB, without offset], its Jacobian [K, 2Q + Q_s] w.r.t. (ε_r, ln σ) and S², and touches [K, Q]."""
     q = len(jac.materials)
+    qs = len(jac.scattering)
     power = np.zeros(k)
-    d_power = np.zeros((k, 2 * q))
+    d_power = np.zeros((k, 2 * q + qs))
+    # ∂/∂(S²) = ∂/∂S / (2S); S = 0 only at a scene's own smooth values, which no fit step uses (SHARE_RANGE).
+    s_at = np.array([jac.scattering_coefficient[jac.materials.index(m)] for m in jac.scattering])
+    per_share = np.divide(0.5, s_at, out=np.zeros(qs), where=s_at > 0)
     touches = np.zeros((k, q), dtype=bool)
     a = jac.a
     sig = jac.conductivity
@@ -432,19 +481,36 @@ def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int,
             continue
         power[i] = float(np.sum(weight[m] * np.abs(a[m]) ** 2))
         conj = (weight[m] * np.conj(a[m]))[:, None]
-        d_power[i, 0::2] = np.sum(2.0 * np.real(conj * jac.d_eps[m]), axis=0)
-        d_power[i, 1::2] = np.sum(2.0 * np.real(conj * jac.d_sigma[m]), axis=0) * sig
+        d_power[i, 0:2 * q:2] = np.sum(2.0 * np.real(conj * jac.d_eps[m]), axis=0)
+        d_power[i, 1:2 * q:2] = np.sum(2.0 * np.real(conj * jac.d_sigma[m]), axis=0) * sig
+        if qs:
+            d_power[i, 2 * q:] = np.sum(2.0 * np.real(conj * jac.d_scattering[m]), axis=0) * per_share
         touches[i] = jac.touches[m].any(axis=0)
     explained = power > 0
     db = np.full(k, np.nan)
-    jdb = np.zeros((k, 2 * q))
+    jdb = np.zeros((k, 2 * q + qs))
     db[explained] = _DB * np.log(power[explained])
     jdb[explained] = _DB * d_power[explained] / power[explained, None]
     return db, jdb, touches, explained
 
 
-def _values_of(materials: Sequence[str], theta: np.ndarray) -> dict[str, tuple[float, float]]:
-    return {m: (float(theta[2 * q]), float(math.exp(theta[2 * q + 1]))) for q, m in enumerate(materials)}
+def _values_of(materials: Sequence[str], theta: np.ndarray,
+               scattering: Sequence[str] = ()) -> dict[str, tuple[float, ...]]:
+    """``{material: (ε_r, σ)}`` of a parameter vector, with S = √(S²) third for the ``scattering`` materials."""
+    out: dict[str, tuple[float, ...]] = {m: (float(theta[2 * q]), float(math.exp(theta[2 * q + 1])))
+                                         for q, m in enumerate(materials)}
+    for j, m in enumerate(scattering):
+        out[m] = (*out[m], float(math.sqrt(theta[2 * len(materials) + j])))
+    return out
+
+
+def _project(theta: np.ndarray, q: int) -> np.ndarray:
+    """``theta`` moved into what the tracer accepts: ε_r ≥ 1, ln σ and S² within their bounds (a copy)."""
+    out = np.array(theta, dtype=float)
+    out[0:2 * q:2] = np.maximum(out[0:2 * q:2], 1.0)
+    out[1:2 * q:2] = np.clip(out[1:2 * q:2], *_LOG_SIGMA_BOUNDS)
+    out[2 * q:] = np.clip(out[2 * q:], *SHARE_RANGE)
+    return out
 
 
 def synthetic_observations(
@@ -472,7 +538,8 @@ def synthetic_observations(
     positions : float array [N, 3]
         Radar positions [m].
     values : mapping
-        ``{material: (ε_r [unitless], σ [S/m])}`` the "true" hall is traced with (at least one).
+        ``{material: (ε_r [unitless], σ [S/m])}`` the "true" hall is traced with (at least one),
+        or ``(ε_r, σ, S)`` triples with the scattering coefficient.
     sigma_db : float
         1σ of the Gaussian power noise and the stated σ of every peak [dB], > 0.
     rng : numpy.random.Generator or None
@@ -518,35 +585,53 @@ def synthetic_observations(
     return observations, truths
 
 
-def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian | None) -> np.ndarray:
-    theta = np.empty(2 * len(materials))
+def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian | None,
+                 scattering: tuple[str, ...] = ()) -> np.ndarray:
+    """The start vector: given values, else the scene's own (``own``); S² raised to ``SHARE_RANGE``'s lower end."""
+    q_count = len(materials)
+    theta = np.empty(2 * q_count + len(scattering))
     start = {} if start is None else start
     if not isinstance(start, Mapping):
-        raise TypeError(f"start must be a mapping {{material: (eps_r, sigma [S/m])}}, got {type(start).__name__}")
+        raise TypeError(f"start must be a mapping {{material: (eps_r, sigma [S/m][, S])}}, got {type(start).__name__}")
     for name in start:
         if name not in materials:
             raise ValueError(f"start names {name!r}, which is not among the fitted materials {', '.join(materials)}")
     for q, m in enumerate(materials):
-        eps, sigma = start[m] if own is None else start.get(m, (own.relative_permittivity[q], own.conductivity[q]))
+        given = start[m] if own is None else start.get(m, (own.relative_permittivity[q], own.conductivity[q],
+                                                             own.scattering_coefficient[q]))
+        try:
+            eps, sigma, *rest = (float(x) for x in given)
+        except (TypeError, ValueError):
+            raise ValueError(f"start[{m!r}]={given!r} must be (eps_r, sigma [S/m]) or (eps_r, sigma, S)") from None
+        if len(rest) > 1:
+            raise ValueError(f"start[{m!r}]={given!r} must be (eps_r, sigma [S/m]) or (eps_r, sigma, S)")
         if not (math.isfinite(eps) and eps >= 1.0):
             raise ValueError(f"start[{m!r}] eps_r={eps!r} must be finite and >= 1")
         if not (math.isfinite(sigma) and sigma > 0.0):
             raise ValueError(f"start[{m!r}] sigma={sigma!r} must be finite and > 0 S/m (the fit works in ln sigma)")
+        if rest and not (math.isfinite(rest[0]) and 0.0 <= rest[0] <= 1.0):
+            raise ValueError(f"start[{m!r}] S={rest[0]!r} must be a scattering coefficient in [0, 1]")
         theta[2 * q], theta[2 * q + 1] = float(eps), math.log(float(sigma))
+        if m in scattering:
+            share = rest[0] ** 2 if rest else 0.0
+            theta[2 * q_count + scattering.index(m)] = min(max(share, SHARE_RANGE[0]), SHARE_RANGE[1])
     return theta
 
 
-def _fixed_parameters(fixed: Any, names: tuple[str, ...]) -> set[str]:
-    """The held parameters as column names (``"m:eps_r"``, ``"m:ln_sigma"``); one-line ValueError for a bad one."""
+def _fixed_parameters(fixed: Any, names: tuple[str, ...], scattering: tuple[str, ...] = ()) -> set[str]:
+    """The held parameters as column names (``"m:eps_r"``, ``"m:ln_sigma"``, ``"m:scattering"``); one-line
+    ValueError for a bad one."""
     items = [fixed] if isinstance(fixed, str) else list(fixed)
     out = set()
     for item in items:
         m, _, kind = str(item).rpartition(":")
-        if m not in names or kind not in ("eps_r", "sigma"):
+        if m not in names or kind not in ("eps_r", "sigma", "scattering") or (kind == "scattering"
+                                                                              and m not in scattering):
             raise ValueError(f"fixed parameter {item!r} must be MATERIAL:eps_r or MATERIAL:sigma with MATERIAL one of "
-                             f"the fitted materials ({', '.join(names)})")
-        out.add(f"{m}:{'eps_r' if kind == 'eps_r' else 'ln_sigma'}")
-    if len(out) == 2 * len(names):
+                             f"the fitted materials ({', '.join(names)})"
+                             + (f", or MATERIAL:scattering for {', '.join(scattering)}" if scattering else ""))
+        out.add(f"{m}:{'ln_sigma' if kind == 'sigma' else kind}")
+    if len(out) == 2 * len(names) + len(scattering):
         raise ValueError("every parameter is fixed: nothing is left to fit")
     return out
 
@@ -568,7 +653,8 @@ def _flags(vt: np.ndarray, s: np.ndarray, threshold: float, names: tuple[str, ..
             if len(part) == 1:
                 reason = f"{kind} of {m} does not change any explained peak's power (relative singular value {rel:.1e})"
             elif len(mats) == 1:
-                reason = (f"only a combination of eps_r and sigma of {m} is seen ({combo} unresolved, relative "
+                kinds = " and ".join(dict.fromkeys(names[i].split(":")[1].replace("ln_sigma", "sigma") for i in part))
+                reason = (f"only a combination of {kinds} of {m} is seen ({combo} unresolved, relative "
                           f"singular value {rel:.1e}): e.g. powers at one incidence angle give one |Gamma|^2 for two "
                           f"parameters")
             else:
@@ -592,8 +678,9 @@ def fit_materials(
     progress: Callable[[int, float], None] | None = None,
     profile_check: bool = True,
     fixed: Sequence[str] = (),
+    scattering: str | Sequence[str] = (),
 ) -> MaterialFit:
-    """Fit the named materials' ε_r and σ to the observed peak powers (Levenberg–Marquardt, dB residuals).
+    """Fit the named materials' ε_r and σ (and S) to the observed peak powers (Levenberg–Marquardt, dB residuals).
 
     Parameters
     ----------
@@ -604,8 +691,9 @@ def fit_materials(
     materials : str or sequence of str
         Radio materials to fit (sionna-rt names, e.g. ``"concrete-200mm"``): a list or ``"a,b"``.
     start : mapping, optional
-        ``{material: (ε_r [unitless], σ [S/m])}``; materials not given start from the scene's own
-        values (ITU-R P.2040 at 60 GHz). Other materials keep the scene's values throughout.
+        ``{material: (ε_r [unitless], σ [S/m])}`` or ``(ε_r, σ, S)``; materials not given start
+        from the scene's own values (ITU-R P.2040 at 60 GHz, the spec's S). Other materials keep
+        the scene's values throughout. A fitted S starts at least at √``SHARE_RANGE[0]`` = 1e-3.
     settings : TraceSettings, optional
         Solver options (default ``TraceSettings()``); depth ≥ 3 is what makes ε_r and σ
         separable (``docs/calibration-materials.md``).
@@ -624,9 +712,13 @@ def fit_materials(
         evaluations) and report the cost's rise (``IdentifiabilityReport.profile_cost``,
         ``profile_cost_2sigma``, ``weak``).
     fixed : sequence of str
-        Parameters held at their start value, ``"<material>:eps_r"`` or ``"<material>:sigma"``
-        (e.g. ε_r known from elsewhere when the peaks see only one combination of ε_r and σ): their
-        Jacobian columns are set to 0, their 1σ is 0 and the others' 1σ are conditional on them.
+        Parameters held at their start value, ``"<material>:eps_r"``, ``"<material>:sigma"`` or
+        ``"<material>:scattering"`` (e.g. ε_r known from elsewhere when the peaks see only one
+        combination of ε_r and σ): their Jacobian columns are set to 0, their 1σ is 0 and the
+        others' 1σ are conditional on them.
+    scattering : str or sequence of str
+        Materials among ``materials`` whose scattering coefficient S is fitted too, as the
+        scattered share S² (a list or ``"a,b"``; default none: S stays the scene's).
 
     Returns
     -------
@@ -660,11 +752,12 @@ def fit_materials(
     def evaluate(theta: np.ndarray | None) -> dict[str, Any]:
         nonlocal evaluations
         evaluations += 1
-        values = None if theta is None else _values_of(names, theta)
+        values = None if theta is None else _values_of(names, theta, rough)
         rows, jrows, wrows, touch, peaks, unexplained, model = [], [], [], [], [], [], []
         jacs = []
         for i, o in enumerate(obs):
-            jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings)
+            jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings,
+                                    scattering=rough)
             jacs.append(jac)
             db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o), o.path_weight)
             offsets = o.offsets()
@@ -678,7 +771,7 @@ def fit_materials(
                     touch.append(t[k])
                 else:
                     unexplained.append((i, k))
-        q2 = 2 * len(names)
+        q2 = 2 * len(names) + len(rough)
         return dict(residual=np.array(rows), jdb=np.array(jrows).reshape(-1, q2), w=np.array(wrows),
                     theta_given=theta is not None,
                     touches=np.array(touch, dtype=bool).reshape(-1, len(names)), peaks=tuple(peaks),
@@ -688,18 +781,28 @@ def fit_materials(
         names = tuple(m.strip() for m in materials.split(","))
     else:
         names = tuple(materials)
+    if isinstance(scattering, str):
+        scattering = [m.strip() for m in scattering.split(",") if m.strip()]
+    if not isinstance(scattering, Sequence):
+        raise TypeError(f"scattering must be material names, got {type(scattering).__name__}")
+    rough = tuple(m for m in names if m in scattering)
+    if len(rough) != len(set(scattering)):
+        unknown = sorted({str(m) for m in scattering} - set(names))
+        raise ValueError(f"scattering names {', '.join(map(repr, unknown))}, not among the fitted materials "
+                         f"({', '.join(map(str, names))})")
     if isinstance(start, Mapping) and names and all(isinstance(m, str) and m in start for m in names):
         # Every material starts from a given value (e.g. the profile scan's conditional fits): no trace at the
         # scene's own values is needed.
-        theta = _check_start(names, start, None)
+        theta = _check_start(names, start, None, rough)
         first = evaluate(theta)
         names = first["jacs"][0].materials
     else:
         first = evaluate(None)
         names = first["jacs"][0].materials
-        theta = _check_start(names, start, first["jacs"][0])
-    params = tuple(f"{m}:{k}" for m in names for k in ("eps_r", "ln_sigma"))
-    held = _fixed_parameters(fixed, names)
+        theta = _check_start(names, start, first["jacs"][0], rough)
+    q_count = len(names)
+    params = tuple(f"{m}:{k}" for m in names for k in ("eps_r", "ln_sigma")) + tuple(f"{m}:scattering" for m in rough)
+    held = _fixed_parameters(fixed, names, rough)
     mask = np.array([p in held for p in params], dtype=bool)
     if not first["peaks"]:
         raise ValueError(f"no observed peak is explained: no traced path lies within {window * 1e9:.3g} ns of any of "
@@ -710,8 +813,9 @@ def fit_materials(
             why = ("its traced paths fall in no observed peak's window" if seen
                    else "no traced path from these radar positions interacts with its objects")
             raise ValueError(f"material {m!r} cannot be fitted: no explained peak touches it ({why})")
-    cur = first if start is None or first["theta_given"] else evaluate(theta)
-    start_values = _values_of(names, theta)
+    # The scene's own values are the start unless some were given (or a fitted S was raised to SHARE_RANGE's end).
+    cur = first if first["theta_given"] or (start is None and not rough) else evaluate(theta)
+    start_values = _values_of(names, theta, rough)
     residual_start = cur["residual"].copy()
 
     def cost_of(ev: dict[str, Any]) -> float:
@@ -741,9 +845,7 @@ def fit_materials(
             resid = rw - jw @ step
             if cost - 0.5 * float(resid @ resid) <= tolerance * cost + 1e-9:
                 break
-            trial = theta + step
-            trial[0::2] = np.maximum(trial[0::2], 1.0)
-            trial[1::2] = np.clip(trial[1::2], *_LOG_SIGMA_BOUNDS)
+            trial = _project(theta + step, q_count)
             if np.allclose(trial, theta, rtol=0, atol=1e-12):
                 break
             ev = evaluate(trial)
@@ -801,9 +903,7 @@ def fit_materials(
             direction = np.where(np.isfinite(cov[:, i]), cov[:, i], 0.0) / sd[i]
             rise = {}
             for step in (-2.0, -1.0, 1.0, 2.0):
-                trial = theta + step * direction
-                trial[0::2] = np.maximum(trial[0::2], 1.0)
-                trial[1::2] = np.clip(trial[1::2], *_LOG_SIGMA_BOUNDS)
+                trial = _project(theta + step * direction, q_count)
                 rise[step] = cost_of(evaluate(trial)) - cost
             profile[p] = (float(rise[-1.0]), float(rise[1.0]))
             profile2[p] = (float(rise[-2.0]), float(rise[2.0]))
@@ -820,15 +920,17 @@ def fit_materials(
         profile_cost_2sigma=profile2)
     for arr in (cov, corr, sd, s, cur["jdb"], cur["touches"]):
         arr.setflags(write=False)
-    eps = theta[0::2].copy()
-    sigma = np.exp(theta[1::2])
+    eps = theta[0:2 * q_count:2].copy()
+    sigma = np.exp(theta[1:2 * q_count:2])
+    share = theta[2 * q_count:].copy()
     residual = cur["residual"].copy()
-    for arr in (eps, sigma, residual, residual_start):
+    eps_sd, log_sd, share_sd = sd[0:2 * q_count:2].copy(), sd[1:2 * q_count:2].copy(), sd[2 * q_count:].copy()
+    for arr in (eps, sigma, share, residual, residual_start, eps_sd, log_sd, share_sd):
         arr.setflags(write=False)
     r = residual * cur["w"]
     return MaterialFit(
-        materials=names, relative_permittivity=eps, conductivity=sigma, relative_permittivity_sigma=sd[0::2].copy(),
-        log_conductivity_sigma=sd[1::2].copy(), covariance=cov, correlation=corr, start=start_values,
+        materials=names, relative_permittivity=eps, conductivity=sigma, relative_permittivity_sigma=eps_sd,
+        log_conductivity_sigma=log_sd, covariance=cov, correlation=corr, start=start_values,
         residuals_start_db=residual_start, residuals_db=residual, chi2=float(r @ r), iterations=iterations,
         evaluations=evaluations, converged=converged, seconds=time.perf_counter() - t0, identifiability=report,
-        history=tuple(history))
+        history=tuple(history), scattering=rough, scattering_share=share, scattering_share_sigma=share_sd)

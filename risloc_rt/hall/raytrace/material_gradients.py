@@ -1,4 +1,4 @@
-"""Exact derivatives of the traced monostatic path gains with respect to the materials' ε_r and σ.
+"""Exact derivatives of the traced monostatic path gains with respect to the materials' ε_r, σ and S.
 
 :func:`material_jacobian` traces one radar position with sionna-rt's ``PathSolver`` (transmitter
 and receiver at the radar, the settings and conventions of
@@ -6,7 +6,8 @@ and receiver at the radar, the settings and conventions of
 with respect to the relative permittivity ε_r and the conductivity σ [S/m] of each named radio
 material, by Dr.Jit forward-mode automatic differentiation through the solver. The result is a
 :class:`MaterialJacobian`: the paths as the tracer reports them and the two complex Jacobians
-``d_eps`` [P, Q] (per unit ε_r) and ``d_sigma`` [P, Q] (per S/m).
+``d_eps`` [P, Q] (per unit ε_r) and ``d_sigma`` [P, Q] (per S/m), and, for the materials named in
+``scattering``, ``d_scattering`` [P, Q_s] (per unit of the scattering coefficient S).
 
 How (sionna-rt 2.2.0, Mitsuba 3.9.1, Dr.Jit 1.5.0)
 -------------------------------------------------
@@ -64,7 +65,7 @@ DEFAULT_FREQUENCY = 60e9
 _TX, _RX = "jacobian_tx", "jacobian_rx"
 #: Loaded scenes kept in memory, keyed by (content hash, frequency).
 _SCENE_CACHE_SIZE = 4
-_scenes: OrderedDict[tuple[str, float], tuple[LoadedScene, dict[str, tuple[float, float]]]] = OrderedDict()
+_scenes: OrderedDict[tuple[str, float], tuple[LoadedScene, dict[str, tuple[float, float, float]]]] = OrderedDict()
 
 
 @dataclass(frozen=True)
@@ -98,12 +99,26 @@ class MaterialJacobian:
     frequency : float
         Carrier [Hz] the scene was evaluated at.
     settings : TraceSettings
-        Solver options used.
+        Solver options used, as asked: unlike :func:`risloc_rt.hall.raytrace.trace_scene`, diffuse
+        reflection is not turned on for a scattering material (the specular paths carry its
+        √(1 − S²) either way; the diffuse ones change their set with S, see ``d_scattering``).
     scene_hash : str
         :func:`risloc_rt.hall.raytrace.scene_content_hash` of the traced scene.
     timing : dict
         Wall-clock seconds: ``load`` (0 when the scene was loaded before in this process),
-        ``solve`` (all 2·Q solves and their forward derivatives), ``convert``, ``total``.
+        ``solve`` (all 2·Q + Q_s solves and their forward derivatives), ``convert``, ``total``.
+    scattering : tuple of str
+        The Q_s materials (a subset of ``materials``, in their order) whose scattering coefficient
+        was differentiated; empty by default.
+    scattering_coefficient : float array [Q]
+        S at which the derivatives were taken (float32 values) [unitless]; zeros when not given.
+    d_scattering : complex array [P, Q_s]
+        ``∂a_p/∂S_q`` [1/unit S] for the materials of ``scattering``. sionna-rt scales a specular
+        reflection off a scattering material by √(1 − S²) and a diffuse one by S, so at S = 0 the
+        specular part of this derivative is 0: the fit works in S² (see
+        :mod:`risloc_rt.hall.material_fit`). With diffuse reflection on, sionna-rt samples each
+        bounce's interaction type with probabilities set by S, so the *set* of diffuse paths
+        changes with S (the specular set does not): the derivative holds at fixed paths.
     """
 
     paths: TracedPaths
@@ -118,12 +133,24 @@ class MaterialJacobian:
     settings: TraceSettings
     scene_hash: str
     timing: dict[str, float] = field(compare=False)
+    scattering: tuple[str, ...] = ()
+    scattering_coefficient: np.ndarray | None = None
+    d_scattering: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.paths, TracedPaths):
             raise TypeError(f"paths must be a TracedPaths, got {type(self.paths).__name__}")
         p, q = len(self.paths), len(self.materials)
+        object.__setattr__(self, "scattering", tuple(str(m) for m in self.scattering))
+        extra = [m for m in self.scattering if m not in self.materials]
+        if extra:
+            raise ValueError(f"scattering names {extra} outside materials {list(self.materials)}")
+        qs = len(self.scattering)
         arrays = {
+            "scattering_coefficient": np.zeros(q) if self.scattering_coefficient is None
+            else np.array(self.scattering_coefficient, dtype=float).reshape(q),
+            "d_scattering": np.zeros((p, qs), complex) if self.d_scattering is None
+            else np.array(self.d_scattering, dtype=complex).reshape(p, qs),
             "relative_permittivity": np.array(self.relative_permittivity, dtype=float).reshape(q),
             "conductivity": np.array(self.conductivity, dtype=float).reshape(q),
             "d_eps": np.array(self.d_eps, dtype=complex).reshape(p, q),
@@ -198,8 +225,8 @@ def _xml_path(scene: str | os.PathLike[str]) -> str:
     return path
 
 
-def _loaded(xml_path: str, frequency: float) -> tuple[LoadedScene, dict[str, tuple[float, float]], bool]:
-    """The scene (loaded at most once per process) and its materials' own (ε_r, σ)."""
+def _loaded(xml_path: str, frequency: float) -> tuple[LoadedScene, dict[str, tuple[float, float, float]], bool]:
+    """The scene (loaded at most once per process) and its materials' own (ε_r, σ, S)."""
     key = (scene_content_hash(xml_path), frequency)
     if key in _scenes:
         _scenes.move_to_end(key)
@@ -208,14 +235,15 @@ def _loaded(xml_path: str, frequency: float) -> tuple[LoadedScene, dict[str, tup
     own = {}
     for name, mat in loaded.scene.radio_materials.items():
         if hasattr(mat, "relative_permittivity") and hasattr(mat, "conductivity"):
-            own[name] = (float(mat.relative_permittivity[0]), float(mat.conductivity[0]))
+            own[name] = (float(mat.relative_permittivity[0]), float(mat.conductivity[0]),
+                         float(mat.scattering_coefficient[0]))
     _scenes[(loaded.content_hash, frequency)] = (loaded, own)
     while len(_scenes) > _SCENE_CACHE_SIZE:
         _scenes.popitem(last=False)
     return loaded, own, False
 
 
-def _material_list(materials: Any, available: Mapping[str, tuple[float, float]], loaded: LoadedScene) -> tuple[str, ...]:
+def _material_list(materials: Any, available: Mapping[str, tuple[float, ...]], loaded: LoadedScene) -> tuple[str, ...]:
     if isinstance(materials, str):
         materials = [m.strip() for m in materials.split(",")]
     if not isinstance(materials, Sequence) or isinstance(materials, (bytes, bytearray)):
@@ -236,49 +264,58 @@ def _material_list(materials: Any, available: Mapping[str, tuple[float, float]],
     return names
 
 
-def _describe(loaded: LoadedScene, available: Mapping[str, tuple[float, float]]) -> str:
+def _describe(loaded: LoadedScene, available: Mapping[str, tuple[float, ...]]) -> str:
     return ", ".join(f"{name} ({loaded.materials.get(name, ('custom',))[0]})" for name in sorted(available)) or "none"
 
 
-def _check_value(material: str, eps: Any, sigma: Any) -> tuple[float, float]:
+def _check_value(material: str, given: tuple[Any, ...]) -> tuple[float, ...]:
     out = []
-    for what, value, low, unit in (("relative_permittivity", eps, 1.0, ""), ("conductivity", sigma, 0.0, " S/m")):
+    limits = (("relative_permittivity", 1.0, 3.0e38, ""), ("conductivity", 0.0, 3.0e38, " S/m"),
+              ("scattering_coefficient", 0.0, 1.0, ""))
+    for (what, low, high, unit), value in zip(limits, given):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise TypeError(f"values[{material!r}] {what}={value!r} must be a number")
         v = float(value)
-        if not math.isfinite(v) or v < low or v > 3.0e38:
+        if not math.isfinite(v) or v < low or v > high:
             raise ValueError(f"values[{material!r}] {what}={v!r} is outside what sionna-rt accepts "
-                             f"(a finite float32 >= {low:g}{unit})")
+                             + (f"(a finite float32 >= {low:g}{unit})" if high > 1.0 else f"([{low:g}, {high:g}])"))
         out.append(v)
-    return out[0], out[1]
+    return tuple(out)
 
 
-def _values(values: Any, available: Mapping[str, tuple[float, float]], loaded: LoadedScene) -> dict[str, tuple[float, float]]:
+def _values(values: Any, available: Mapping[str, tuple[float, float, float]],
+            loaded: LoadedScene) -> dict[str, tuple[float, float, float]]:
+    """``{material: (ε_r, σ, S)}`` asked; S is the scene's own where only (ε_r, σ) is given."""
     if values is None:
         return {}
     if not isinstance(values, Mapping):
-        raise TypeError(f"values must be a mapping {{material: (relative_permittivity, conductivity [S/m])}}, "
-                        f"got {type(values).__name__}")
+        raise TypeError(f"values must be a mapping {{material: (relative_permittivity, conductivity [S/m]"
+                        f"[, scattering_coefficient])}}, got {type(values).__name__}")
     out = {}
-    for name, pair in values.items():
+    for name, given in values.items():
         if name not in available:
             raise ValueError(f"values names material {name!r}, which is not a radio material of scene {loaded.path}; "
                              f"its materials are {_describe(loaded, available)}")
         try:
-            eps, sigma = pair
-        except (TypeError, ValueError):
-            raise TypeError(f"values[{name!r}]={pair!r} must be a pair (relative_permittivity, conductivity [S/m])") from None
-        out[name] = _check_value(name, eps, sigma)
+            given = tuple(given)
+        except TypeError:
+            given = ()
+        if len(given) not in (2, 3):
+            raise TypeError(f"values[{name!r}]={values[name]!r} must be a pair (relative_permittivity, conductivity "
+                            "[S/m]) or a triple with the scattering coefficient S") from None
+        checked = _check_value(name, given)
+        out[name] = (checked[0], checked[1], checked[2] if len(checked) == 3 else available[name][2])
     return out
 
 
-def _set_material(mat: Any, eps: float, sigma: float) -> None:
-    """Give ``mat`` fresh opaque ε_r and σ variables (a new value then reuses the compiled kernels)."""
+def _set_material(mat: Any, eps: float, sigma: float, scattering: float) -> None:
+    """Give ``mat`` fresh opaque ε_r, σ and S variables (a new value then reuses the compiled kernels)."""
     import drjit as dr
 
     mat.relative_permittivity = eps
     mat.conductivity = sigma
-    dr.make_opaque(mat.relative_permittivity, mat.conductivity)
+    mat.scattering_coefficient = scattering
+    dr.make_opaque(mat.relative_permittivity, mat.conductivity, mat.scattering_coefficient)
 
 
 class _Arrays:
@@ -325,11 +362,12 @@ def material_jacobian(
     radar_position: Any,
     materials: str | Sequence[str],
     *,
-    values: Mapping[str, tuple[float, float]] | None = None,
+    values: Mapping[str, tuple[float, ...]] | None = None,
     frequency: float = DEFAULT_FREQUENCY,
     settings: TraceSettings | None = None,
+    scattering: Sequence[str] = (),
 ) -> MaterialJacobian:
-    """Trace a monostatic radar and differentiate every path's gain w.r.t. named materials' ε_r and σ.
+    """Trace a monostatic radar and differentiate every path's gain w.r.t. named materials' ε_r, σ (and S).
 
     Parameters
     ----------
@@ -342,21 +380,27 @@ def material_jacobian(
         XML's bsdf id without ``mat-``, e.g. ``"concrete-200mm"``): a list or ``"a,b"``.
     values : mapping, optional
         ``{material: (relative_permittivity [unitless], conductivity [S/m])}`` at which to trace
-        and differentiate; any radio material of the scene may be given. Materials not given keep
-        the scene's own values (ITU-R P.2040 at ``frequency`` for ITU materials). sionna-rt
-        accepts ε_r ≥ 1 and σ ≥ 0.
+        and differentiate, or a triple adding the scattering coefficient S [unitless]; any radio
+        material of the scene may be given. Materials not given keep the scene's own values
+        (ITU-R P.2040 at ``frequency`` for ITU materials; the spec's S). sionna-rt accepts
+        ε_r ≥ 1, σ ≥ 0 and S in [0, 1].
     frequency : float
         Carrier [Hz] the materials are evaluated at (default 60 GHz).
     settings : TraceSettings, optional
         Solver options (default ``TraceSettings()``), as for
         :func:`risloc_rt.hall.raytrace.trace_scene`; ``scattering_coefficient`` is applied to
-        every material for this call, as there.
+        every material for this call, as there. Diffuse reflection is traced only when asked
+        (``trace_scene`` turns it on for a scene whose materials scatter; here the paths then
+        match its specular ones).
+    scattering : sequence of str
+        Materials among ``materials`` whose scattering coefficient S is differentiated too
+        (``d_scattering``); not with ``settings.scattering_coefficient``, which overrides every S.
 
     Returns
     -------
     MaterialJacobian
         The paths (identical to ``trace_scene(...).monostatic`` at the same values) and ``d_eps``,
-        ``d_sigma`` [P, Q].
+        ``d_sigma`` [P, Q], ``d_scattering`` [P, Q_s].
 
     Raises
     ------
@@ -372,7 +416,7 @@ def material_jacobian(
 
     Notes
     -----
-    Cost: 2·Q solves with ``loop_mode="evaluated"``, each followed by one forward-mode
+    Cost: 2·Q + Q_s solves with ``loop_mode="evaluated"``, each followed by one forward-mode
     derivative. The scene's materials are restored to their own values afterwards (the loaded
     scene is cached per process, keyed by content hash and frequency).
     """
@@ -387,6 +431,7 @@ def material_jacobian(
     t_load = 0.0 if cached else time.perf_counter() - t0
     names = _material_list(materials, own, loaded)
     asked = _values(values, own, loaded)
+    rough = _scattering_list(scattering, names, settings)
 
     import drjit as dr
     import mitsuba as mi
@@ -419,29 +464,31 @@ def material_jacobian(
                 if hasattr(mat, "scattering_coefficient"):
                     saved_s[name] = mat.scattering_coefficient
                     mat.scattering_coefficient = settings.scattering_coefficient
-        at = np.array([[float(mats[n].relative_permittivity[0]), float(mats[n].conductivity[0])] for n in names])
-        for name in names:
-            for kind in ("relative_permittivity", "conductivity"):
-                param = getattr(mats[name], kind)
-                dr.enable_grad(param)
-                try:
-                    paths = solver(sc, **solver_options(settings))
-                    a_re, a_im = paths.a
-                    dr.set_grad(param, 1.0)
-                    dr.forward_to(a_re, a_im)
-                    g = np.asarray(dr.grad(a_re).numpy(), np.float64) + 1j * np.asarray(dr.grad(a_im).numpy(), np.float64)
-                    value = (np.asarray(dr.detach(a_re).numpy()), np.asarray(dr.detach(a_im).numpy()))
-                finally:
-                    dr.disable_grad(param)
-                t = time.perf_counter()
-                this, order = _sorted(paths, value, loaded, kwargs)
-                t_convert += time.perf_counter() - t
-                if traced is None:
-                    traced = this
-                elif not _same(this, traced):
-                    raise RuntimeError("sionna-rt returned different paths for two solves of the same scene and "
-                                       "position (the deterministic solver should make them identical)")
-                grads[(name, kind)] = g[0, 0, 0, 0, :][order]
+        at = np.array([[float(mats[n].relative_permittivity[0]), float(mats[n].conductivity[0]),
+                        float(mats[n].scattering_coefficient[0])] for n in names])
+        wanted = [(n, k) for n in names for k in ("relative_permittivity", "conductivity")]
+        wanted += [(n, "scattering_coefficient") for n in rough]
+        for name, kind in wanted:
+            param = getattr(mats[name], kind)
+            dr.enable_grad(param)
+            try:
+                paths = solver(sc, **solver_options(settings))
+                a_re, a_im = paths.a
+                dr.set_grad(param, 1.0)
+                dr.forward_to(a_re, a_im)
+                g = np.asarray(dr.grad(a_re).numpy(), np.float64) + 1j * np.asarray(dr.grad(a_im).numpy(), np.float64)
+                value = (np.asarray(dr.detach(a_re).numpy()), np.asarray(dr.detach(a_im).numpy()))
+            finally:
+                dr.disable_grad(param)
+            t = time.perf_counter()
+            this, order = _sorted(paths, value, loaded, kwargs)
+            t_convert += time.perf_counter() - t
+            if traced is None:
+                traced = this
+            elif not _same(this, traced):
+                raise RuntimeError("sionna-rt returned different paths for two solves of the same scene and "
+                                   "position (the deterministic solver should make them identical)")
+            grads[(name, kind)] = g[0, 0, 0, 0, :][order]
         t_solve = time.perf_counter() - t1 - t_convert
     finally:
         for name, value in saved_s.items():
@@ -467,4 +514,23 @@ def material_jacobian(
         material_objects={n: objects_of.get(n, ()) for n in names}, frequency=frequency, settings=settings,
         scene_hash=loaded.content_hash,
         timing={"load": t_load, "solve": t_solve, "convert": t_convert, "total": time.perf_counter() - t0},
+        scattering=rough, scattering_coefficient=at[:, 2],
+        d_scattering=np.stack([grads[(n, "scattering_coefficient")] for n in rough], axis=1).reshape(p_count, len(rough))
+        if rough else None,
     )
+
+
+def _scattering_list(scattering: Any, names: tuple[str, ...], settings: TraceSettings) -> tuple[str, ...]:
+    """The materials whose S is differentiated, in the order of ``names``."""
+    if isinstance(scattering, str):
+        scattering = [m.strip() for m in scattering.split(",") if m.strip()]
+    if not isinstance(scattering, Sequence):
+        raise TypeError(f"scattering must be a sequence of material names, got {type(scattering).__name__}")
+    unknown = [m for m in scattering if m not in names]
+    if unknown:
+        raise ValueError(f"scattering names {', '.join(map(repr, unknown))}, not among the differentiated materials "
+                         f"({', '.join(names)})")
+    if scattering and settings.scattering_coefficient is not None:
+        raise ValueError(f"settings.scattering_coefficient={settings.scattering_coefficient:g} (--diffuse) gives every "
+                         "material one S, so S cannot be differentiated per material: leave it out")
+    return tuple(n for n in names if n in scattering)

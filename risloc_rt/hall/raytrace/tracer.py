@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import time
 from collections import OrderedDict
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -26,7 +27,8 @@ from .scene import LoadedScene, load_scene, scene_content_hash
 if TYPE_CHECKING:  # pragma: no cover
     from .cache import TraceCache
 
-__all__ = ["TraceResult", "TraceSettings", "paths_to_traced", "r_hat", "solve_paths", "solver_options", "trace_scene"]
+__all__ = ["TraceResult", "TraceSettings", "paths_to_traced", "r_hat", "scene_scatters", "settings_for_scene", "solve_paths",
+           "solver_options", "trace_scene"]
 
 #: Name of the transmitter and of the monostatic receiver added to the scene.
 RADAR_TX, RADAR_RX = "radar_tx", "radar_rx"
@@ -154,6 +156,50 @@ def solve_paths(
     finally:
         for name, value in saved.items():  # the loaded scene is reused by later traces
             scene.radio_materials[name].scattering_coefficient = value
+
+
+def scene_scatters(loaded: LoadedScene) -> tuple[str, ...]:
+    """The radio materials of ``loaded`` with a scattering coefficient S > 0 (sorted names).
+
+    Parameters
+    ----------
+    loaded : LoadedScene
+
+    Returns
+    -------
+    tuple of str
+        Empty for a scene of smooth surfaces (every example hall).
+    """
+    out = []
+    for name, mat in sorted(loaded.scene.radio_materials.items()):
+        s = getattr(mat, "scattering_coefficient", None)
+        if s is not None and float(s[0] if hasattr(s, "__getitem__") else s) > 0.0:
+            out.append(name)
+    return tuple(out)
+
+
+def settings_for_scene(settings: TraceSettings, loaded: LoadedScene) -> TraceSettings:
+    """``settings`` with diffuse reflection turned on when a material of the scene scatters (S > 0).
+
+    sionna-rt always lowers a scattering material's specular reflection by √(1 − S²); the power
+    S² it takes away comes back only as diffuse paths. Tracing such a scene without them would lose
+    that power silently, so a spec's ``scattering_coefficient`` turns them on (a scene without one
+    is traced as asked).
+
+    Parameters
+    ----------
+    settings : TraceSettings
+        As asked.
+    loaded : LoadedScene
+
+    Returns
+    -------
+    TraceSettings
+        ``settings`` itself, or a copy with ``diffuse_reflection=True``.
+    """
+    if settings.diffuse_reflection or settings.scattering_coefficient is not None or not scene_scatters(loaded):
+        return settings
+    return replace(settings, diffuse_reflection=True)
 
 
 def solver_options(settings: TraceSettings) -> dict[str, Any]:
@@ -371,6 +417,7 @@ def trace_scene(
     t = time.perf_counter()
     loaded, _reused = _scene_for(xml_path, frequency, scene_hash)
     timing["load"] = time.perf_counter() - t
+    settings = settings_for_scene(settings, loaded)
     t = time.perf_counter()
     paths = solve_paths(loaded, radar_position=radar, ris_positions=ris, radar_velocity=velocity,
                         settings=settings)
