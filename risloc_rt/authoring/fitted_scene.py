@@ -4,7 +4,8 @@
 (``docs/calibration-materials.md``). The source scene's ``spec.toml`` is parsed, every place that
 resolves to a fitted material (``[hall.materials]`` walls/floor/ceiling, an object's or imported
 mesh's ``material``) gets a custom material ``{permittivity, conductivity, thickness, name}`` with
-the fitted ε_r [unitless] and σ [S/m], the material's own thickness [m] and its own name (so the
+the fitted ε_r [unitless] and σ [S/m], the material's own thickness [m] and its own name, and its
+``scattering_coefficient`` (the fitted S where it was fitted, else the source's own; left out at 0) (so the
 fitted scene's materials keep the names sionna-rt knows them by, and ``--materials NAME`` works on
 it again). The new spec is written as plain TOML (the source's comments are not kept; a header
 names the source), checked to change exactly the named materials, and built with
@@ -18,8 +19,8 @@ existing target is refused unless ``force`` is given *and* it is a folder this m
 holds :data:`PROVENANCE_NAME`) or an empty one: a user's folder is never replaced.
 
 **What the tracer can express.** sionna-rt's custom radio material accepts a real relative
-permittivity ε_r ≥ 1 and a conductivity σ ≥ 0 S/m, finite; anything else is one ``ValueError``
-line naming the range (:func:`check_material_values`). The ITU-R P.2040 tables give ε_r and σ as
+permittivity ε_r ≥ 1, a conductivity σ ≥ 0 S/m, finite, and a scattering coefficient S in [0, 1];
+anything else is one ``ValueError`` line naming the range (:func:`check_material_values`). The ITU-R P.2040 tables give ε_r and σ as
 functions of frequency per material type, with no range of values, so no narrower range is
 imposed here.
 
@@ -51,13 +52,14 @@ PROVENANCE_NAME = "material-fit.json"
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
 
 
-def check_material_values(values: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
-    """The fitted values as ``{name: (ε_r, σ)}``, refusing what sionna-rt's custom material cannot express.
+def check_material_values(values: Mapping[str, Any]) -> dict[str, tuple[float, ...]]:
+    """The fitted values as ``{name: (ε_r, σ)}`` or ``(ε_r, σ, S)``, refusing what sionna-rt's custom material cannot express.
 
     Parameters
     ----------
     values : mapping
-        ``{material name: (ε_r [unitless], σ [S/m])}``.
+        ``{material name: (ε_r [unitless], σ [S/m])}``, or ``(ε_r, σ, S [unitless])`` where the
+        scattering coefficient was fitted.
 
     Returns
     -------
@@ -67,20 +69,27 @@ def check_material_values(values: Mapping[str, Any]) -> dict[str, tuple[float, f
     Raises
     ------
     ValueError
-        Empty, not a pair, NaN/inf, ε_r < 1 or σ < 0 S/m: one line naming the material and the range.
+        Empty, not a pair or triple, NaN/inf, ε_r < 1, σ < 0 S/m or S outside [0, 1]: one line naming
+        the material and the range.
     """
     if not values:
         raise ValueError("no fitted material values were given")
-    out: dict[str, tuple[float, float]] = {}
-    for name, pair in values.items():
+    out: dict[str, tuple[float, ...]] = {}
+    for name, given in values.items():
         try:
-            eps, sigma = (float(x) for x in pair)
+            numbers = tuple(float(x) for x in given)
         except (TypeError, ValueError):
-            raise ValueError(f"material {name!r}: expected (eps_r, sigma [S/m]), got {pair!r}") from None
+            numbers = ()
+        if len(numbers) not in (2, 3):
+            raise ValueError(f"material {name!r}: expected (eps_r, sigma [S/m]) or (eps_r, sigma, S), got {given!r}")
+        eps, sigma = numbers[:2]
         if not (math.isfinite(eps) and eps >= 1.0 and math.isfinite(sigma) and sigma >= 0.0):
             raise ValueError(f"material {name!r}: eps_r={eps!r}, sigma={sigma!r} S/m cannot be ray traced: sionna-rt's "
                              "radio materials need a finite eps_r >= 1 and a finite sigma >= 0 S/m")
-        out[str(name)] = (eps, sigma)
+        if len(numbers) == 3 and not (math.isfinite(numbers[2]) and 0.0 <= numbers[2] <= 1.0):
+            raise ValueError(f"material {name!r}: scattering coefficient S={numbers[2]!r} cannot be ray traced: "
+                             "sionna-rt needs S in [0, 1]")
+        out[str(name)] = numbers
     return out
 
 
@@ -143,8 +152,8 @@ def fitted_spec_text(scene: str | os.PathLike[str], values: Mapping[str, Any], *
     scene : path-like or str
         A scene name in ``scenes/`` or a scene folder holding its ``spec.toml``.
     values : mapping
-        ``{material name: (ε_r [unitless], σ [S/m])}`` (names as sionna-rt knows them, e.g.
-        ``"concrete-200mm"``).
+        ``{material name: (ε_r [unitless], σ [S/m])}``, or ``(ε_r, σ, S)`` with a fitted scattering
+        coefficient [unitless] (names as sionna-rt knows them, e.g. ``"concrete-200mm"``).
     note : str
         One line for the header comment (e.g. which captures the values come from).
 
@@ -170,8 +179,10 @@ def fitted_spec_text(scene: str | os.PathLike[str], values: Mapping[str, Any], *
     data = tomllib.loads(text)
 
     def custom(name: str) -> dict[str, Any]:
-        eps, sigma = values[name]
-        return {"permittivity": eps, "conductivity": sigma, "thickness": known[name].thickness, "name": name}
+        eps, sigma, *rest = values[name]
+        rough = rest[0] if rest else known[name].scattering_coefficient
+        return {"permittivity": eps, "conductivity": sigma, "thickness": known[name].thickness, "name": name,
+                **({"scattering_coefficient": rough} if rough > 0 else {})}
 
     shell = data["hall"]["materials"]
     for surface in ("walls", "floor", "ceiling"):
@@ -183,7 +194,8 @@ def fitted_spec_text(scene: str | os.PathLike[str], values: Mapping[str, Any], *
             if obj.material.name in values:
                 table["material"] = custom(obj.material.name)
     lines = [f"# Fitted from scene {spec.name!r} ({folder}) by 'risloc calibrate --materials': "
-             + ", ".join(f"{n}: eps_r {e:.6g}, sigma {s:.6g} S/m" for n, (e, s) in values.items()),
+             + ", ".join(f"{n}: eps_r {v[0]:.6g}, sigma {v[1]:.6g} S/m" + (f", S {v[2]:.6g}" if len(v) > 2 else "")
+                         for n, v in values.items()),
              *([f"# {note}"] if note else []),
              "# Provenance (captures, sigma, correlation, identifiability): material-fit.json beside this file.", ""]
     _emit(data, "", lines, top=True)
@@ -192,14 +204,16 @@ def fitted_spec_text(scene: str | os.PathLike[str], values: Mapping[str, Any], *
     return new
 
 
-def _check_rewrite(old: HallSpec, new: HallSpec, values: Mapping[str, tuple[float, float]]) -> None:
+def _check_rewrite(old: HallSpec, new: HallSpec, values: Mapping[str, tuple[float, ...]]) -> None:
     """Exactly the named materials changed, to custom materials of the fitted values (else ValueError)."""
     before, after = old.all_materials(), new.all_materials()
     if list(before) != list(after):
         raise ValueError(f"rewriting the spec changed its materials from {list(before)} to {list(after)}")
     for name, mat in after.items():
         if name in values:
-            ok = mat.itu is None and (mat.permittivity, mat.conductivity) == values[name]
+            eps, sigma, *rest = values[name]
+            rough = rest[0] if rest else before[name].scattering_coefficient
+            ok = mat.itu is None and (mat.permittivity, mat.conductivity, mat.scattering_coefficient) == (eps, sigma, rough)
         else:
             ok = mat == before[name]
         if not ok:
@@ -256,7 +270,8 @@ def write_fitted_scene(scene: str | os.PathLike[str], out: str | os.PathLike[str
     out : path-like
         The folder to create (:func:`check_fitted_target` rules).
     values : mapping
-        ``{material name: (ε_r [unitless], σ [S/m])}``.
+        ``{material name: (ε_r [unitless], σ [S/m])}``, or ``(ε_r, σ, S)`` with a fitted scattering
+        coefficient [unitless].
     provenance : mapping
         JSON-serialisable record of the fit, written as :data:`PROVENANCE_NAME` (NaN/inf become null).
     force : bool

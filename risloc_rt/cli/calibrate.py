@@ -27,7 +27,8 @@ def _run(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The parsed command line (CAPTURE..., --scene, --ue [m], -o, --force, --max-range-offset [m], trace flags;
-        with --materials: --out, --calibration, --fixed, --max-iter, --model-sigma [dB], --peak-prominence/--peak-floor [dB]).
+        with --materials: --out, --scattering, --calibration, --fixed, --max-iter, --model-sigma [dB],
+        --peak-prominence/--peak-floor [dB]).
 
     Returns
     -------
@@ -39,6 +40,9 @@ def _run(args: argparse.Namespace) -> int:
         from .calibrate_materials import run_materials
 
         return run_materials(args)
+    if getattr(args, "scattering", None) is not None:
+        raise CliError("--scattering names materials whose scattering coefficient a material fit fits: give --materials "
+                       "NAME,... (and --out DIR) with it")
     if args.out is not None:
         raise CliError("--out names the fitted scene folder of a material fit: give --materials NAME,... with it, or "
                        "-o FILE for the radar/RIS calibration")
@@ -103,14 +107,18 @@ def add_parser(sub) -> None:
     cal.add_argument("-o", "--output", help="calibration file to write (.toml or .json)")
     add_force_flag(cal, "an existing -o file (with --out: an earlier fitted scene folder)")
     cal.add_argument("--materials", metavar="NAME,NAME",
-                     help="fit these materials' eps_r and sigma (names as in the scene XML without 'mat-', e.g. "
+                     help="fit these materials' eps_r and sigma [and, with --scattering, S] (names as in the scene XML without 'mat-', e.g. "
                           "concrete-200mm) instead of the radar/RIS constants; needs --out")
     cal.add_argument("--out", metavar="DIR", help="with --materials: the new scene folder (spec with the fitted "
                                                   "materials, scene files, material-fit.json); must not exist")
     cal.add_argument("--calibration", metavar="FILE", action="append",
                      help="with --materials: a capture's radar/RIS calibration from 'risloc calibrate -o'; once for "
                           "all captures or once per capture")
-    cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma", action="append", default=[],
+    cal.add_argument("--scattering", metavar="NAME,NAME",
+                     help="with --materials: fit these materials' scattering coefficient S too (a subset of "
+                          "--materials; the share S^2 of the reflected power scattered diffusely, which the specular "
+                          "peaks lose); written to the fitted spec's scattering_coefficient")
+    cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma|NAME:scattering", action="append", default=[],
                      help="with --materials: hold this parameter at the scene's value (e.g. eps_r known from elsewhere "
                           "when the peaks see only |Gamma|^2 at normal incidence); repeatable")
     cal.add_argument("--max-iter", type=int, default=30, metavar="N",

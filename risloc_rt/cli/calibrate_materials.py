@@ -47,6 +47,12 @@ DEFAULT_PEAK_PROFILE: str = "sweep-mean"
 #: assumes the weak one's likelihood is quadratic.
 PROFILE_CORRELATION: float = 0.5
 
+#: The scattering coefficients S [unitless] at which ``--scattering`` first evaluates the full simulator; the profile is
+#: then refined around its minimum and its interval ends (:data:`SCATTERING_RESOLUTION`).
+SCATTERING_GRID: tuple[float, ...] = (0.0, 0.15, 0.3, 0.45, 0.6, 0.75, 0.9)
+#: The scattering profile's refinement stops where neighbouring points differ by at most 0.5 in χ² or this in S.
+SCATTERING_RESOLUTION: float = 0.01
+
 #: The conductivities the fit can reach [S/m] (ln σ within the engine's bounds, -40..20): a fitted σ at either end
 #: is refused, as is ε_r at its bound 1.
 SIGMA_RANGE: tuple[float, float] = (math.exp(-40.0) * 1.001, math.exp(20.0) / 1.001)
@@ -208,8 +214,8 @@ def _fmt(x: Any) -> str:
     return "n/a" if x is None else f"{x:.2f}"
 
 
-def _print_fit(fit: Any) -> None:
-    """The table per material, the correlation matrix and the identifiability report, on stdout."""
+def _print_fit(fit: Any, s_profiles: dict[str, Any] | None = None) -> None:
+    """The table per material (and each fitted S), the correlation matrix and the identifiability report, on stdout."""
     flagged = fit.identifiability.not_identifiable
     print(f"{'material':24s} {'eps_r':>10s} {'1 sigma':>9s} {'sigma [S/m]':>12s} {'1 sigma':>9s}  (start eps_r, sigma)")
     for q, m in enumerate(fit.materials):
@@ -222,8 +228,12 @@ def _print_fit(fit: Any) -> None:
         e_txt = "     held" if f"{m}:eps_r" in held else f"{d_eps:9.4f}"
         s_txt = "     held" if f"{m}:ln_sigma" in held else f"{d_sig:9.4f}"
         print(f"{m:24s} {eps:10.4f} {e_txt} {sig:12.4f} {s_txt}  ({start[0]:.4g}, {start[1]:.4g})")
+    for key, prof in (s_profiles or {}).items():
+        print(f"{key.rpartition(':')[0]:24s} S {prof.best_physical:.4f} (its profile over the full simulator, conditional "
+              f"on the others: {prof.span(1)} at 68.3 %, {prof.span(2)} at 95.4 %)")
     params = fit.identifiability.parameters
-    print("correlation (eps_r, ln sigma per material):")
+    print("correlation (eps_r, ln sigma per material" + ("; at the scattering coefficients above" if s_profiles else "")
+          + "):")
     for i, p in enumerate(params):
         print(f"  {p:36s} " + " ".join("     nan" if not math.isfinite(c) else f"{c:+8.3f}" for c in fit.correlation[i]))
     dof = len(fit.residuals_db) - len(params) + len(fit.identifiability.fixed)
@@ -234,14 +244,18 @@ def _print_fit(fit: Any) -> None:
 
 
 def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str, str],
-                       args: argparse.Namespace) -> dict[str, Any]:
+                       args: argparse.Namespace, also: tuple[str, ...] = ()) -> dict[str, Any]:
     """Profile-likelihood intervals of every weak parameter and of every free one correlated with it (|ρ| ≥
-    :data:`PROFILE_CORRELATION`), progress on stderr, the 68.3 and 95.4 % intervals printed; ``{}`` when none is weak."""
+    :data:`PROFILE_CORRELATION`), and of the parameters in ``also`` (every fitted S: bounded at 0, its likelihood is not
+    a parabola near there); progress on stderr, the 68.3 and 95.4 % intervals printed; ``{}`` when none is chosen."""
     from ..hall.material_profile import profile_interval
 
     rep = fit.identifiability
     params = rep.parameters
     chosen = [p for p in params if p in weak]
+    if also:
+        print("a scattering coefficient is stated by its profile likelihood (S >= 0 bounds it; its Fisher 1-sigma in S^2 "
+              "is a local figure near 0): " + ", ".join(_shown(p) for p in also))
     for p in params:
         if p in chosen or p in rep.fixed or p in rep.not_identifiable:
             continue
@@ -249,19 +263,129 @@ def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str
         if any(abs(fit.correlation[i, params.index(w)]) >= PROFILE_CORRELATION for w in weak):
             chosen.append(p)
     out = {}
-    if chosen:
-        print("the 1-sigma of " + ", ".join(p.replace("ln_sigma", "sigma") for p in chosen) + " in the table above is a "
+    local = [p for p in chosen if p not in also]
+    if local:
+        print("the 1-sigma of " + ", ".join(_shown(p) for p in local) + " in the table above is a "
               "local figure (weak, or correlated with a weak parameter); their profile likelihoods follow")
+    chosen += [p for p in also if p not in chosen]
     for p in chosen:
         def progress(value: float, delta: float, p: str = p) -> None:
-            unit = "" if p.endswith(":eps_r") else " S/m"
-            print(f"  profile of {p.replace('ln_sigma', 'sigma')}: {value:.4g}{unit}, chi2 - chi2(fit) = {delta:.4g}",
+            unit = " S/m" if p.endswith(":ln_sigma") else ""
+            print(f"  profile of {_shown(p)}: {value:.4g}{unit}, chi2 - chi2(fit) = {delta:.4g}",
                   file=sys.stderr, flush=True)
 
         out[p] = profile_interval(scene, observations, fit, p, settings=trace_settings(args), progress=progress)
         print(f"profile likelihood: {out[p].describe(1)}; 95.4 %: {out[p].span(2)}; 99.7 %: {out[p].span(3)} "
               f"({out[p].grid.size} points, {out[p].evaluations} evaluations, {out[p].seconds:.1f} s)")
     return out
+
+
+def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str], rough: list[str], fit: Any,
+                         tmp: Path, progress: Any) -> tuple[Any, list, list[dict[str, Any]], Path, dict[str, Any]]:
+    """Each ``--scattering`` material's S by its profile likelihood over the full simulator (module docstring).
+
+    At every S a scene folder with the fitted values and that S is built in ``tmp``, the captures' peaks are read
+    against it exactly as for the fit (:func:`_observations`: the beat model of every traced path, the diffuse returns
+    of the scattering surfaces, range folding, the IF filter and G included) and the other parameters are fitted
+    again (conditional fit); Δχ² over S gives the intervals. Materials one after another, each conditional on the
+    others' S at their start (then best) value. Returns the fit, observations, records and folder at the best S, and
+    ``{"<material>:scattering": ProfileInterval}`` (grid in S²).
+    """
+    import contextlib
+    import io
+    import time
+
+    from ..authoring.fitted_scene import write_fitted_scene
+    from ..authoring.spec import loads_spec
+    from ..hall.material_fit import fit_materials
+    from ..hall.material_profile import ProfileInterval, profile_intervals_of
+
+    settings = trace_settings(args)
+    known = loads_spec((scene / "spec.toml").read_text(encoding="utf-8"), base_dir=scene).all_materials()
+    current = {m: float(known[m].scattering_coefficient) for m in rough}
+    base = {m: v[:2] for m, v in fit.values().items()}
+    profiles: dict[str, Any] = {}
+    points: dict[float, dict[str, Any]] = {}
+    count = 0
+    for m in rough:
+        t0 = time.perf_counter()
+        points = {}
+        evaluations = 0
+
+        def point(value: float, m: str = m) -> None:
+            nonlocal count, evaluations
+            count += 1
+            values = {k: (*base[k], value if k == m else current[k]) if k in current else base[k] for k in names}
+            folder = write_fitted_scene(scene, tmp / f"variant-{count}", values, {"scattering_profile": m, "S": value})
+            with contextlib.redirect_stdout(io.StringIO()):
+                obs, recs = _observations(args, folder, names)
+            cond = fit_materials(folder, obs, names, start=base, settings=settings, max_iter=args.max_iter,
+                                 fixed=args.fixed, profile_check=False)
+            evaluations += cond.evaluations
+            found = {k: (*v, value if k == m else current[k]) if k in current else v for k, v in cond.values().items()}
+            points[value] = {"chi2": cond.chi2, "values": found, "observations": obs, "records": recs, "folder": folder}
+            print(f"  scattering profile of {m}: S {value:.4g}, chi2 {cond.chi2:.5g}", file=sys.stderr, flush=True)
+
+        for value in SCATTERING_GRID:
+            point(value)
+        for _ in range(4 * len(SCATTERING_GRID)):  # refine: the minimum's neighbours, then every interval end
+            grid = np.array(sorted(points))
+            chi2 = np.array([points[g]["chi2"] for g in grid])
+            best = int(np.argmin(chi2))
+            delta = chi2 - chi2[best]
+            wanted = [0.5 * (grid[best] + grid[j]) for j in (best - 1, best + 1)
+                      if 0 <= j < grid.size and grid[j] - grid[best] != 0 and abs(grid[j] - grid[best]) > SCATTERING_RESOLUTION
+                      and delta[j] > 0.5]
+            for n in (1, 2, 3):
+                for j in range(grid.size - 1):
+                    lo, hi = sorted((delta[j], delta[j + 1]))
+                    if lo <= n * n < hi and hi - lo > 0.5 and grid[j + 1] - grid[j] > SCATTERING_RESOLUTION:
+                        wanted.append(0.5 * (grid[j] + grid[j + 1]))
+            wanted = sorted({round(float(w), 6) for w in wanted} - set(points))
+            if not wanted:
+                break
+            point(wanted[0])
+        grid = np.array(sorted(points))
+        chi2 = np.array([points[g]["chi2"] for g in grid])
+        best = int(np.argmin(chi2))
+        delta = chi2 - chi2[best]
+        share = grid ** 2
+        for arr in (share, delta):
+            arr.setflags(write=False)
+        profiles[f"{m}:scattering"] = ProfileInterval(
+            parameter=f"{m}:scattering", grid=share, delta_chi2=delta, values=tuple(points[g]["values"] for g in grid),
+            best=float(share[best]), chi2_min=float(chi2[best]), moved=False,
+            limits=(float(share[0]), float(share[-1])), intervals=profile_intervals_of(share, delta, best),
+            evaluations=evaluations, seconds=time.perf_counter() - t0)
+        current[m] = float(grid[best])
+        base = {k: v[:2] for k, v in points[grid[best]]["values"].items()}
+        prof = profiles[f"{m}:scattering"]
+        print(f"scattering coefficient of {m} (profile over the full simulator, {grid.size} points, "
+              f"{prof.seconds:.0f} s): {prof.describe(1)}; 95.4 %: {prof.span(2)}")
+    chosen = points[min(points, key=lambda g: points[g]["chi2"])]
+    final = fit_materials(chosen["folder"], chosen["observations"], names, start=base, settings=settings,
+                          max_iter=args.max_iter, fixed=args.fixed, progress=progress)
+    return final, chosen["observations"], chosen["records"], chosen["folder"], profiles
+
+
+def _scattering_names(text: str | None, names: list[str]) -> list[str]:
+    """The ``--scattering`` list: names among ``--materials``, no repeats (empty without the flag)."""
+    if text is None:
+        return []
+    rough = [n.strip() for n in text.split(",")]
+    if not all(rough) or len(set(rough)) != len(rough):
+        raise CliError(f"--scattering {text!r}: give comma-separated material names, each once, e.g. concrete-200mm")
+    unknown = [n for n in rough if n not in names]
+    if unknown:
+        raise CliError(f"--scattering names {', '.join(unknown)}, not among --materials ({', '.join(names)}): fit a "
+                       "material's eps_r and sigma to fit its S")
+    return rough
+
+
+def _shown(parameter: str) -> str:
+    """A parameter as the command line names it: ``m:sigma`` for ``m:ln_sigma``, ``m:S`` for ``m:scattering``."""
+    m, _, kind = parameter.rpartition(":")
+    return f"{m}:{ {'ln_sigma': 'sigma', 'scattering': 'S'}.get(kind, kind)}"
 
 
 def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[dict[str, Any]],
@@ -276,11 +400,13 @@ def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[d
         "source_scene": str(scene), "captures": records,
         "trace": {k: getattr(trace_settings(args), k) for k in ("max_depth", "samples_per_src")},
         "peak_profile": peak_profile(args),
-        "units": "eps_r unitless, sigma S/m, powers and residuals dB, positions m, delays s",
+        "units": "eps_r unitless, sigma S/m, scattering coefficient S and share S^2 unitless, powers and residuals dB, "
+                 "positions m, delays s",
         "materials": {m: {"eps_r": float(fit.relative_permittivity[q]), "eps_r_sigma": float(fit.relative_permittivity_sigma[q]),
                           "sigma_s_per_m": float(fit.conductivity[q]), "sigma_sigma_s_per_m": float(fit.conductivity_sigma[q]),
                           "ln_sigma_sigma": float(fit.log_conductivity_sigma[q]), "start": list(fit.start[m])}
                       for q, m in enumerate(fit.materials)},
+        "scattering": [p.rpartition(":")[0] for p in profiles if p.endswith(":scattering")],
         "fixed": list(rep.fixed), "parameters": list(rep.parameters), "correlation": np.asarray(fit.correlation).tolist(),
         "iterations": fit.iterations, "evaluations": fit.evaluations, "converged": fit.converged,
         "chi2": fit.chi2, "degrees_of_freedom": len(fit.residuals_db) - len(rep.parameters) + len(rep.fixed),
@@ -292,10 +418,10 @@ def _provenance(args: argparse.Namespace, scene: Path, fit: Any, records: list[d
                             "peaks_per_material": {m: int(np.asarray(rep.constrains)[:, q].sum())
                                                    for q, m in enumerate(fit.materials)}},
         "profile_intervals": {
-            p.replace("ln_sigma", "sigma"): {
-                "unit": "unitless" if p.endswith(":eps_r") else "S/m", "best": prof.best_physical,
+            _shown(p): {
+                "unit": "S/m" if p.endswith(":ln_sigma") else "unitless", "best": prof.best_physical,
                 **{f"interval_{n}sigma": [_json_number(x) for x in prof.physical(n)] for n in prof.intervals},
-                "grid": [float(c) if p.endswith(":eps_r") else math.exp(c) for c in prof.grid],
+                "grid": [float(c) for c in prof.grid_physical],
                 "delta_chi2": [float(d) for d in prof.delta_chi2], "moved": prof.moved,
                 "evaluations": prof.evaluations, "seconds": prof.seconds}
             for p, prof in profiles.items()},
@@ -323,7 +449,9 @@ def run_materials(args: argparse.Namespace) -> int:
         0 when the scene folder is written; a bad input or a material that is not identifiable raises
         ``CliError`` (exit 2, nothing written).
     """
-    from ..authoring.fitted_scene import check_fitted_target, write_fitted_scene
+    import tempfile
+
+    from ..authoring.fitted_scene import check_fitted_target
     from ..authoring.scene_folder import scene_directory
     from ..hall.material_fit import fit_materials
 
@@ -337,6 +465,15 @@ def run_materials(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.model_sigma) and args.model_sigma >= 0):
         raise CliError(f"--model-sigma {args.model_sigma} must be a finite number >= 0 [dB]")
     names = material_names(args.materials)
+    rough = _scattering_names(getattr(args, "scattering", None), names)
+    if rough and getattr(args, "diffuse", None) is not None:
+        raise CliError(f"--diffuse {args.diffuse:g} gives every material one scattering coefficient, so --scattering "
+                       "cannot fit one per material: leave --diffuse out (a scene whose materials scatter is traced "
+                       "with diffuse reflection anyway)")
+    held = {str(f) for f in args.fixed}
+    if not rough and all(f"{m}:{k}" in held for m in names for k in ("eps_r", "sigma")):
+        raise CliError("every parameter is held with --fixed: nothing is left to fit (free one, or fit a scattering "
+                       "coefficient with --scattering NAME)")
     scene = scene_directory(args.scene)
     out = check_fitted_target(args.out, force=args.force)
     observations, records = _observations(args, scene, names)
@@ -346,14 +483,28 @@ def run_materials(args: argparse.Namespace) -> int:
 
     fit = fit_materials(scene, observations, names, settings=trace_settings(args), max_iter=args.max_iter,
                         progress=progress, fixed=args.fixed)
-    _print_fit(fit)
+    with tempfile.TemporaryDirectory(prefix=".risloc-scattering-") as tmp:
+        fit_scene, s_profiles = scene, {}
+        if rough:
+            fit, observations, records, fit_scene, s_profiles = _scattering_profiles(args, scene, names, rough, fit,
+                                                                                     Path(tmp), progress)
+        _write_fit(args, scene, fit_scene, out, fit, observations, records, s_profiles)
+    return 0
+
+
+def _write_fit(args: argparse.Namespace, scene: Path, fit_scene: Path, out: Path, fit: Any, observations: list,
+               records: list[dict[str, Any]], s_profiles: dict[str, Any]) -> None:
+    """Print the fit, refuse what it cannot state (flagged, at the tracer's edge, weak without --allow-weak), write."""
+    from ..authoring.fitted_scene import write_fitted_scene
+
+    _print_fit(fit, s_profiles)
     flagged = fit.identifiability.not_identifiable
     if flagged:
         first = next(iter(flagged.values())).split(": e.g.")[0]
         raise CliError(f"no scene written: {', '.join(flagged)} not identifiable from these peaks ({first}); hold one "
                        "with --fixed NAME:eps_r, add radar positions that see the material at other angles, or fit "
                        "fewer materials")
-    values = {m: fit.value(m)[:2] for m in fit.materials}
+    values: dict[str, tuple[float, ...]] = {m: fit.value(m)[:2] for m in fit.materials}
     held = fit.identifiability.fixed
     at_bound = [f"{m}:eps_r = 1" for m, (eps, _) in values.items() if eps <= 1.0 and f"{m}:eps_r" not in held]
     at_bound += [f"{m}:sigma = {sig:.3g} S/m" for m, (_, sig) in values.items()
@@ -363,9 +514,9 @@ def run_materials(args: argparse.Namespace) -> int:
                        "eps_r >= 1, sigma within 4e-18..5e8 S/m): the peaks do not hold it there, so its 1-sigma means "
                        "nothing; hold it with --fixed NAME:eps_r (or NAME:sigma), or add radar positions")
     weak = {p: r for p, r in fit.identifiability.weak.items() if p not in held}
-    profiles = _profile_intervals(scene, observations, fit, weak, args)
+    profiles = _profile_intervals(fit_scene, observations, fit, weak, args)
     if weak and not getattr(args, "allow_weak", False):
-        names_weak = ", ".join(p.replace("ln_sigma", "sigma") for p in weak)
+        names_weak = ", ".join(_shown(p) for p in weak)
         first = profiles[next(iter(weak))]
         raise CliError(f"no scene written: {names_weak}: {next(iter(weak.values()))}; what the peaks do say is its "
                        f"profile likelihood, {first.describe(1)}; 95.4 %: {first.span(2)} "
@@ -376,9 +527,11 @@ def run_materials(args: argparse.Namespace) -> int:
     if moved:  # the fit had stopped in a local valley: the scene gets the lowest chi2 any profile found
         best = min(moved, key=lambda p: p.chi2_min)
         values = dict(best.values[int(np.argmin(best.delta_chi2))])
-        print(f"the profile of {best.parameter} found chi2 {best.chi2_min:.4g} < the fit's {fit.chi2:.4g}: written are "
-              "its values, " + ", ".join(f"{m} ({e:.4g}, {g:.4g} S/m)" for m, (e, g) in values.items()))
-    write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records, profiles, values), force=args.force,
-                       note="captures: " + ", ".join(Path(c).name for c in args.capture))
+        print(f"the profile of {_shown(best.parameter)} found chi2 {best.chi2_min:.4g} < the fit's {fit.chi2:.4g}: written "
+              "are its values, " + ", ".join(f"{m} ({v[0]:.4g}, {v[1]:.4g} S/m)" for m, v in values.items()))
+    for key, prof in s_profiles.items():  # the scattering coefficients: each profile's best
+        m = key.rpartition(":")[0]
+        values[m] = (*values[m][:2], prof.best_physical)
+    write_fitted_scene(scene, out, values, _provenance(args, scene, fit, records, {**s_profiles, **profiles}, values),
+                       force=args.force, note="captures: " + ", ".join(Path(c).name for c in args.capture))
     print(f"wrote {out} (spec.toml, scene.xml, meshes/, material-fit.json): use it as --scene {out}")
-    return 0

@@ -93,7 +93,7 @@ from .raytrace.result import TraceSettings
 
 __all__ = ["Observation", "MaterialFit", "IdentifiabilityReport", "fit_materials", "synthetic_observations",
            "assign_paths", "DEFAULT_WINDOW", "DEFAULT_THRESHOLD",
-           "PROFILE_RATIO", "SHARE_RANGE"]
+           "PROFILE_RATIO", "SHARE_RANGE", "SEARCH_EPS_R", "SEARCH_S", "SEARCH_DESCENTS"]
 
 #: Default delay window [s]: half Table I's Rayleigh delay resolution (the paths one beat peak merges).
 DEFAULT_WINDOW: float = RadarConfig().delay_resolution / 2.0
@@ -110,6 +110,16 @@ _LOG_SIGMA_BOUNDS = (-40.0, 20.0)  # ln σ [ln(S/m)]: 4e-18 to 5e8 S/m; at e^40 
 #: nothing a peak shows) to 0.995 (the specular reflection 20 dB down per bounce). A fit at the lower end means
 #: "no scattering seen"; its profile interval gives the upper bound.
 SHARE_RANGE: tuple[float, float] = (1e-6, 0.995 ** 2)
+#: Start search of a fit with S free: per scattering material, the cost on the grid ε_r = these factors × its start
+#: ε_r [unitless] by S = :data:`SEARCH_S`, from traces without derivatives; the descent is repeated from the grid's
+#: lowest local minima (at most :data:`SEARCH_DESCENTS`) and the lowest χ² kept. The (ε_r, S²) valley of the specular
+#: powers has more than one minimum (measured: a concrete wall's fit from the ITU start stopped at χ² 140 beside
+#: the truth's 38, 50 peaks); its basins are ≈ ±0.25 wide in ε_r, hence the step of 0.05 × ε_r.
+SEARCH_EPS_R: tuple[float, ...] = tuple(float(x) for x in np.round(np.linspace(0.6, 1.6, 21), 3))
+#: The scattering coefficients of the start search's grid [unitless].
+SEARCH_S: tuple[float, ...] = (0.0, 0.15, 0.3, 0.45, 0.6, 0.75, 0.9)
+#: Most descents started from the search grid's local minima, per scattering material.
+SEARCH_DESCENTS: int = 3
 
 
 @dataclass(frozen=True)
@@ -332,6 +342,9 @@ class MaterialFit:
         Their fitted scattered share S² [unitless] (``SHARE_RANGE``'s lower end: no scattering seen).
     scattering_share_sigma : float array [Q_s]
         1σ of S² from the Fisher information [unitless]; inf when not identifiable.
+    search_evaluations : int
+        Traces without derivatives of the start search (every radar position once each; one solve
+        instead of 2·Q + Q_s), not counted in ``evaluations``.
 
     The covariance and correlation matrices are [2Q + Q_s]² when S is fitted (the S² columns last).
     """
@@ -356,6 +369,7 @@ class MaterialFit:
     scattering: tuple[str, ...] = ()
     scattering_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
     scattering_share_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    search_evaluations: int = 0
 
     @property
     def scattering_coefficient(self) -> np.ndarray:
@@ -631,8 +645,6 @@ def _fixed_parameters(fixed: Any, names: tuple[str, ...], scattering: tuple[str,
                              f"the fitted materials ({', '.join(names)})"
                              + (f", or MATERIAL:scattering for {', '.join(scattering)}" if scattering else ""))
         out.add(f"{m}:{'ln_sigma' if kind == 'sigma' else kind}")
-    if len(out) == 2 * len(names) + len(scattering):
-        raise ValueError("every parameter is fixed: nothing is left to fit")
     return out
 
 
@@ -679,6 +691,7 @@ def fit_materials(
     profile_check: bool = True,
     fixed: Sequence[str] = (),
     scattering: str | Sequence[str] = (),
+    search: bool = True,
 ) -> MaterialFit:
     """Fit the named materials' ε_r and σ (and S) to the observed peak powers (Levenberg–Marquardt, dB residuals).
 
@@ -715,10 +728,15 @@ def fit_materials(
         Parameters held at their start value, ``"<material>:eps_r"``, ``"<material>:sigma"`` or
         ``"<material>:scattering"`` (e.g. ε_r known from elsewhere when the peaks see only one
         combination of ε_r and σ): their Jacobian columns are set to 0, their 1σ is 0 and the
-        others' 1σ are conditional on them.
+        others' 1σ are conditional on them. Every parameter may be held: the result is then the
+        χ² at the start values (e.g. a profile point over a parameter this engine does not fit).
     scattering : str or sequence of str
         Materials among ``materials`` whose scattering coefficient S is fitted too, as the
         scattered share S² (a list or ``"a,b"``; default none: S stays the scene's).
+    search : bool
+        With ``scattering``: search each scattering material's (ε_r, S) grid for other valleys and
+        descend from its lowest local minima too (:data:`SEARCH_EPS_R`; ``False`` for a fit that
+        continues from a known solution, e.g. the profile's conditional fits).
 
     Returns
     -------
@@ -748,16 +766,20 @@ def fit_materials(
     settings = TraceSettings() if settings is None else settings
 
     evaluations = 0
+    searched = 0
 
-    def evaluate(theta: np.ndarray | None) -> dict[str, Any]:
-        nonlocal evaluations
-        evaluations += 1
+    def evaluate(theta: np.ndarray | None, derivatives: bool = True) -> dict[str, Any]:
+        nonlocal evaluations, searched
+        if derivatives:
+            evaluations += 1
+        else:
+            searched += 1
         values = None if theta is None else _values_of(names, theta, rough)
         rows, jrows, wrows, touch, peaks, unexplained, model = [], [], [], [], [], [], []
         jacs = []
         for i, o in enumerate(obs):
             jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings,
-                                    scattering=rough)
+                                    scattering=rough, derivatives=derivatives)
             jacs.append(jac)
             db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o), o.path_weight)
             offsets = o.offsets()
@@ -816,53 +838,89 @@ def fit_materials(
     # The scene's own values are the start unless some were given (or a fitted S was raised to SHARE_RANGE's end).
     cur = first if first["theta_given"] or (start is None and not rough) else evaluate(theta)
     start_values = _values_of(names, theta, rough)
+    theta_start = theta.copy()
     residual_start = cur["residual"].copy()
 
     def cost_of(ev: dict[str, Any]) -> float:
         r = ev["residual"] * ev["w"]
         return 0.5 * float(r @ r)
 
-    cost = cost_of(cur)
-    lam = 1e-3
-    history: list[float] = []
-    converged = False
-    iterations = 0
-    for it in range(1, max_iter + 1):
-        iterations = it
-        jw = cur["jdb"] * cur["w"][:, None]
-        jw[:, mask] = 0.0
-        rw = cur["residual"] * cur["w"]
-        norm = np.linalg.norm(jw, axis=0)
-        norm[norm == 0] = 1.0
-        u, s, vt = np.linalg.svd(jw / norm, full_matrices=False)
-        keep = s >= threshold * s[0] if s.size and s[0] > 0 else np.zeros(s.size, bool)
-        accepted = False
-        while not accepted and lam < 1e12:
-            damp = s[keep] / (s[keep] ** 2 + lam * s[0] ** 2)
-            step = (vt[keep].T @ (damp * (u[:, keep].T @ rw))) / norm
-            # The linear model's decrease of the cost for this step: below the tolerance no trial can pass it, so
-            # the fit has converged (saves the ~20 rejected trials that would raise the damping to its limit).
-            resid = rw - jw @ step
-            if cost - 0.5 * float(resid @ resid) <= tolerance * cost + 1e-9:
+    def descend(theta: np.ndarray, cur: dict[str, Any], iteration0: int) -> tuple[np.ndarray, dict[str, Any], float,
+                                                                                 int, list[float], bool]:
+        """Levenberg–Marquardt from ``theta``: (θ, its evaluation, cost, iterations, costs, converged)."""
+        cost = cost_of(cur)
+        lam = 1e-3
+        history: list[float] = []
+        converged = False
+        iterations = 0
+        for it in range(1, max_iter + 1):
+            iterations = it
+            jw = cur["jdb"] * cur["w"][:, None]
+            jw[:, mask] = 0.0
+            rw = cur["residual"] * cur["w"]
+            norm = np.linalg.norm(jw, axis=0)
+            norm[norm == 0] = 1.0
+            u, s, vt = np.linalg.svd(jw / norm, full_matrices=False)
+            keep = s >= threshold * s[0] if s.size and s[0] > 0 else np.zeros(s.size, bool)
+            accepted = False
+            while not accepted and lam < 1e12:
+                damp = s[keep] / (s[keep] ** 2 + lam * s[0] ** 2)
+                step = (vt[keep].T @ (damp * (u[:, keep].T @ rw))) / norm
+                # The linear model's decrease of the cost for this step: below the tolerance no trial can pass it,
+                # so the fit has converged (saves the ~20 rejected trials that would raise the damping to its limit).
+                resid = rw - jw @ step
+                if cost - 0.5 * float(resid @ resid) <= tolerance * cost + 1e-9:
+                    break
+                trial = _project(theta + step, q_count)
+                if np.allclose(trial, theta, rtol=0, atol=1e-12):
+                    break
+                ev = evaluate(trial)
+                new = cost_of(ev)
+                if new < cost:
+                    accepted = True
+                    converged = cost - new <= tolerance * cost + 1e-9
+                    theta, cur, cost = trial, ev, new
+                    lam = max(lam / 3.0, 1e-9)
+                else:
+                    lam *= 4.0
+            history.append(cost)
+            if progress is not None:
+                progress(iteration0 + it, cost)
+            if not accepted or converged:
+                converged = True if not accepted else converged
                 break
-            trial = _project(theta + step, q_count)
-            if np.allclose(trial, theta, rtol=0, atol=1e-12):
-                break
-            ev = evaluate(trial)
-            new = cost_of(ev)
-            if new < cost:
-                accepted = True
-                converged = cost - new <= tolerance * cost + 1e-9
-                theta, cur, cost = trial, ev, new
-                lam = max(lam / 3.0, 1e-9)
-            else:
-                lam *= 4.0
-        history.append(cost)
-        if progress is not None:
-            progress(it, cost)
-        if not accepted or converged:
-            converged = True if not accepted else converged
-            break
+        return theta, cur, cost, iterations, history, converged
+
+    theta, cur, cost, iterations, history, converged = descend(theta, cur, 0)
+    # A fitted S: search the (ε_r, S) grid of each scattering material for other valleys (SEARCH_EPS_R).
+    for j, m in enumerate(rough if max_iter > 0 and search else ()):
+        q = names.index(m)
+        e_col, s_col = 2 * q, 2 * q_count + j
+        e_free, s_free = f"{m}:eps_r" not in held, f"{m}:scattering" not in held
+        if not s_free:
+            continue
+        eps_grid = [theta_start[e_col] * f for f in SEARCH_EPS_R] if e_free else [theta[e_col]]
+        eps_grid = sorted({max(e, 1.0) for e in eps_grid})
+        grid = np.full((len(eps_grid), len(SEARCH_S)), np.inf)
+        for a, e in enumerate(eps_grid):
+            for b, sc_ in enumerate(SEARCH_S):
+                trial = theta.copy()
+                trial[e_col], trial[s_col] = e, sc_ ** 2
+                grid[a, b] = cost_of(evaluate(_project(trial, q_count), derivatives=False))
+        padded = np.pad(grid, 1, constant_values=np.inf)
+        centre = padded[1:-1, 1:-1]
+        minima = ((centre <= padded[:-2, 1:-1]) & (centre <= padded[2:, 1:-1]) & (centre <= padded[1:-1, :-2])
+                  & (centre <= padded[1:-1, 2:]))
+        for flat in sorted(np.flatnonzero(minima), key=lambda i: grid.flat[i])[:SEARCH_DESCENTS]:
+            a, b = np.unravel_index(flat, grid.shape)
+            other = theta.copy()
+            other[e_col], other[s_col] = eps_grid[a], SEARCH_S[b] ** 2
+            other = _project(other, q_count)
+            found = descend(other, evaluate(other), iterations)
+            iterations += found[3]
+            history += found[4]
+            if found[2] < cost - 1e-9:
+                theta, cur, cost, _, _, converged = found
 
     # Fisher information at the solution, in column-scaled coordinates.
     jw = cur["jdb"] * cur["w"][:, None]
@@ -873,7 +931,10 @@ def fit_materials(
     # Fewer peaks than free parameters: pad with zero rows, so that the directions no peak sees get their
     # singular value 0 (and are flagged) instead of being left out of the decomposition.
     free = np.vstack([free, np.zeros((max(0, free.shape[1] - free.shape[0]), free.shape[1]))])
-    _, s, vt = np.linalg.svd(free, full_matrices=False)
+    if free.shape[1]:
+        _, s, vt = np.linalg.svd(free, full_matrices=False)
+    else:  # every parameter held: nothing to decompose
+        s, vt = np.zeros(0), np.zeros((0, 0))
     vt_full = np.zeros((vt.shape[0], len(params)))
     vt_full[:, ~mask] = vt
     vt = vt_full
@@ -892,7 +953,7 @@ def fit_materials(
         corr = cov / np.outer(sd, sd)
     corr[bad | mask, :] = np.nan
     corr[:, bad | mask] = np.nan
-    condition = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+    condition = (float(s[0] / s[-1]) if s[-1] > 0 else math.inf) if s.size else 1.0
     profile: dict[str, tuple[float, float]] = {}
     profile2: dict[str, tuple[float, float]] = {}
     weak: dict[str, str] = {}
@@ -933,4 +994,5 @@ def fit_materials(
         log_conductivity_sigma=log_sd, covariance=cov, correlation=corr, start=start_values,
         residuals_start_db=residual_start, residuals_db=residual, chi2=float(r @ r), iterations=iterations,
         evaluations=evaluations, converged=converged, seconds=time.perf_counter() - t0, identifiability=report,
-        history=tuple(history), scattering=rough, scattering_share=share, scattering_share_sigma=share_sd)
+        history=tuple(history), scattering=rough, scattering_share=share, scattering_share_sigma=share_sd,
+        search_evaluations=searched)

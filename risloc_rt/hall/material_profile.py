@@ -22,9 +22,10 @@ one of two valleys), the free fit is run again from there, χ²_min is its minim
 :attr:`ProfileInterval.moved` says so. A valley behind a barrier higher than Δχ² = 10 is not searched
 (the scan stops there).
 
-Coordinates: ε_r [unitless] as it is, σ in ln σ [ln(S/m)], the fit's own parameters. Intervals are
-returned in both (:attr:`ProfileInterval.intervals` in the coordinate, :meth:`ProfileInterval.physical`
-in ε_r or S/m).
+Coordinates: ε_r [unitless] as it is, σ in ln σ [ln(S/m)], a scattering coefficient S in the
+scattered share S² [unitless], the fit's own parameters. Intervals are returned in both
+(:attr:`ProfileInterval.intervals` in the coordinate, :meth:`ProfileInterval.physical` in ε_r, S/m or S).
+An S² interval open at the fit's lower bound (S = 1e-3) is an upper bound: "S <= x".
 
 Cost: one conditional fit per grid point, stopped when a step lowers χ² by less than 0.01 or 0.1 %,
 whichever is smaller (mostly 1–3 tracer evaluations each: every radar position traced and
@@ -46,10 +47,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .material_fit import DEFAULT_THRESHOLD, DEFAULT_WINDOW, MaterialFit, Observation, fit_materials
+from .material_fit import DEFAULT_THRESHOLD, DEFAULT_WINDOW, SHARE_RANGE, MaterialFit, Observation, fit_materials
 from .raytrace.result import TraceSettings
 
-__all__ = ["ProfileInterval", "profile_interval", "LEVELS", "SIGMA_SCAN", "EPS_R_SCAN"]
+__all__ = ["ProfileInterval", "profile_interval", "profile_intervals_of", "LEVELS", "SIGMA_SCAN", "EPS_R_SCAN",
+           "S_SCAN"]
 
 #: The interval levels n: Δχ² ≤ n² (1σ, 2σ, 3σ equivalents for one parameter).
 LEVELS: tuple[int, ...] = (1, 2, 3)
@@ -59,8 +61,11 @@ SIGMA_SCAN: tuple[float, float] = (1e-3, 1e3)
 #: Default scan limits of ε_r [unitless]: 1 (what the tracer accepts) to 30 (above any ITU-R P.2040
 #: non-metal at 60 GHz).
 EPS_R_SCAN: tuple[float, float] = (1.0, 30.0)
+#: Default scan limits of a scattering coefficient S [unitless]: the fit's own range
+#: (:data:`~risloc_rt.hall.material_fit.SHARE_RANGE`, S from 1e-3 to 0.995).
+S_SCAN: tuple[float, float] = (math.sqrt(SHARE_RANGE[0]), math.sqrt(SHARE_RANGE[1]))
 #: Step bounds in the coordinate: ln σ [ln(S/m)], ε_r [unitless].
-_STEP = {"ln_sigma": (0.05, 1.5), "eps_r": (0.002, 2.0)}
+_STEP = {"ln_sigma": (0.05, 1.5), "eps_r": (0.002, 2.0), "scattering": (2e-4, 0.1)}
 _MOVED = 0.05  # a conditional fit lower than the fit by more than this in χ² moves the reference
 _COST_TOLERANCE = 0.005  # the conditional fits stop when a step lowers ½χ² by less than this (χ² to ~0.01) ...
 _TOLERANCE = 1e-3  # ... or by less than this share of it
@@ -76,14 +81,15 @@ class ProfileInterval:
     Attributes
     ----------
     parameter : str
-        ``"<material>:eps_r"`` or ``"<material>:ln_sigma"``.
+        ``"<material>:eps_r"``, ``"<material>:ln_sigma"`` or ``"<material>:scattering"``.
     grid : float array [N]
         The parameter's values where the profile was traced, ascending, in its coordinate
-        (ε_r [unitless] or ln σ [ln(S/m)]); the fit's own value is one of them.
+        (ε_r [unitless], ln σ [ln(S/m)] or S² [unitless]); the fit's own value is one of them.
     delta_chi2 : float array [N]
         χ² of the conditional fit at each grid value minus the lowest χ² found [unitless].
     values : tuple of dict
-        Per grid value, every fitted material's ``(ε_r, σ [S/m])`` at the conditional fit.
+        Per grid value, every fitted material's ``(ε_r, σ [S/m])`` at the conditional fit, S [unitless]
+        third for a material whose scattering coefficient was fitted.
     best : float
         The grid value with the lowest χ² [coordinate].
     chi2_min : float
@@ -123,13 +129,14 @@ class ProfileInterval:
 
     @property
     def kind(self) -> str:
-        """``"eps_r"`` or ``"ln_sigma"``."""
+        """``"eps_r"``, ``"ln_sigma"`` or ``"scattering"``."""
         return self.parameter.rpartition(":")[2]
 
     def physical(self, level: int = 1) -> tuple[float, float]:
-        """The level-n interval in physical units: ε_r [unitless] or σ [S/m].
+        """The level-n interval in physical units: ε_r [unitless], σ [S/m] or S [unitless].
 
-        An open lower end is the physical floor (ε_r 1, σ 0 S/m), an open upper end ``inf``.
+        An open lower end is the physical floor (ε_r 1, σ 0 S/m, S 0), an open upper end ``inf``
+        (S: 1).
 
         Parameters
         ----------
@@ -144,20 +151,27 @@ class ProfileInterval:
         lo, hi = self._interval(level)
         if self.kind == "eps_r":
             return max(lo, 1.0), hi
+        if self.kind == "scattering":
+            return (0.0 if lo == -math.inf else _physical(self.kind, lo)), (1.0 if hi == math.inf else _physical(self.kind, hi))
         return (0.0 if lo == -math.inf else math.exp(lo)), (math.inf if hi == math.inf else math.exp(hi))
 
     @property
+    def grid_physical(self) -> np.ndarray:
+        """``grid`` in physical units: ε_r [unitless], σ [S/m] or S [unitless], float [N]."""
+        return np.array([_physical(self.kind, c) for c in self.grid])
+
+    @property
     def best_physical(self) -> float:
-        """``best`` in physical units: ε_r [unitless] or σ [S/m]."""
-        return self.best if self.kind == "eps_r" else math.exp(self.best)
+        """``best`` in physical units: ε_r [unitless], σ [S/m] or S [unitless]."""
+        return _physical(self.kind, self.best)
 
     def covers(self, value: float, level: int = 1) -> bool:
-        """Whether a physical value (ε_r, or σ [S/m]) lies in the level-n interval.
+        """Whether a physical value (ε_r, σ [S/m] or S) lies in the level-n interval.
 
         Parameters
         ----------
         value : float
-            ε_r [unitless] or σ [S/m].
+            ε_r [unitless], σ [S/m] or S [unitless].
         level : int
             One of :data:`LEVELS`.
 
@@ -214,7 +228,7 @@ class ProfileInterval:
 
     @property
     def _name_unit(self) -> tuple[str, str]:
-        return ("eps_r", "") if self.kind == "eps_r" else ("sigma", " S/m")
+        return {"eps_r": ("eps_r", ""), "scattering": ("S", "")}.get(self.kind, ("sigma", " S/m"))
 
     def _interval(self, level: int) -> tuple[float, float]:
         if level not in self.intervals:
@@ -222,7 +236,24 @@ class ProfileInterval:
         return self.intervals[level]
 
     def _limit_physical(self, i: int) -> float:
-        return self.limits[i] if self.kind == "eps_r" else math.exp(self.limits[i])
+        return _physical(self.kind, self.limits[i])
+
+
+def _physical(kind: str, c: float) -> float:
+    """A coordinate value in physical units: ε_r as it is, σ = exp(ln σ) [S/m], S = √(S²)."""
+    if kind == "eps_r":
+        return c
+    if kind == "scattering":
+        return math.sqrt(max(c, 0.0))
+    return math.exp(c)
+
+
+def _coordinate(fit: MaterialFit, kind: str, material: str) -> float:
+    """The fit's value of one parameter in its coordinate (ε_r, ln σ or S²)."""
+    if kind == "scattering":
+        return float(fit.scattering_share[fit.scattering.index(material)])
+    q = fit.materials.index(material)
+    return float(fit.relative_permittivity[q]) if kind == "eps_r" else math.log(float(fit.conductivity[q]))
 
 
 def _fmt(x: float) -> str:
@@ -230,14 +261,16 @@ def _fmt(x: float) -> str:
 
 
 def _parameter(fit: MaterialFit, parameter: str) -> tuple[str, str, int]:
-    """(material, kind, column) of ``"m:eps_r"`` / ``"m:sigma"`` / ``"m:ln_sigma"``; one-line ValueError otherwise."""
+    """(material, kind, column) of ``"m:eps_r"`` / ``"m:sigma"`` / ``"m:ln_sigma"`` / ``"m:scattering"`` (``"m:S"``);
+    one-line ValueError otherwise."""
     m, _, kind = str(parameter).rpartition(":")
-    kind = {"sigma": "ln_sigma"}.get(kind, kind)
+    kind = {"sigma": "ln_sigma", "S": "scattering"}.get(kind, kind)
     name = f"{m}:{kind}"
     params = fit.identifiability.parameters
     if name not in params:
         raise ValueError(f"parameter {parameter!r} must be MATERIAL:eps_r or MATERIAL:sigma with MATERIAL one of the "
-                         f"fitted materials ({', '.join(fit.materials)})")
+                         f"fitted materials ({', '.join(fit.materials)})"
+                         + (f", or MATERIAL:scattering for {', '.join(fit.scattering)}" if fit.scattering else ""))
     if name in fit.identifiability.fixed:
         raise ValueError(f"parameter {parameter!r} was held in the fit (--fixed): it has no profile to trace")
     if name in fit.identifiability.not_identifiable:
@@ -278,6 +311,29 @@ def _crossing(grid: np.ndarray, d: np.ndarray, level: float, best: int, side: in
     return float(grid[last] + f * (grid[nxt] - grid[last]))
 
 
+def profile_intervals_of(grid: np.ndarray, delta_chi2: np.ndarray, best: int) -> dict[int, tuple[float, float]]:
+    """The intervals ``{n: (lo, hi)}`` at :data:`LEVELS` of a traced profile (as :attr:`ProfileInterval.intervals`).
+
+    Parameters
+    ----------
+    grid : float array [N]
+        The parameter's values, ascending [its coordinate].
+    delta_chi2 : float array [N]
+        The profile Δχ² at each, 0 at ``best`` [unitless].
+    best : int
+        Index of the lowest point.
+
+    Returns
+    -------
+    dict
+        The hull of {Δχ² ≤ n²} around ``best``, its ends linear in Δχ² between grid values; ``-inf`` / ``inf``
+        where the last point on that side is still inside.
+    """
+    grid = np.asarray(grid, dtype=float)
+    delta = np.asarray(delta_chi2, dtype=float)
+    return {n: (_crossing(grid, delta, n ** 2, best, -1), _crossing(grid, delta, n ** 2, best, 1)) for n in LEVELS}
+
+
 def profile_interval(
     scene: str | os.PathLike[str],
     observations: Sequence[Observation],
@@ -303,7 +359,8 @@ def profile_interval(
         The fit (:func:`~risloc_rt.hall.material_fit.fit_materials` with the same scene, observations,
         settings and window); its held parameters stay held.
     parameter : str
-        ``"<material>:eps_r"`` or ``"<material>:sigma"`` (``ln_sigma`` accepted): a fitted, free,
+        ``"<material>:eps_r"``, ``"<material>:sigma"`` (``ln_sigma`` accepted) or
+        ``"<material>:scattering"`` (``S`` accepted; profiled in S², stated in S): a fitted, free,
         identifiable parameter.
     settings : TraceSettings, optional
         The fit's solver options.
@@ -312,8 +369,8 @@ def profile_interval(
     threshold : float
         The fit's identifiability threshold.
     limits : (float, float), optional
-        Scan limits in physical units, ε_r [unitless] or σ [S/m]; default :data:`EPS_R_SCAN` /
-        :data:`SIGMA_SCAN`, widened to include the fit's value.
+        Scan limits in physical units, ε_r [unitless], σ [S/m] or S [unitless]; default
+        :data:`EPS_R_SCAN` / :data:`SIGMA_SCAN` / :data:`S_SCAN`, widened to include the fit's value.
     max_iter : int
         Most Levenberg–Marquardt iterations per conditional fit (default 15).
     progress : callable, optional
@@ -328,14 +385,14 @@ def profile_interval(
     ------
     ValueError
         An unknown, held or not-identifiable parameter; bad limits (not finite, lo >= hi, ε_r < 1,
-        σ <= 0). Errors of the conditional fits pass through.
+        σ <= 0, S outside [``S_SCAN``]). Errors of the conditional fits pass through.
     """
     t0 = time.perf_counter()
     material, kind, col = _parameter(fit, parameter)
     name = f"{material}:{kind}"
     q = fit.materials.index(material)
-    theta_fit = float(fit.relative_permittivity[q]) if kind == "eps_r" else math.log(float(fit.conductivity[q]))
-    default = EPS_R_SCAN if kind == "eps_r" else SIGMA_SCAN
+    theta_fit = _coordinate(fit, kind, material)
+    default = {"eps_r": EPS_R_SCAN, "scattering": S_SCAN}.get(kind, SIGMA_SCAN)
     lo_p, hi_p = default if limits is None else limits
     if not (isinstance(lo_p, (int, float)) and isinstance(hi_p, (int, float)) and math.isfinite(lo_p)
             and math.isfinite(hi_p) and lo_p < hi_p):
@@ -344,40 +401,45 @@ def profile_interval(
         raise ValueError(f"limits={limits!r}: eps_r below 1 is not accepted by the ray tracer")
     if kind == "ln_sigma" and lo_p <= 0:
         raise ValueError(f"limits={limits!r}: sigma must be > 0 S/m (the fit works in ln sigma)")
+    if kind == "scattering" and not (S_SCAN[0] * (1 - 1e-9) <= lo_p and hi_p <= S_SCAN[1] * (1 + 1e-9)):
+        raise ValueError(f"limits={limits!r}: S must lie within {S_SCAN[0]:.3g}..{S_SCAN[1]:.3g}, the fit's range")
     if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"max_iter={max_iter!r} must be an int >= 1")
-    lim = (lo_p, hi_p) if kind == "eps_r" else (math.log(lo_p), math.log(hi_p))
+    lim = {"eps_r": (lo_p, hi_p), "scattering": (lo_p ** 2, hi_p ** 2)}.get(kind, (math.log(lo_p), math.log(hi_p)))
     lim = (min(lim[0], theta_fit), max(lim[1], theta_fit))
     held = [p.replace("ln_sigma", "sigma") for p in fit.identifiability.fixed]
     others = len(fit.identifiability.parameters) - len(held) > 1
-    fit_values = {m: (float(fit.relative_permittivity[i]), float(fit.conductivity[i])) for i, m in enumerate(fit.materials)}
+    fit_values = fit.values()
     h_min, h_max = _STEP[kind]
-    sd = float(fit.relative_permittivity_sigma[q] if kind == "eps_r" else fit.log_conductivity_sigma[q])
+    sd = float({"eps_r": fit.relative_permittivity_sigma, "ln_sigma": fit.log_conductivity_sigma}[kind][q]
+               if kind != "scattering" else fit.scattering_share_sigma[fit.scattering.index(material)])
     h0 = min(max(sd if math.isfinite(sd) and sd > 0 else h_max, h_min), h_max)
     stop = max(LEVELS) ** 2 + 1.0
     tolerance = min(_TOLERANCE, _COST_TOLERANCE / max(0.5 * fit.chi2, 1e-9))
-    points: dict[float, tuple[float, dict[str, tuple[float, float]]]] = {theta_fit: (fit.chi2, fit_values)}
+    points: dict[float, tuple[float, dict[str, tuple[float, ...]]]] = {theta_fit: (fit.chi2, fit_values)}
     evaluations = 0
+    slot = {"eps_r": 0, "ln_sigma": 1, "scattering": 2}[kind]
 
-    def set_value(values: dict[str, tuple[float, float]], c: float) -> dict[str, tuple[float, float]]:
-        eps, sig = values[material]
+    def set_value(values: dict[str, tuple[float, ...]], c: float) -> dict[str, tuple[float, ...]]:
         out = dict(values)
-        out[material] = (c, sig) if kind == "eps_r" else (eps, math.exp(c))
+        new = list(values[material])
+        new[slot] = c if kind == "eps_r" else math.exp(c) if kind == "ln_sigma" else math.sqrt(c)
+        out[material] = tuple(new)
         return out
 
-    def conditional(c: float, values: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    def conditional(c: float, values: dict[str, tuple[float, ...]]) -> dict[str, tuple[float, ...]]:
         """χ² of the fit with the parameter held at c, started from ``values``; stored in ``points``."""
         nonlocal evaluations
         # Nothing else free (one material, its other parameter held): the profile is the cost itself.
         cond = fit_materials(scene, observations, fit.materials, start=set_value(values, c), settings=settings,
                              window=window, threshold=threshold, max_iter=max_iter if others else 0,
-                             tolerance=tolerance, profile_check=False,
+                             tolerance=tolerance, profile_check=False, scattering=fit.scattering, search=False,
                              fixed=[*held, name.replace("ln_sigma", "sigma")] if others else held)
         evaluations += cond.evaluations
-        out = {m: (float(cond.relative_permittivity[i]), float(cond.conductivity[i])) for i, m in enumerate(cond.materials)}
+        out = cond.values()
         points[c] = (cond.chi2, out)
         if progress is not None:
-            progress(c if kind == "eps_r" else math.exp(c), cond.chi2 - fit.chi2)
+            progress(_physical(kind, c), cond.chi2 - fit.chi2)
         return out
 
     # 1. Outward from the fit on both sides, the step adapted to the profile's slope, until Δχ² passes 3² + 1.
@@ -412,14 +474,13 @@ def profile_interval(
         refitted = True
         refit = fit_materials(scene, observations, fit.materials, start=points[grid[i_best]][1], settings=settings,
                               window=window, threshold=threshold, max_iter=max_iter, tolerance=tolerance,
-                              profile_check=False, fixed=held)
-        evaluations += refit.evaluations
-        c = float(refit.relative_permittivity[q]) if kind == "eps_r" else math.log(float(refit.conductivity[q]))
+                              profile_check=False, fixed=held, scattering=fit.scattering, search=False)
+        evaluations += refit.evaluations + refit.search_evaluations
+        c = _coordinate(refit, kind, material)
         if refit.chi2 < points.get(c, (math.inf,))[0]:
-            points[c] = (refit.chi2, {m: (float(refit.relative_permittivity[i]), float(refit.conductivity[i]))
-                                      for i, m in enumerate(refit.materials)})
+            points[c] = (refit.chi2, refit.values())
     grid, delta, i_best, chi2_min, moved = _profile(points, fit.chi2, theta_fit)
-    intervals = {n: (_crossing(grid, delta, n ** 2, i_best, -1), _crossing(grid, delta, n ** 2, i_best, 1)) for n in LEVELS}
+    intervals = profile_intervals_of(grid, delta, i_best)
     for arr in (grid, delta):
         arr.setflags(write=False)
     return ProfileInterval(parameter=name, grid=grid, delta_chi2=delta, values=tuple(points[c][1] for c in grid),

@@ -136,7 +136,8 @@ def stand_in_tracer(monkeypatch):
             p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + f, -75.0 + f])
             return p, np.array([3.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0]) * df
 
-        def fake_jacobian(scene, position, materials, *, values=None, settings=None):
+        def fake_jacobian(scene, position, materials, *, values=None, settings=None, scattering=(), derivatives=True):
+            assert not scattering, "the stand-in tracer has no scattering coefficient"
             name = materials[0] if not isinstance(materials, str) else materials
             eps, sigma = (values or {}).get(name, (5.24, 1.136))
             p, dp_eps, dp_s = powers(eps, math.log(sigma))
@@ -146,7 +147,8 @@ def stand_in_tracer(monkeypatch):
                                    conductivity=np.array([sigma]), delay=STAND_IN_DELAYS, a=a.astype(complex),
                                    d_eps=(scale * dp_eps)[:, None].astype(complex),
                                    d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
-                                   touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)))
+                                   touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)),
+                                   scattering=(), scattering_coefficient=np.zeros(1), d_scattering=np.zeros((3, 0)))
 
         monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
         truth, _, _ = powers(6.1, math.log(0.6))

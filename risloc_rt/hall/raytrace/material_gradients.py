@@ -366,6 +366,7 @@ def material_jacobian(
     frequency: float = DEFAULT_FREQUENCY,
     settings: TraceSettings | None = None,
     scattering: Sequence[str] = (),
+    derivatives: bool = True,
 ) -> MaterialJacobian:
     """Trace a monostatic radar and differentiate every path's gain w.r.t. named materials' ε_r, σ (and S).
 
@@ -395,6 +396,9 @@ def material_jacobian(
     scattering : sequence of str
         Materials among ``materials`` whose scattering coefficient S is differentiated too
         (``d_scattering``); not with ``settings.scattering_coefficient``, which overrides every S.
+    derivatives : bool
+        ``False``: one solve without automatic differentiation, the gains only (every derivative
+        array is 0): for a search over values (1/(2·Q + Q_s) of the cost).
 
     Returns
     -------
@@ -468,18 +472,25 @@ def material_jacobian(
                         float(mats[n].scattering_coefficient[0])] for n in names])
         wanted = [(n, k) for n in names for k in ("relative_permittivity", "conductivity")]
         wanted += [(n, "scattering_coefficient") for n in rough]
+        if not derivatives:
+            wanted = [(names[0], None)]
         for name, kind in wanted:
-            param = getattr(mats[name], kind)
-            dr.enable_grad(param)
+            param = getattr(mats[name], kind) if kind is not None else None
+            if param is not None:
+                dr.enable_grad(param)
             try:
                 paths = solver(sc, **solver_options(settings))
                 a_re, a_im = paths.a
-                dr.set_grad(param, 1.0)
-                dr.forward_to(a_re, a_im)
-                g = np.asarray(dr.grad(a_re).numpy(), np.float64) + 1j * np.asarray(dr.grad(a_im).numpy(), np.float64)
+                if param is not None:
+                    dr.set_grad(param, 1.0)
+                    dr.forward_to(a_re, a_im)
+                    g = np.asarray(dr.grad(a_re).numpy(), np.float64) + 1j * np.asarray(dr.grad(a_im).numpy(), np.float64)
                 value = (np.asarray(dr.detach(a_re).numpy()), np.asarray(dr.detach(a_im).numpy()))
+                if param is None:
+                    g = np.zeros(value[0].shape, complex)
             finally:
-                dr.disable_grad(param)
+                if param is not None:
+                    dr.disable_grad(param)
             t = time.perf_counter()
             this, order = _sorted(paths, value, loaded, kwargs)
             t_convert += time.perf_counter() - t
@@ -498,8 +509,11 @@ def material_jacobian(
     assert traced is not None  # names is never empty
     t2 = time.perf_counter()
     p_count = len(traced)
-    d_eps = np.stack([grads[(n, "relative_permittivity")] for n in names], axis=1).reshape(p_count, len(names))
-    d_sigma = np.stack([grads[(n, "conductivity")] for n in names], axis=1).reshape(p_count, len(names))
+    def column(name: str, kind: str) -> np.ndarray:
+        return grads.get((name, kind), np.zeros(p_count, complex))
+
+    d_eps = np.stack([column(n, "relative_permittivity") for n in names], axis=1).reshape(p_count, len(names))
+    d_sigma = np.stack([column(n, "conductivity") for n in names], axis=1).reshape(p_count, len(names))
     objects_of = material_objects(loaded)
     index_of = {obj: i for i, obj in enumerate(traced.object_names)}
     touches = np.zeros((len(traced), len(names)), dtype=bool)
@@ -515,7 +529,7 @@ def material_jacobian(
         scene_hash=loaded.content_hash,
         timing={"load": t_load, "solve": t_solve, "convert": t_convert, "total": time.perf_counter() - t0},
         scattering=rough, scattering_coefficient=at[:, 2],
-        d_scattering=np.stack([grads[(n, "scattering_coefficient")] for n in rough], axis=1).reshape(p_count, len(rough))
+        d_scattering=np.stack([column(n, "scattering_coefficient") for n in rough], axis=1).reshape(p_count, len(rough))
         if rough else None,
     )
 
