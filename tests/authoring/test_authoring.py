@@ -416,6 +416,15 @@ BAD_SPECS = [
     (dict(extra="[[ris]]\nposition = [5, 3, 1]\nfacing = [1, 3, 1]\n[radar]\npositions = [[1, 1, 1]]\nfacing = \"ris9\""),
      r"radar\.facing: 'ris9' is not a RIS of this spec"),
     (dict(extra="[radar]\npositions = [[11, 1, 1]]\nfacing = [1, 1, 1]"), r"radar\.positions\[0\]: the radar .* outside"),
+    (dict(materials=SHELL.replace('walls = "concrete"', 'walls = {itu = "concrete", scattering_coefficient = 1.5}')),
+     r"hall\.materials\.walls\.scattering_coefficient: is 1\.5: a scattering coefficient lies in \[0, 1\]"),
+    (dict(materials=SHELL.replace('walls = "concrete"', 'walls = {itu = "concrete", scattering_coefficient = -0.1}')),
+     r"hall\.materials\.walls\.scattering_coefficient: -0\.1 must be >= 0"),
+    (dict(materials=SHELL.replace('walls = "concrete"', 'walls = {itu = "concrete", scattering_coefficient = "rough"}')),
+     r"hall\.materials\.walls\.scattering_coefficient: must be a number"),
+    (dict(extra='[[ris]]\nposition = [5, 3, 1]\nfacing = [1, 3, 1]\n'
+                'panel = {material = {itu = "metal", scattering_coefficient = 0.2}}'),
+     r"ris\[0\]\.panel\.material\.scattering_coefficient: is not used: the RIS panel is not ray traced"),
 ]
 
 
@@ -494,3 +503,22 @@ def test_command_line_builds_and_reports_errors(tmp_path):
     spec.write_text(make_toml(hall="size = [10.0, -6.0]\nheight = 3"))
     bad = subprocess.run([sys.executable, "-m", "risloc_rt.authoring.build", str(spec)], capture_output=True, text=True)
     assert bad.returncode == 2 and "hall.size[1]: -6 must be > 0" in bad.stderr
+
+
+def test_a_scattering_coefficient_is_a_named_material_written_to_the_xml_only_when_non_zero(tmp_path):
+    rough = make_spec(materials=SHELL.replace('walls = "concrete"', 'walls = {itu = "concrete", scattering_coefficient = 0.3}'))
+    walls = rough.materials.walls
+    assert walls.scattering_coefficient == 0.3 and walls.name == "concrete-200mm-S0p3" and "S=0.3" in walls.describe()
+    assert rough.materials.floor.scattering_coefficient == 0.0 and rough.materials.floor.name == "concrete-200mm"
+    build_scene(rough, tmp_path / "rough")
+    xml = (tmp_path / "rough" / "scene.xml").read_text()
+    assert xml.count('name="scattering_coefficient"') == 1 and '<float name="scattering_coefficient" value="0.3"/>' in xml
+    # a smooth material (S = 0, the default, or given as 0) writes the same bytes as before the key existed
+    smooth = make_spec(materials=SHELL.replace('walls = "concrete"', 'walls = {itu = "concrete", scattering_coefficient = 0}'))
+    build_scene(smooth, tmp_path / "zero")
+    build_scene(make_spec(), tmp_path / "plain")
+    assert (tmp_path / "zero" / "scene.xml").read_bytes() == (tmp_path / "plain" / "scene.xml").read_bytes()
+    assert "scattering_coefficient" not in (tmp_path / "plain" / "scene.xml").read_text()
+    custom = make_spec(materials=SHELL.replace(
+        'walls = "concrete"', 'walls = {permittivity = 6.1, conductivity = 0.6, scattering_coefficient = 0.45}'))
+    assert custom.materials.walls.name == "eps6p1-sig0p6-200mm-S0p45"

@@ -90,3 +90,25 @@ def test_a_failure_while_staging_leaves_nothing(tmp_path):
     with pytest.raises(TypeError):
         write_fitted_scene("paper_hall", tmp_path / "fit", {"concrete-200mm": (6.0, 0.5)}, {"x": object()})
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_fitted_scattering_coefficient_is_written_and_a_pair_keeps_the_sources(tmp_path):
+    out = write_fitted_scene("paper_hall", tmp_path / "rough", {"concrete-200mm": (6.1, 0.6, 0.4)}, {})
+    mat = load_spec(out / "spec.toml").all_materials()["concrete-200mm"]
+    assert (mat.permittivity, mat.conductivity, mat.scattering_coefficient) == (6.1, 0.6, 0.4)
+    assert '<float name="scattering_coefficient" value="0.4"/>' in (out / "scene.xml").read_text()
+    build_scene(out / "spec.toml", tmp_path / "rebuilt")
+    assert {k: v for k, v in _files(out).items() if k != PROVENANCE_NAME} == _files(tmp_path / "rebuilt")
+    # fitting (eps_r, sigma) of a rough material keeps its S; S = 0 is a smooth surface (no key written)
+    again = write_fitted_scene(out, tmp_path / "again", {"concrete-200mm": (5.9, 0.7)}, {})
+    assert load_spec(again / "spec.toml").all_materials()["concrete-200mm"].scattering_coefficient == 0.4
+    smooth = write_fitted_scene(out, tmp_path / "smooth", {"concrete-200mm": (5.9, 0.7, 0.0)}, {})
+    assert "scattering_coefficient" not in (smooth / "spec.toml").read_text()
+
+
+@pytest.mark.parametrize("value", [(6.0, 0.5, 1.2), (6.0, 0.5, -0.1), (6.0, 0.5, math.nan), (6.0,), (6.0, 0.5, 0.1, 2.0)])
+def test_a_scattering_coefficient_the_tracer_cannot_take_is_one_line(value, tmp_path):
+    with pytest.raises(ValueError, match="concrete-200mm") as err:
+        write_fitted_scene("paper_hall", tmp_path / "fit", {"concrete-200mm": value}, {})
+    assert "\n" not in str(err.value) and ("S in [0, 1]" in str(err.value) or "expected (eps_r" in str(err.value))
+    assert not (tmp_path / "fit").exists()

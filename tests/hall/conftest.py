@@ -122,36 +122,44 @@ STAND_IN_DELAYS = np.array([40e-9, 60e-9, 80e-9])
 
 @pytest.fixture
 def stand_in_tracer(monkeypatch):
-    """``make(sigma_peaks) -> [Observation]``: the material tracer replaced by three paths, one at
+    """``make(sigma_peaks, scattering=None) -> [Observation]``: the material tracer replaced by three paths, one at
     -60 + 3 (ε_r - 6.1) dB and two at -70 and -75 dB + f(ln σ), with ``sigma_peaks(ln σ) -> (f [dB], df/d ln σ)``;
-    the returned observation holds the noise-free powers at ε_r 6.1, σ 0.6 S/m, 1σ 0.5 dB per peak."""
+    the returned observation holds the noise-free powers at ε_r 6.1, σ 0.6 S/m, 1σ 0.5 dB per peak. With
+    ``scattering = (S_true, bounces)``, the material scatters: peak k loses ``bounces[k]`` × 10 log10(1 − S²) dB (the
+    specular loss), its S differentiated (``scattering=[name]``), the scene's own S 0 and the truth S_true."""
     import math
     from types import SimpleNamespace
 
     import risloc_rt.hall.material_fit as engine
 
-    def make(sigma_peaks):
-        def powers(eps, s):
+    def make(sigma_peaks, scattering=None):
+        s_true, bounces = scattering if scattering is not None else (0.0, (0, 0, 0))
+        bounces = np.asarray(bounces, dtype=float)
+
+        def powers(eps, s, rough):
             f, df = sigma_peaks(s)
-            p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + f, -75.0 + f])
-            return p, np.array([3.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0]) * df
+            p = np.array([-60.0 + 3.0 * (eps - 6.1), -70.0 + f, -75.0 + f]) + bounces * 10 * np.log10(1 - rough ** 2)
+            dp_rough = bounces * 10 / math.log(10) * (-2 * rough / (1 - rough ** 2))
+            return p, np.array([3.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0]) * df, dp_rough
 
         def fake_jacobian(scene, position, materials, *, values=None, settings=None, scattering=(), derivatives=True):
-            assert not scattering, "the stand-in tracer has no scattering coefficient"
             name = materials[0] if not isinstance(materials, str) else materials
-            eps, sigma = (values or {}).get(name, (5.24, 1.136))
-            p, dp_eps, dp_s = powers(eps, math.log(sigma))
+            eps, sigma, *rest = (values or {}).get(name, (5.24, 1.136))
+            rough = rest[0] if rest else 0.0
+            p, dp_eps, dp_s, dp_rough = powers(eps, math.log(sigma), rough)
             a = 10 ** (p / 20)
             scale = a * math.log(10) / 20  # d|a| per dB
+            keep = 1.0 if derivatives else 0.0  # derivatives=False: the gains only
             return SimpleNamespace(materials=(name,), relative_permittivity=np.array([eps]),
                                    conductivity=np.array([sigma]), delay=STAND_IN_DELAYS, a=a.astype(complex),
-                                   d_eps=(scale * dp_eps)[:, None].astype(complex),
-                                   d_sigma=(scale * dp_s / sigma)[:, None].astype(complex),
+                                   d_eps=(keep * scale * dp_eps)[:, None].astype(complex),
+                                   d_sigma=(keep * scale * dp_s / sigma)[:, None].astype(complex),
                                    touches=np.ones((3, 1), bool), paths=SimpleNamespace(tx_position=np.zeros(3)),
-                                   scattering=(), scattering_coefficient=np.zeros(1), d_scattering=np.zeros((3, 0)))
+                                   scattering=tuple(scattering), scattering_coefficient=np.array([rough]),
+                                   d_scattering=(keep * scale * dp_rough)[:, None].astype(complex)[:, :len(scattering)])
 
         monkeypatch.setattr(engine, "material_jacobian", fake_jacobian)
-        truth, _, _ = powers(6.1, math.log(0.6))
+        truth = powers(6.1, math.log(0.6), s_true)[0]
         return [engine.Observation([1.0, 2.0, 1.2], STAND_IN_DELAYS, truth, [0.5] * 3)]
 
     return make

@@ -121,3 +121,30 @@ def test_a_held_parameter_has_no_profile(stand_in_tracer):
     sd = SIGMA_P / (0.3 * math.sqrt(2.0))
     lo, hi = prof.intervals[1]
     assert (hi - lo) / 2 == pytest.approx(sd, rel=0.02)
+
+
+def test_a_scattering_coefficient_gets_the_analytic_interval_in_s(stand_in_tracer):
+    """Peaks losing n_k·10 log10(1 − S²) dB (n = 1, 0, 2 bounces on the material; S 0.4 true, ε_r and σ held):
+    χ²(S) = Σ n_k² (10 log10((1 − S²)/(1 − 0.16)))² / 0.5², so the level-n ends are where
+    |10 log10((1 − S²)/0.84)| = n·0.5/√5 dB, and the fit's S is the truth. The same engine with every parameter
+    held returns χ² at the start values."""
+    obs = stand_in_tracer(lambda s: (0.0, 0.0), scattering=(0.4, (1, 0, 2)))
+    held = ["concrete:eps_r", "concrete:sigma"]
+    fit = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.1, 0.6, 0.2)}, fixed=held,
+                               scattering=["concrete"])
+    assert fit.scattering_coefficient[0] == pytest.approx(0.4, abs=1e-4) and fit.chi2 < 1e-6
+    prof = profile_interval("stand-in", obs, fit, "concrete:S")
+    assert prof.parameter == "concrete:scattering" and prof.kind == "scattering"
+    for n in (1, 2):
+        d = n * 0.5 / math.sqrt(5.0) / 10.0
+        expected = (math.sqrt(1 - 0.84 * 10 ** d), math.sqrt(1 - 0.84 * 10 ** -d))
+        assert prof.physical(n) == pytest.approx(expected, abs=2e-3), n
+    assert prof.best_physical == pytest.approx(0.4, abs=1e-3)
+    np.testing.assert_allclose(prof.grid_physical, np.sqrt(prof.grid))
+    assert prof.describe(1).startswith("concrete:S 0.4, 68.3 % profile interval: 0.3")
+    # every parameter held: the cost at the start (here S 0.3: 1 + 4 bounce-units of the same loss)
+    at = engine.fit_materials("stand-in", obs, ["concrete"], start={"concrete": (6.1, 0.6, 0.3)},
+                              fixed=[*held, "concrete:scattering"], scattering=["concrete"])
+    loss = 10 * math.log10((1 - 0.09) / 0.84)
+    assert at.chi2 == pytest.approx(5 * loss ** 2 / 0.25, rel=1e-6) and at.iterations <= 1
+    assert at.values()["concrete"] == pytest.approx((6.1, 0.6, 0.3))

@@ -114,3 +114,37 @@ def test_cli_refuses_a_scattering_coefficient_above_one(verb, capsys, tmp_path, 
     monkeypatch.chdir(tmp_path)
     assert main(verb + ["--diffuse", "1.5"]) == 2
     assert "--diffuse 1.5 must be a scattering coefficient in [0, 1]" in capsys.readouterr().err
+
+
+def test_a_spec_scattering_coefficient_turns_diffuse_reflection_on_for_that_material_only(tmp_path, traces):
+    """A wall material with S = 0.5 in the spec: traced with diffuse paths without being asked, the specular echo of
+    that wall alone loses √(1 − S²), the other walls' echoes are the smooth trace's bit for bit."""
+    from risloc_rt.authoring import build_scene, loads_spec
+    from risloc_rt.hall.raytrace.tracer import scene_scatters, settings_for_scene
+
+    spec = ("[scene]\nname = \"rough\"\n[hall]\nsize = [12.0, 8.0]\nheight = 4.0\nwall_thickness = 0.2\n"
+            "[hall.materials]\nwalls = \"concrete\"\nfloor = {itu = \"concrete\", scattering_coefficient = 0.5}\n"
+            "ceiling = \"concrete\"\n")
+    build_scene(loads_spec(spec), tmp_path / "rough")
+    build_scene(loads_spec(spec.replace(", scattering_coefficient = 0.5", "")), tmp_path / "smooth")
+    rough = rr.trace_scene(tmp_path / "rough" / "scene.xml", radar_position=RADAR, frequency=60e9, settings=SPECULAR)
+    smooth = rr.trace_scene(tmp_path / "smooth" / "scene.xml", radar_position=RADAR, frequency=60e9, settings=SPECULAR)
+    assert rough.settings.diffuse_reflection and not smooth.settings.diffuse_reflection
+    assert SPECULAR.diffuse_reflection is False                                   # what was asked is unchanged
+    a, b = smooth.monostatic, rough.monostatic
+    assert a.interactions[:, 0].tolist() == [1] * len(a)                          # six single specular bounces
+    floor_id = list(b.object_names).index("floor")
+    diffuse = b.interactions[:, 0] == 2
+    assert diffuse.sum() > 100 and np.all(b.objects[diffuse, 0] == floor_id)     # only the floor scatters
+    for i in range(len(a)):
+        j = np.flatnonzero((b.interactions[:, 0] == 1) & np.isclose(b.delay, a.delay[i], rtol=0, atol=1e-14))
+        assert j.size == 1
+        on_floor = a.object_names[a.objects[i, 0]] == "floor"
+        expected = np.sqrt(1 - 0.5**2) * abs(a.amplitude[i]) if on_floor else abs(a.amplitude[i])
+        assert abs(b.amplitude[j[0]]) == pytest.approx(expected, rel=1e-5 if on_floor else 0)
+    # --diffuse S overrides every material and is not changed; a smooth scene is traced as asked
+    from risloc_rt.hall.raytrace.scene import load_scene
+    loaded = load_scene(tmp_path / "rough" / "scene.xml", frequency=60e9)
+    assert scene_scatters(loaded) == ("concrete-200mm-S0p5",)
+    assert settings_for_scene(DIFFUSE, loaded) is DIFFUSE
+    assert settings_for_scene(SPECULAR, loaded).diffuse_reflection
