@@ -23,7 +23,9 @@ Schema
     [hall.materials]                 # each: "concrete" | {itu = "concrete", thickness = 0.2}
     walls = "concrete"               #   | {permittivity = 5.24, conductivity = 1.14, thickness = 0.2}
     floor = "concrete"               # all three required; an optional name = "..." names the material
-    ceiling = "concrete"
+    ceiling = "concrete"             # a table may add scattering_coefficient = S in [0, 1] (default 0:
+                                     # smooth; sionna-rt's S, Lambertian; a scene with S > 0 is traced
+                                     # with diffuse reflection; not for an RIS panel's material)
 
     [[objects]]                      # any number; name defaults to "<kind>_<index>"
     kind = "box"                     # center = [x, y, z], size = [sx, sy, sz], yaw_deg = 0

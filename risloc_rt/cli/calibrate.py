@@ -116,9 +116,10 @@ def add_parser(sub) -> None:
                           "all captures or once per capture")
     cal.add_argument("--scattering", metavar="NAME,NAME",
                      help="with --materials: fit these materials' scattering coefficient S too (a subset of "
-                          "--materials; the share S^2 of the reflected power scattered diffusely, which the specular "
-                          "peaks lose); written to the fitted spec's scattering_coefficient")
-    cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma|NAME:scattering", action="append", default=[],
+                          "--materials), stated by its profile likelihood over the full simulator (diffuse returns "
+                          "included) and written to the fitted spec's scattering_coefficient; without it S stays the "
+                          "scene's")
+    cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma", action="append", default=[],
                      help="with --materials: hold this parameter at the scene's value (e.g. eps_r known from elsewhere "
                           "when the peaks see only |Gamma|^2 at normal incidence); repeatable")
     cal.add_argument("--max-iter", type=int, default=30, metavar="N",

@@ -377,8 +377,7 @@ def test_cli_fits_a_walls_scattering_coefficient_by_its_profile_over_the_full_si
     position the static peaks' power residuals fall. (A coarser grid than the command's, for time.)"""
     import risloc_rt.cli.calibrate_materials as command
 
-    monkeypatch.setattr(command, "SCATTERING_GRID", (0.0, 0.2, 0.4, 0.6))
-    monkeypatch.setattr(command, "SCATTERING_RESOLUTION", 0.05)
+    monkeypatch.setattr(command, "SCATTERING_GRID", (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6))
     monkeypatch.setenv("RISLOC_CACHE_DIR", str(rough_box["cache"].directory))
     cap0, cap1 = (str(p) for p in rough_box["paths"])
     out = tmp_path / "fitted"
