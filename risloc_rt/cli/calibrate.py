@@ -118,7 +118,8 @@ def add_parser(sub) -> None:
                      help="with --materials: fit these materials' scattering coefficient S too (a subset of "
                           "--materials), stated by its profile likelihood over the full simulator (diffuse returns "
                           "included) and written to the fitted spec's scattering_coefficient; without it S stays the "
-                          "scene's")
+                          "scene's. The --calibration's power offset must not come from the same walls (a "
+                          "calibration against the smooth hall absorbs their loss: docs/calibration-materials.md)")
     cal.add_argument("--fixed", metavar="NAME:eps_r|NAME:sigma", action="append", default=[],
                      help="with --materials: hold this parameter at the scene's value (e.g. eps_r known from elsewhere "
                           "when the peaks see only |Gamma|^2 at normal incidence); repeatable")
