@@ -40,39 +40,9 @@ sys.path.insert(0, str(REPO))
 
 from dsp import RadarConfig  # noqa: E402
 
-SPEC = """
-[scene]
-name = "rough_box"
-description = "16 m x 10 m x 4 m: every wall within the radar's unambiguous range, the walls a material of their own"
-frequency = 60e9
-
-[hall]
-size = [16.0, 10.0]
-height = 4.0
-wall_thickness = 0.2
-
-[hall.materials]
-walls = { itu = "concrete", thickness = 0.2, name = "wall-concrete" }
-floor = { itu = "concrete", thickness = 0.2 }
-ceiling = { itu = "ceiling_board", thickness = 0.02 }
-
-[[ris]]
-name = "ris0"
-position = [13.0, 5.0, 1.2]
-facing = [4.0, 5.0, 1.2]
-rows = 16
-columns = 4
-spacing = "half-wavelength"
-amplification_db = 45.532
-loopback_delay = 1.78e-9
-mode = "relay"
-panel = { width = 0.10, height = 0.05, material = "metal" }
-
-[radar]
-positions = [[4.0, 5.0, 1.2], [5.0, 3.5, 1.2]]
-facing = "ris0"
-velocity = [0.0, 0.0, 0.0]
-"""
+#: The hall: 16 m x 10 m x 4 m, every wall within the radar's unambiguous range, the walls a material of their own (the
+#: spec the command's end-to-end test uses).
+SPEC = (REPO / "tests" / "measured" / "rough_box.toml").read_text(encoding="utf-8")
 WALL = "wall-concrete"
 SIGMA_ITU = 0.0462 * 60 ** 0.7822  # ITU-R P.2040 concrete at 60 GHz [S/m]
 TRACE = ["--depth", "2", "--samples", "20000"]
@@ -133,14 +103,16 @@ def run_seed(seed: int, true_s: float, coarse: bool, against: str) -> dict:
             seconds = time.perf_counter() - t0
         if rc != 0:
             return {"seed": seed, "rc": rc, "seconds": seconds}
-        prof = json.loads((out / "material-fit.json").read_text())["profile_intervals"][f"{WALL}:S"]
+        doc = json.loads((out / "material-fit.json").read_text())
+        prof = doc["profile_intervals"][f"{WALL}:S"]
+        computed = doc["scattering_profiles"][f"{WALL}:S"]["computed_S"]
         inside = {}
         for n in (1, 2):
             lo, hi = prof[f"interval_{n}sigma"]
             inside[n] = (lo or 0.0) <= true_s <= (1.0 if hi is None else hi)
         return {"seed": seed, "rc": rc, "best": prof["best"], "interval_1sigma": prof["interval_1sigma"],
                 "interval_2sigma": prof["interval_2sigma"], "inside_1sigma": inside[1], "inside_2sigma": inside[2],
-                "points": len(prof["grid"]), "profile_seconds": prof["seconds"], "seconds": seconds}
+                "points": len(computed), "profile_seconds": prof["seconds"], "seconds": seconds}
     finally:
         shutil.rmtree(root, ignore_errors=True)
 
@@ -168,7 +140,7 @@ def main() -> None:
             print(f"seed {seed}: refused (exit {row['rc']}), {row['seconds']:.0f} s", flush=True)
             continue
         print(f"seed {seed}: S {row['best']:.3f} (true {args.true_s:g}), 68.3 % {row['interval_1sigma']}, "
-              f"95.4 % {row['interval_2sigma']}; {row['points']} points, profile {row['profile_seconds']:.0f} s, "
+              f"95.4 % {row['interval_2sigma']}; {row['points']} S computed, profile {row['profile_seconds']:.0f} s, "
               f"command {row['seconds']:.0f} s", flush=True)
     done = [r for r in rows if r["rc"] == 0]
     if done:
@@ -177,7 +149,7 @@ def main() -> None:
         print(f"{len(done)} of {len(rows)} seeds stated S: truth inside the 68.3 % interval {100 * cover[1]:.0f} %, "
               f"the 95.4 % {100 * cover[2]:.0f} %; |S - truth| median {statistics.median(err):.3f}; profile "
               f"{statistics.median(r['profile_seconds'] for r in done):.0f} s median "
-              f"({statistics.median(r['points'] for r in done):.0f} points)")
+              f"({statistics.median(r['points'] for r in done):.0f} S computed)")
 
 
 if __name__ == "__main__":

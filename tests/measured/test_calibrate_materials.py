@@ -21,6 +21,7 @@ import json
 import math
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,20 +35,15 @@ TRUE = {"concrete-200mm": (6.1, 0.6)}
 TRACE = ["--depth", "2", "--samples", "20000"]
 
 
-@pytest.fixture(scope="module")
-def changed_hall(tmp_path_factory):
-    """Two captures (radar positions 0 and 1) of the default hall with its concrete changed to :data:`TRUE`."""
-    from risloc_rt.authoring.fitted_scene import write_fitted_scene
-    from risloc_rt.hall.raytrace.cache import TraceCache
+def _captures(true_scene, root, cache):
+    """DCA1000 recordings at the spec's radar positions 0 and 1 of ``true_scene`` (depth 2, 2e4 rays, receiver noise
+    seeds 11 and 12), imported and saved: their paths."""
     from risloc_rt.hall.raytrace.tracer import TraceSettings
     from risloc_rt.hall.scenario import hall_paths, hall_scenario
     from risloc_rt.io.capture_file import save_capture
     from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
 
-    root = tmp_path_factory.mktemp("materials")
-    true_scene = write_fitted_scene("paper_hall", root / "true_hall", TRUE, {"truth": True})
     settings = TraceSettings(max_depth=2, samples_per_src=20000)
-    cache = TraceCache(root / "cache")
     paths = []
     for index in (0, 1):
         hs = hall_scenario(str(true_scene), radar_index=index, radar=dca1000_radar(RadarConfig()), trace=settings)
@@ -61,7 +57,21 @@ def changed_hall(tmp_path_factory):
         first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
         capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
         paths.append(save_capture(capture, root / f"capture{index}.npz"))
-    return {"root": root, "paths": paths, "settings": settings, "cache": cache}
+    return paths
+
+
+@pytest.fixture(scope="module")
+def changed_hall(tmp_path_factory):
+    """Two captures (radar positions 0 and 1) of the default hall with its concrete changed to :data:`TRUE`."""
+    from risloc_rt.authoring.fitted_scene import write_fitted_scene
+    from risloc_rt.hall.raytrace.cache import TraceCache
+    from risloc_rt.hall.raytrace.tracer import TraceSettings
+
+    root = tmp_path_factory.mktemp("materials")
+    true_scene = write_fitted_scene("paper_hall", root / "true_hall", TRUE, {"truth": True})
+    cache = TraceCache(root / "cache")
+    paths = _captures(true_scene, root, cache)
+    return {"root": root, "paths": paths, "settings": TraceSettings(max_depth=2, samples_per_src=20000), "cache": cache}
 
 
 def test_peak_power_sigma_matches_a_monte_carlo_of_signal_plus_noise():
@@ -291,39 +301,9 @@ def test_cli_averages_repeats_of_one_position_into_one_observation(changed_hall,
         assert noise_two == pytest.approx(noise_one / math.sqrt(2), rel=0.15), (q, p)
 
 
-ROUGH_BOX = """
-[scene]
-name = "rough_box"
-description = "16 m x 10 m x 4 m: every wall within the radar's unambiguous range, the walls a material of their own"
-frequency = 60e9
-
-[hall]
-size = [16.0, 10.0]
-height = 4.0
-wall_thickness = 0.2
-
-[hall.materials]
-walls = { itu = "concrete", thickness = 0.2, name = "wall-concrete" }
-floor = { itu = "concrete", thickness = 0.2 }
-ceiling = { itu = "ceiling_board", thickness = 0.02 }
-
-[[ris]]
-name = "ris0"
-position = [13.0, 5.0, 1.2]
-facing = [4.0, 5.0, 1.2]
-rows = 16
-columns = 4
-spacing = "half-wavelength"
-amplification_db = 45.532
-loopback_delay = 1.78e-9
-mode = "relay"
-panel = { width = 0.10, height = 0.05, material = "metal" }
-
-[radar]
-positions = [[4.0, 5.0, 1.2], [5.0, 3.5, 1.2]]
-facing = "ris0"
-velocity = [0.0, 0.0, 0.0]
-"""
+#: A 16 m x 10 m x 4 m hall: every wall within the radar's unambiguous range, the walls a material of their own (the
+#: spec is shared with benchmarks/bench_scattering.py).
+ROUGH_BOX = (Path(__file__).parent / "rough_box.toml").read_text(encoding="utf-8")
 WALL = "wall-concrete"
 SIGMA_ITU = 0.0462 * 60 ** 0.7822  # ITU-R P.2040 concrete at 60 GHz [S/m]
 
@@ -338,10 +318,6 @@ def rough_box(tmp_path_factory):
     from risloc_rt.authoring import build_scene, loads_spec
     from risloc_rt.authoring.fitted_scene import write_fitted_scene
     from risloc_rt.hall.raytrace.cache import TraceCache
-    from risloc_rt.hall.raytrace.tracer import TraceSettings
-    from risloc_rt.hall.scenario import hall_paths, hall_scenario
-    from risloc_rt.io.capture_file import save_capture
-    from risloc_rt.measured import RecordingPlan, dca1000_radar, emulate_recording, import_capture
 
     root = tmp_path_factory.mktemp("rough")
     model = root / "model"
@@ -349,21 +325,8 @@ def rough_box(tmp_path_factory):
     (model / "spec.toml").write_text(ROUGH_BOX)
     build_scene(loads_spec(ROUGH_BOX, base_dir=model), model)
     true_scene = write_fitted_scene(model, root / "true_hall", {WALL: (5.24, SIGMA_ITU, 0.4)}, {"truth": True})
-    settings = TraceSettings(max_depth=2, samples_per_src=20000)
     cache = TraceCache(root / "cache")
-    paths = []
-    for index in (0, 1):
-        hs = hall_scenario(str(true_scene), radar_index=index, radar=dca1000_radar(RadarConfig()), trace=settings)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            traced = hall_paths(hs, cache=cache)
-        plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2)
-        rec = emulate_recording(hs.base, root / f"rec{index}", plan=plan, paths=traced.paths,
-                                rng=np.random.default_rng(11 + index))
-        exp = rec.experiment
-        first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
-        capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
-        paths.append(save_capture(capture, root / f"capture{index}.npz"))
+    paths = _captures(true_scene, root, cache)
     cal = root / "cal.toml"
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("RISLOC_CACHE_DIR", str(cache.directory))
