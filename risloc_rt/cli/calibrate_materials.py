@@ -306,9 +306,9 @@ def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str]
     path, the diffuse returns of the scattering surfaces, range folding, the IF filter and G included) and the other
     parameters are fitted again (a conditional fit). Each peak's residual over S is then smoothed by least squares on
     the basis 1, 10 log10(1 − S²), S², S⁴ (:func:`_smooth_residuals`: the specular loss, the diffuse power and a
-    bend), over the computed S whose χ² is within :data:`SCATTERING_SPAN` of the lowest; what the smooth curve leaves is the simulator's own noise at that peak (the diffuse paths' sampling and
-    pruning change with S), added to the peak's σ in quadrature, and the profile is the χ² of the smooth residuals
-    on a fine grid. Materials one after another, each conditional on the others' S at their start (then best) value.
+    bend), over the computed S whose χ² is within :data:`SCATTERING_SPAN` of the lowest; what the smooth curve
+    leaves is the simulator's own noise at that peak (the diffuse paths' sampling and pruning change with S), added
+    to the peak's σ in quadrature, and the profile is the χ² of the smooth residuals on a fine grid. Materials one after another, each conditional on the others' S at their start (then best) value.
     Returns the fit, observations, records and folder at the computed S nearest the best,
     ``{"<material>:scattering": ProfileInterval}`` (grid in S²) and, per material, what ``material-fit.json`` adds
     (``{"<material>:S": {computed_S, computed_chi2, peaks: [{distance_m, sigma_db, model_sigma_db}]}}``).
