@@ -243,7 +243,7 @@ def test_a_scattering_coefficient_is_recovered_and_the_start_search_finds_the_de
     wall = "wall-concrete"
     sigma_itu = 0.0462 * 60 ** 0.7822
     truth = {wall: (6.1, sigma_itu, 0.45)}
-    settings = TraceSettings(max_depth=3)
+    settings = TraceSettings(max_depth=3, samples_per_src=20_000)
     positions = [[4.0, 3.0, 1.2], [12.0, 6.0, 1.5]]
     obs, _ = synthetic_observations(rough_paper_hall, positions, truth, sigma_db=0.3, rng=np.random.default_rng(1),
                                     settings=settings)

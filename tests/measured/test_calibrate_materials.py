@@ -37,7 +37,8 @@ TRACE = ["--depth", "2", "--samples", "20000"]
 
 def _captures(true_scene, root, cache):
     """DCA1000 recordings at the spec's radar positions 0 and 1 of ``true_scene`` (depth 2, 2e4 rays, receiver noise
-    seeds 11 and 12), imported and saved: their paths."""
+    seeds 11 and 12), imported and saved: their paths, and the emulated receiver's true power offset [dB of ADC
+    counts² per W] (20 log10 of its counts per √W)."""
     from risloc_rt.hall.raytrace.tracer import TraceSettings
     from risloc_rt.hall.scenario import hall_paths, hall_scenario
     from risloc_rt.io.capture_file import save_capture
@@ -57,7 +58,7 @@ def _captures(true_scene, root, cache):
         first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
         capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
         paths.append(save_capture(capture, root / f"capture{index}.npz"))
-    return paths
+    return paths, 20 * math.log10(rec.experiment.counts_per_unit)
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +71,7 @@ def changed_hall(tmp_path_factory):
     root = tmp_path_factory.mktemp("materials")
     true_scene = write_fitted_scene("paper_hall", root / "true_hall", TRUE, {"truth": True})
     cache = TraceCache(root / "cache")
-    paths = _captures(true_scene, root, cache)
+    paths, _ = _captures(true_scene, root, cache)
     return {"root": root, "paths": paths, "settings": TraceSettings(max_depth=2, samples_per_src=20000), "cache": cache}
 
 
@@ -311,10 +312,11 @@ SIGMA_ITU = 0.0462 * 60 ** 0.7822  # ITU-R P.2040 concrete at 60 GHz [S/m]
 @pytest.fixture(scope="module")
 def rough_box(tmp_path_factory):
     """Captures at both radar positions of :data:`ROUGH_BOX` with its walls scattering (S 0.4, ε_r and σ ITU's), the
-    model the same hall with smooth walls, and the radar's calibration of capture 0 against the true hall: its power
-    offset known independently of the walls (as from a corner reflector). A calibration against the model would
-    scale the smooth walls' echoes onto the measured ones and so absorb the scattering loss (measured: S 0.24-0.26
-    instead of 0.4 over 4 recordings, docs/calibration-materials.md)."""
+    model the same hall with smooth walls, and the radar's calibration of capture 0: range offset, RIS constants and
+    noise from ``risloc calibrate -o`` against the model, the power offset the emulated receiver's own (known
+    independently of the walls, as from a corner reflector). The model's own power offset would scale the smooth
+    walls' echoes onto the measured ones and so absorb the scattering loss (measured here: 103.46 dB against the
+    receiver's 103.95; S 0.24-0.26 instead of 0.4 over 5 recordings, docs/calibration-materials.md)."""
     from risloc_rt.authoring import build_scene, loads_spec
     from risloc_rt.authoring.fitted_scene import write_fitted_scene
     from risloc_rt.hall.raytrace.cache import TraceCache
@@ -326,11 +328,16 @@ def rough_box(tmp_path_factory):
     build_scene(loads_spec(ROUGH_BOX, base_dir=model), model)
     true_scene = write_fitted_scene(model, root / "true_hall", {WALL: (5.24, SIGMA_ITU, 0.4)}, {"truth": True})
     cache = TraceCache(root / "cache")
-    paths = _captures(true_scene, root, cache)
+    from risloc_rt.measured.compare.calibration_file import read_calibration, write_calibration
+
+    paths, power_offset_db = _captures(true_scene, root, cache)
     cal = root / "cal.toml"
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("RISLOC_CACHE_DIR", str(cache.directory))
-        assert main(["calibrate", str(paths[0]), "--scene", str(true_scene), "-o", str(cal), *TRACE]) == 0
+        assert main(["calibrate", str(paths[0]), "--scene", str(model), "-o", str(cal), *TRACE]) == 0
+    model_offset = read_calibration(cal).power_offset_db
+    assert 0.2 <= power_offset_db - model_offset <= 1.0   # the walls' loss (S² = 0.16: 0.76 dB per bounce), absorbed
+    write_calibration(replace(read_calibration(cal), power_offset_db=power_offset_db), cal)
     return {"root": root, "model": model, "paths": paths, "cache": cache, "calibration": cal}
 
 
