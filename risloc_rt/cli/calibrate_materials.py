@@ -24,10 +24,11 @@ intervals (``profile_intervals``, open ends null). Otherwise the fitted scene fo
 
 ``--scattering NAME,...`` (a subset of ``--materials``): each such material's scattering coefficient S
 [unitless] is stated by its **profile likelihood over the full simulator** (:func:`_scattering_profiles`): at
-every S of :data:`SCATTERING_GRID`, refined around the minimum and the interval ends, a scene folder with
-that S is built in a temporary folder, the captures' peaks are read against it as for the fit (the beat
-model of every traced path: the diffuse returns of the scattering surfaces, range folding, the IF filter
-and G), and the other parameters are fitted again. Why not through the material tracer's ∂a/∂S
+every S of :data:`SCATTERING_GRID` a scene folder with that S is built in a temporary folder, the
+captures' peaks are read against it as for the fit (the beat model of every traced path: the diffuse
+returns of the scattering surfaces, range folding, the IF filter and G), and the other parameters are
+fitted again; each peak's residual over S is smoothed and what the smooth curve leaves (the
+simulator's own noise: its diffuse paths are sampled anew for every S) is added to the peak's σ. Why not through the material tracer's ∂a/∂S
 (:func:`~risloc_rt.hall.material_fit.fit_materials` ``scattering=``, exact for the specular loss): the
 diffuse returns a scattering surface sends into a peak's range cell are not in that model, and measured
 on emulated recordings they moved S by more than its σ (a folded floor return masked a wall's loss
@@ -260,18 +261,14 @@ def _print_fit(fit: Any, s_profiles: dict[str, Any] | None = None) -> None:
 
 
 def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str, str],
-                       args: argparse.Namespace, also: tuple[str, ...] = ()) -> dict[str, Any]:
+                       args: argparse.Namespace) -> dict[str, Any]:
     """Profile-likelihood intervals of every weak parameter and of every free one correlated with it (|ρ| ≥
-    :data:`PROFILE_CORRELATION`), and of the parameters in ``also`` (every fitted S: bounded at 0, its likelihood is not
-    a parabola near there); progress on stderr, the 68.3 and 95.4 % intervals printed; ``{}`` when none is chosen."""
+    :data:`PROFILE_CORRELATION`), progress on stderr, the 68.3 and 95.4 % intervals printed; ``{}`` when none is weak."""
     from ..hall.material_profile import profile_interval
 
     rep = fit.identifiability
     params = rep.parameters
     chosen = [p for p in params if p in weak]
-    if also:
-        print("a scattering coefficient is stated by its profile likelihood (S >= 0 bounds it; its Fisher 1-sigma in S^2 "
-              "is a local figure near 0): " + ", ".join(_shown(p) for p in also))
     for p in params:
         if p in chosen or p in rep.fixed or p in rep.not_identifiable:
             continue
@@ -279,11 +276,9 @@ def _profile_intervals(scene: Path, observations: list, fit: Any, weak: dict[str
         if any(abs(fit.correlation[i, params.index(w)]) >= PROFILE_CORRELATION for w in weak):
             chosen.append(p)
     out = {}
-    local = [p for p in chosen if p not in also]
-    if local:
-        print("the 1-sigma of " + ", ".join(_shown(p) for p in local) + " in the table above is a "
+    if chosen:
+        print("the 1-sigma of " + ", ".join(_shown(p) for p in chosen) + " in the table above is a "
               "local figure (weak, or correlated with a weak parameter); their profile likelihoods follow")
-    chosen += [p for p in also if p not in chosen]
     for p in chosen:
         def progress(value: float, delta: float, p: str = p) -> None:
             unit = " S/m" if p.endswith(":ln_sigma") else ""
@@ -308,8 +303,8 @@ def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str]
     the basis 1, 10 log10(1 − S²), S², S⁴ (:func:`_smooth_residuals`: the specular loss, the diffuse power and a
     bend), over the computed S whose χ² is within :data:`SCATTERING_SPAN` of the lowest; what the smooth curve
     leaves is the simulator's own noise at that peak (the diffuse paths' sampling and pruning change with S), added
-    to the peak's σ in quadrature, and the profile is the χ² of the smooth residuals on a fine grid. Materials one after another, each conditional on the others' S at their start (then best) value.
-    Returns the fit, observations, records and folder at the computed S nearest the best,
+    to the peak's σ in quadrature, and the profile is the χ² of the smooth residuals on a fine grid. Materials one
+    after another, each conditional on the others' S at their start (then best) value. Returns the fit, observations, records and folder at the computed S nearest the best,
     ``{"<material>:scattering": ProfileInterval}`` (grid in S²) and, per material, what ``material-fit.json`` adds
     (``{"<material>:S": {computed_S, computed_chi2, peaks: [{distance_m, sigma_db, model_sigma_db}]}}``).
     """
@@ -336,7 +331,7 @@ def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str]
         evaluations = 0
         for value in SCATTERING_GRID:
             count += 1
-            values = {k: (*base[k], value if k == m else current[k]) if k in current else base[k] for k in names}
+            values = _with_scattering(base, current, m, value)
             folder = write_fitted_scene(scene, tmp / f"variant-{count}", values, {"scattering_profile": m, "S": value})
             with contextlib.redirect_stdout(io.StringIO()):
                 obs, recs = _observations(args, folder, names)
@@ -345,8 +340,7 @@ def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str]
             evaluations += cond.evaluations
             keys = cond.identifiability.peaks
             points[value] = {"chi2": cond.chi2, "observations": obs, "records": recs, "folder": folder,
-                             "values": {k: (*v, value if k == m else current[k]) if k in current else v
-                                        for k, v in cond.values().items()},
+                             "values": _with_scattering(cond.values(), current, m, value),
                              "residuals": {key: float(r) for key, r in zip(keys, cond.residuals_db)},
                              "sigmas": {(i, k): float(obs[i].sigma_db[k]) for i, k in keys}}
             print(f"  scattering profile of {m}: S {value:.4g}, chi2 {cond.chi2:.5g}", file=sys.stderr, flush=True)
@@ -389,6 +383,13 @@ def _scattering_profiles(args: argparse.Namespace, scene: Path, names: list[str]
     final = fit_materials(chosen["folder"], chosen["observations"], names, start=base, settings=settings,
                           max_iter=args.max_iter, fixed=args.fixed, progress=progress)
     return final, chosen["observations"], chosen["records"], chosen["folder"], profiles, notes
+
+
+def _with_scattering(values: dict[str, tuple[float, ...]], current: dict[str, float], material: str,
+                     value: float) -> dict[str, tuple[float, ...]]:
+    """``{name: (ε_r, σ)}`` with S third for the profiled materials: ``value`` for ``material``, ``current`` for the
+    others."""
+    return {k: (*v[:2], value if k == material else current[k]) if k in current else v for k, v in values.items()}
 
 
 def _peak_distance(records: list[dict[str, Any]], key: tuple[int, int]) -> float | None:

@@ -765,6 +765,20 @@ def fit_materials(
         raise ValueError(f"max_iter={max_iter!r} must be an int >= 0")
     settings = TraceSettings() if settings is None else settings
 
+    if isinstance(materials, str):
+        names = tuple(m.strip() for m in materials.split(","))
+    else:
+        names = tuple(materials)
+    if isinstance(scattering, str):
+        scattering = [m.strip() for m in scattering.split(",") if m.strip()]
+    if not isinstance(scattering, Sequence):
+        raise TypeError(f"scattering must be material names, got {type(scattering).__name__}")
+    rough = tuple(m for m in names if m in scattering)
+    if len(rough) != len(set(scattering)):
+        unknown = sorted({str(m) for m in scattering} - set(names))
+        raise ValueError(f"scattering names {', '.join(map(repr, unknown))}, not among the fitted materials "
+                         f"({', '.join(map(str, names))})")
+
     evaluations = 0
     searched = 0
 
@@ -799,19 +813,6 @@ def fit_materials(
                     touches=np.array(touch, dtype=bool).reshape(-1, len(names)), peaks=tuple(peaks),
                     unexplained=tuple(unexplained), jacs=jacs)
 
-    if isinstance(materials, str):
-        names = tuple(m.strip() for m in materials.split(","))
-    else:
-        names = tuple(materials)
-    if isinstance(scattering, str):
-        scattering = [m.strip() for m in scattering.split(",") if m.strip()]
-    if not isinstance(scattering, Sequence):
-        raise TypeError(f"scattering must be material names, got {type(scattering).__name__}")
-    rough = tuple(m for m in names if m in scattering)
-    if len(rough) != len(set(scattering)):
-        unknown = sorted({str(m) for m in scattering} - set(names))
-        raise ValueError(f"scattering names {', '.join(map(repr, unknown))}, not among the fitted materials "
-                         f"({', '.join(map(str, names))})")
     if isinstance(start, Mapping) and names and all(isinstance(m, str) and m in start for m in names):
         # Every material starts from a given value (e.g. the profile scan's conditional fits): no trace at the
         # scene's own values is needed.

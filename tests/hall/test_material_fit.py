@@ -238,8 +238,6 @@ def test_a_scattering_coefficient_is_recovered_and_the_start_search_finds_the_de
     """Walls at ε_r 6.1, S 0.45 (truth), σ held at ITU; 0.3 dB noise, 50 peaks from two positions. From the spec's
     values (ε_r 5.24, S 0.3) the descent alone stops in a shallower valley of (ε_r, S²) (measured χ² 140 for 50 peaks);
     the start search over the (ε_r, S) grid finds the truth's (χ² 38), S² within 2σ, ε_r within 2σ."""
-    from risloc_rt.hall.material_fit import SHARE_RANGE
-
     wall = "wall-concrete"
     sigma_itu = 0.0462 * 60 ** 0.7822
     truth = {wall: (6.1, sigma_itu, 0.45)}
@@ -253,7 +251,7 @@ def test_a_scattering_coefficient_is_recovered_and_the_start_search_finds_the_de
     found = fit_materials(rough_paper_hall, obs, [wall], **common)
     assert found.search_evaluations > 100 and local.search_evaluations == 0
     assert local.chi2 > 2 * k > 1.2 * found.chi2                  # χ² per peak above 2, then near 1 (0.75 measured)
-    assert found.scattering == (wall,) and SHARE_RANGE[0] < found.scattering_share[0] < SHARE_RANGE[1]
+    assert found.scattering == (wall,) and 0.1 < found.scattering_share[0] < 0.3     # off both ends: S 0.32 to 0.55
     assert abs(found.scattering_share[0] - 0.45 ** 2) <= 2 * found.scattering_share_sigma[0]
     assert abs(found.relative_permittivity[0] - 6.1) <= 2 * found.relative_permittivity_sigma[0]
     assert found.values()[wall][2] == pytest.approx(float(np.sqrt(found.scattering_share[0])))
