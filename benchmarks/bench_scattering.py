@@ -80,7 +80,7 @@ def run_seed(seed: int, true_s: float, coarse: bool, against: str) -> dict:
     """One seed: captures, calibration, the S profile; its figures."""
     from risloc_rt.authoring import build_scene, loads_spec
     from risloc_rt.cli import main
-    import risloc_rt.cli.calibrate_materials as command
+    import risloc_rt.cli.calibrate_scattering as command
 
     if coarse:
         command.SCATTERING_GRID = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)

@@ -348,7 +348,7 @@ def test_cli_fits_a_walls_scattering_coefficient_by_its_profile_over_the_full_si
     smooth, ε_r and σ held at the truth (ITU): S's profile likelihood over the full simulator holds 0.4 in its 95.4 %
     interval, its best lies within 0.1 of it, and S is written to the fitted spec and scene; at the held-out
     position the static peaks' power residuals fall. (A coarser grid than the command's, for time.)"""
-    import risloc_rt.cli.calibrate_materials as command
+    import risloc_rt.cli.calibrate_scattering as command
 
     monkeypatch.setattr(command, "SCATTERING_GRID", (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6))
     monkeypatch.setenv("RISLOC_CACHE_DIR", str(rough_box["cache"].directory))
