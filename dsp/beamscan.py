@@ -9,12 +9,15 @@ import numpy as np
 import scipy.fft
 
 from .budget import check_memory, dsp_memory
+from .detection import check_beat_cube
+from .devicegrid import device_scan
 from .processing import ProcessingConfig
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .gridscreen import screened_scan
 from .spectrum import CHUNK_BYTES, check_cube, dft_windows, windowed_range_spectrum
 from .sweep import BeamSweep
 from .threads import thread_count
+from .xp import backend_of, is_host_array
 
 __all__ = ["BeamScan", "scan_beams"]
 
@@ -79,7 +82,9 @@ def scan_beams(
     Parameters
     ----------
     cube : complex array [M, K, N]
-        Beat samples (beams, chirps, ADC samples) [√W].
+        Beat samples (beams, chirps, ADC samples) [√W]: host data, or an array on a device
+        (CuPy, array_api_strict; :mod:`dsp.xp`), which is searched where it lives
+        (:func:`dsp.devicegrid.device_scan`; the M results come back).
     sweep : BeamSweep
         The M beam steering angles, in the order of the cube's first axis.
     radar : RadarConfig
@@ -94,11 +99,20 @@ def scan_beams(
     eq. (argmaxmap): ``(τ_m, ν_m) = argmax |z_m(τ, ν)|²`` over the N_DFT × K_DFT grid, skipping
     delays below ``2·min_range/c``; eq. (P_ave): ``P_ave,m = mean_{|τ_p - τ_m| <= Δ} |z_m(τ_p, ν_m)|²``,
     the grid version of ``(1/2Δ)∫ |z_m(τ, ν_m)|² dτ``.
+
+    On the host, ``doppler_search="zoom"`` is the screened search (:mod:`dsp.gridscreen`) and
+    ``"full"`` the whole grid; on a device, the bounded dense search of :mod:`dsp.devicegrid`
+    (``"full"``: the whole grid there). All give the full grid's cell (to ties within ~1e-13).
+    A device cube must not be all zeros (:func:`dsp.check_beat_cube`).
     """
-    arr = check_cube(cube, radar)
-    check_memory(dsp_memory(arr.shape, n_dft=processing.n_dft, k_dft=processing.k_dft),
-                 f"scanning a {list(arr.shape)} cube with n_dft={processing.n_dft}, k_dft={processing.k_dft}",
-                 fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
+    on_device = not is_host_array(cube)
+    if on_device:
+        arr = check_beat_cube(cube, radar, min_beams=1)  # checked where it lives, complex128 there
+    else:
+        arr = check_cube(cube, radar)
+        check_memory(dsp_memory(arr.shape, n_dft=processing.n_dft, k_dft=processing.k_dft),
+                     f"scanning a {list(arr.shape)} cube with n_dft={processing.n_dft}, k_dft={processing.k_dft}",
+                     fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
     if not isinstance(sweep, BeamSweep):
         raise TypeError(f"sweep must be a BeamSweep, got {type(sweep).__name__}")
     if sweep.num_beams != arr.shape[0]:
@@ -122,9 +136,12 @@ def scan_beams(
         # ±Δ inclusive; the relative slack keeps a bin exactly Δ away despite rounding.
         return np.flatnonzero(np.abs(delays - delays[p]) <= processing.delta * (1.0 + 1e-9))
 
-    if processing.doppler_search == "zoom":
+    if on_device or processing.doppler_search == "zoom":
         w_k, w_n, gain = dft_windows(radar, processing)
-        q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns)
+        if on_device:
+            q_best, p_best, peak, average = device_scan(arr, processing, first, (w_k, w_n), delays, backend_of(arr))
+        else:
+            q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns)
         return BeamScan(angles=sweep.angles, delay=delays[p_best], delay_rate=rates[q_best],
                         peak_power=peak / gain**2, average_power=average / gain**2,
                         delay_bin=p_best, doppler_bin=q_best)

@@ -150,9 +150,8 @@ def self_localize(
         det = detect_batch(on.xp.expand_dims(inp.cube, axis=0), radar, backend=on, pfa=pfa,
                            min_range=processing.min_range, max_candidates=5, pattern=inp.pattern, sweep=sweep,
                            oversample=2)[0]
-    # the paper's grid search runs on the host (dsp.gridscreen): one explicit device -> host copy when it runs
-    grid = scan_beams(backend_of(inp.cube).to_host(inp.cube), sweep, radar, processing) \
-        if scan or steps.needs_scan else None
+    # the paper's grid search runs where the cube is (dsp.devicegrid on a device): M results come back
+    grid = scan_beams(inp.cube, sweep, radar, processing) if scan or steps.needs_scan else None
     if not det.detected:
         return no_position(grid, det)
     est = steps.estimate(inp, det, grid)
