@@ -116,6 +116,20 @@ def _delay_step(radar: RadarConfig, processing: ProcessingConfig) -> float:
 
 # Fixtures: each returns its factory (pure functions, so one per session).
 
+def _tone(radar: RadarConfig, tau: float, nu: float) -> np.ndarray:
+    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
+    f2 = radar.carrier_frequency * nu * radar.chirp_interval
+    k, n = radar.num_chirps, radar.num_samples
+    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
+
+
+@pytest.fixture(scope="session")
+def tone():
+    """``tone(radar, tau, nu) -> complex [K, N]``: one unit path of eq. (1), built with numpy only:
+    ``exp(-j2π((Sτ + f_c ν) n T_s + f_c ν k T_c))``, delay τ [s], delay rate ν [s/s]."""
+    return _tone
+
+
 @pytest.fixture(scope="session")
 def make_radar():
     """``make_radar(**kw) -> RadarConfig``: Table I radar with N = 128 samples and K = 16 chirps unless overridden."""

@@ -1,5 +1,6 @@
 """A cube on a device (array_api_strict's 'device1', which refuses implicit host copies): checked there, and
-dsp.self_localize gives the host's answer for both estimators, the paper's grid taking its one explicit copy."""
+dsp.self_localize gives the host's answer for both estimators, the paper's grid search running there too
+(dsp.devicegrid: the host's screened search and the device's bounded search pick the same cells)."""
 
 from __future__ import annotations
 
@@ -51,6 +52,6 @@ def test_self_localize_on_a_device_cube_equals_the_host(capture, estimator):
     assert dev.distance == pytest.approx(host.distance, abs=1e-9)
     assert dev.aod[0] == pytest.approx(host.aod[0], abs=1e-9)
     assert dev.std.distance == pytest.approx(host.std.distance, rel=2e-6)
-    if estimator == "paper":  # the grid search ran on the host copy: its bins are the host's
+    if estimator == "paper":  # the grid search ran on device1 (no host copy): its bins are the host's
         np.testing.assert_array_equal(dev.scan.delay_bin, host.scan.delay_bin)
         np.testing.assert_array_equal(dev.scan.doppler_bin, host.scan.doppler_bin)

@@ -1,0 +1,219 @@
+"""The paper's grid search where the cube lives (``dsp.devicegrid``): the full grid's answer on a device.
+
+Oracle: the whole float64 N_DFT × K_DFT transform of every beam on the host (``numpy.fft.ifft2``
+below, the paper's eq. (2DDFT) + eq. (argmaxmap) with ties to the first cell in (q, p) order) and
+eq. (P_ave) on its row: ``mean |z(q, p')|²`` over the delay bins within ±Δ of the peak. The device is
+array_api_strict's ``device1``, which refuses every implicit host copy and every operation outside
+the array API standard, so what passes here is written for CuPy's namespace too
+(``tests/gpu/test_gpu_grid.py`` runs it there).
+
+On every beam the device search must pick the oracle's cell; the values are two float64 evaluations
+of the same sums and agree to 1e-9 relative. The one tolerated difference is an exact tie (two
+cells equal to 1e-12), where either cell is the grid maximum.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import dsp
+from dsp import BeamSweep, devicegrid, scan_beams
+from dsp.spectrum import dft_windows
+from risloc_rt.model import paper_scenario, simulate
+from risloc_rt.model.beat import add_noise
+
+STRICT = dsp.strict_backend("device1")
+
+
+@pytest.fixture(autouse=True)
+def whole_grid(monkeypatch):
+    """The beams searched on their whole grid (zero and tiny beams; any other is a search that gave up)."""
+    calls: list[int] = []
+    original = devicegrid._Plan._whole_grid
+    monkeypatch.setattr(devicegrid._Plan, "_whole_grid", lambda self, a: calls.append(1) or original(self, a))
+    return calls
+
+
+def _oracle(cube, radar, processing):
+    """Per beam (q, p, |z|²/gain², P_ave/gain²) of the whole float64 grid, ties to the first in (q, p) order."""
+    w_k, w_n, gain = dft_windows(radar, processing)
+    delays = radar.delay_grid(processing.n_dft)
+    first = int(np.searchsorted(delays, 2.0 * processing.min_range / dsp.SPEED_OF_LIGHT))
+    out = []
+    for y in cube:
+        z = np.fft.ifft2(y * np.outer(w_k, w_n), s=(processing.k_dft, processing.n_dft))
+        z *= processing.k_dft * processing.n_dft  # Σ x e^{+j2π(qk/K_DFT + pn/N_DFT)}
+        power = z.real**2 + z.imag**2
+        power[:, :first] = -1.0
+        q, p = np.unravel_index(int(power.argmax()), power.shape)
+        window = np.abs(delays - delays[p]) <= processing.delta * (1.0 + 1e-9)
+        row = z[q].real**2 + z[q].imag**2
+        out.append((int(q), int(p), power[q, p] / gain**2, row[window].mean() / gain**2))
+    q, p, peak, average = map(np.array, zip(*out))
+    return q, p, peak, average
+
+
+def _on_device(cube, radar, processing):
+    """``scan_beams`` of the cube copied to device1 (one explicit copy)."""
+    sweep = BeamSweep(np.zeros((cube.shape[0], 2)))
+    return scan_beams(STRICT.asarray(cube), sweep, radar, processing)
+
+
+def _compare(cube, radar, processing, *, allow_ties=False, whole_grid=None, expect_whole=0):
+    scan = _on_device(cube, radar, processing)
+    if whole_grid is not None:  # the bounded search decided every other beam itself
+        assert len(whole_grid) == expect_whole
+    q, p, peak, average = _oracle(cube, radar, processing)
+    same = (scan.doppler_bin == q) & (scan.delay_bin == p)
+    if allow_ties:  # a differing cell must be a tie: its power equals the maximum
+        np.testing.assert_allclose(scan.peak_power[~same], peak[~same], rtol=1e-12)
+    else:
+        np.testing.assert_array_equal(scan.doppler_bin, q)
+        np.testing.assert_array_equal(scan.delay_bin, p)
+    np.testing.assert_allclose(scan.peak_power, peak, rtol=1e-9)
+    np.testing.assert_allclose(scan.average_power[same], average[same], rtol=1e-9)
+    return scan
+
+
+def _grid_tone(tone, radar, processing, p, q):
+    """A unit tone on grid cell (q, p): delay bin p, Doppler bin q (FFT order)."""
+    tau = p / (processing.n_dft * radar.slope * radar.sample_period)
+    nu = (q if q < processing.k_dft // 2 else q - processing.k_dft) / (processing.k_dft * radar.carrier_frequency
+                                                                        * radar.chirp_interval)
+    return tone(radar, tau - radar.carrier_frequency * nu / radar.slope, nu)  # the fast-time tone carries f_c ν too
+
+
+@pytest.mark.parametrize("window", ["hann", "hamming", "boxcar"])
+def test_random_multipath_beams_give_the_full_grid_cell(window, make_radar, make_processing, tone, whole_grid):
+    # 40 beams per window, each an independent draw: 1-6 returns with random delay, Doppler (up to
+    # ±v_max) and amplitude (0-40 dB spread), plus noise from -20 to +30 dB per sample relative to the
+    # strongest return: from clean to noise only after integration.
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67, window=window)
+    rng = np.random.default_rng(sum(map(ord, window)) + 1)
+    cube = np.zeros((40, 16, 64), complex)
+    for m in range(40):
+        for _ in range(rng.integers(1, 7)):
+            tau = rng.uniform(0.0, 0.95) * radar.max_delay
+            nu = rng.uniform(-1.0, 1.0) / (2.0 * radar.carrier_frequency * radar.chirp_interval)
+            cube[m] += 10 ** (-rng.uniform(0, 40) / 20) * np.exp(2j * np.pi * rng.uniform()) * tone(radar, tau, nu)
+        cube[m] = add_noise(cube[m], 10 ** (rng.uniform(-20, 30) / 10), rng)
+    _compare(cube, radar, processing, whole_grid=whole_grid)
+
+
+def test_table1_sizes_close_returns_near_ties_low_snr_noise_and_a_zero_beam(make_radar, make_processing, tone,
+                                                                           whole_grid):
+    # Table I's N, K, N_DFT, K_DFT: two returns 1.5 resolution cells apart; two equal returns far apart
+    # whose powers differ by 1e-6 (either order); a return at -15 dB per sample; noise only; a zero beam.
+    radar = make_radar(num_samples=600, num_chirps=128)
+    processing = make_processing(radar, n_dft=1199, k_dft=4793)
+    rng = np.random.default_rng(11)
+    res = radar.max_delay / radar.num_samples
+    cube = np.zeros((6, 128, 600), complex)
+    cube[0] = tone(radar, 300.3 * res, 1e-9) + 0.9 * tone(radar, 301.8 * res, 1.2e-9)
+    a, b = _grid_tone(tone, radar, processing, 200, 4700), _grid_tone(tone, radar, processing, 800, 60)
+    cube[1] = a + (1 + 5e-7) * b
+    cube[2] = (1 + 5e-7) * a + b
+    cube[3] = tone(radar, 250.7 * res, 0.0)
+    for m, snr_db in [(0, 20), (3, -15), (4, 0)]:
+        cube[m] = add_noise(cube[m], 10 ** (-snr_db / 10), rng)
+    scan = _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=1)  # the zero beam
+    assert (scan.delay_bin[1], scan.delay_bin[2]) == (800, 200)  # the 1e-6 stronger return wins either way
+    assert (scan.doppler_bin[5], scan.delay_bin[5]) == (0, 0)  # every cell of a zero beam ties at 0: the first
+
+
+def test_a_noisy_table1_capture_gives_the_hosts_screened_answer(whole_grid):
+    # The paper's relay scenario at 0 dBm (most beams noise only after integration, the dense search's
+    # case): the device search and the host's screened search (doppler_search="zoom") on the same cube.
+    scenario = paper_scenario("off-broadside", mode="relay")
+    scenario = dataclasses.replace(scenario, radar=dataclasses.replace(scenario.radar, tx_power_dbm=0.0))
+    capture = simulate(scenario, rng=np.random.default_rng(21))
+    host = scan_beams(capture.cube, capture.sweep, capture.radar, capture.processing)
+    dev = scan_beams(STRICT.asarray(capture.cube), capture.sweep, capture.radar, capture.processing)
+    np.testing.assert_array_equal(dev.delay_bin, host.delay_bin)
+    np.testing.assert_array_equal(dev.doppler_bin, host.doppler_bin)
+    np.testing.assert_allclose(dev.peak_power, host.peak_power, rtol=1e-9)
+    np.testing.assert_allclose(dev.average_power, host.average_power, rtol=1e-9)
+    assert dev.best_beam == host.best_beam
+    assert not whole_grid
+
+
+def test_exact_ties_pick_a_maximum(make_radar, make_processing, tone, whole_grid):
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    cube = np.stack([_grid_tone(tone, radar, processing, 20, 5) + _grid_tone(tone, radar, processing, 90, 5),
+                     _grid_tone(tone, radar, processing, 40, 3) + _grid_tone(tone, radar, processing, 40, 60)])
+    scan = _compare(cube, radar, processing, allow_ties=True, whole_grid=whole_grid)
+    for m, cells in enumerate([{(5, 20), (5, 90)}, {(3, 40), (60, 40)}]):
+        assert (int(scan.doppler_bin[m]), int(scan.delay_bin[m])) in cells
+
+
+def test_min_range_is_honoured(make_radar, make_processing, tone, whole_grid):
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67, min_range=5.0)
+    res = radar.max_delay / radar.num_samples
+    near = 2 * 3.0 / dsp.SPEED_OF_LIGHT  # a 100x stronger return at 3 m, inside the excluded range
+    cube = np.stack([10 * tone(radar, near, 0.0) + tone(radar, 40.4 * res, 2e-9),
+                     add_noise(10 * tone(radar, near, 0.0), 1e-2, np.random.default_rng(2))])
+    scan = _compare(cube, radar, processing, whole_grid=whole_grid)
+    assert np.all(scan.distance > 5.0)
+
+
+def test_szego_extremal_column_keeps_its_maximum(make_radar, make_processing, whole_grid):
+    # Boxcar, chirps 0 and K-1 only, one delay tone on fine bin p0: |g(ν)| = 2N|cos(σ(ν - ν₀))|, the case
+    # of equality in Szegő's inequality, with ν₀ a grid bin midway between two plane samples. The bound
+    # leaves the maximum exactly half a grid bin outside each sample's excluded interval; the search
+    # must still find it: |z|² = (2N)² (two unit chirps of N unit samples in phase).
+    radar = make_radar(num_samples=64, num_chirps=16)
+    k, n, plane = 16, 64, 32
+    processing = make_processing(radar, n_dft=127, k_dft=14 * plane, window="boxcar")
+    r0, p0 = 7, 40
+    q0 = 7 * (2 * r0 + 1)
+    y = np.zeros((k, n), complex)
+    y[0] = np.exp(-2j * np.pi * p0 * np.arange(n) / processing.n_dft)
+    y[k - 1] = np.exp(-2j * np.pi * q0 / processing.k_dft * (k - 1)) * y[0]
+    scan = _compare(np.stack([y, 0.5 * y]), radar, processing, whole_grid=whole_grid)
+    assert (scan.doppler_bin[0], scan.delay_bin[0]) == (q0, p0)
+    assert scan.peak_power[0] * dft_windows(radar, processing)[2] ** 2 == pytest.approx((2.0 * n) ** 2, rel=1e-12)
+
+
+def test_tiny_beams_and_the_full_search_on_the_whole_grid(make_radar, make_processing, tone, whole_grid):
+    # A beam at 1e-130 (squares near underflow) is searched on its whole grid; doppler_search="full"
+    # searches every beam there. Both give the oracle's cells.
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    rng = np.random.default_rng(5)
+    cube = np.stack([add_noise(tone(radar, 1e-8, 1e-9), 1.0, rng), 1e-130 * add_noise(tone(radar, 2e-8, 0.0), 0.1, rng)])
+    _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=1)  # the tiny beam only
+    _compare(cube, radar, dataclasses.replace(processing, doppler_search="full"), whole_grid=whole_grid,
+             expect_whole=3)
+
+
+def test_chunks_and_candidate_blocks_do_not_change_the_result(make_radar, make_processing, tone, monkeypatch):
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    rng = np.random.default_rng(9)
+    cube = add_noise(np.zeros((7, 16, 64), complex) + 0.2 * tone(radar, 1e-8, 2e-9), 1.0, rng)
+    one = _on_device(cube, radar, processing)
+    monkeypatch.setattr(devicegrid, "DEVICE_SCAN_BYTES", 3 * devicegrid.device_scan_bytes(16, 64, 127))
+    monkeypatch.setattr(devicegrid, "_CANDIDATE_BLOCK", 7)
+    chunked = _on_device(cube, radar, processing)
+    for name in ("delay_bin", "doppler_bin", "peak_power", "average_power"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(one, name))
+
+
+def test_a_device_cube_with_bad_values_is_refused_where_it_lives(make_radar, make_processing):
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    sweep = BeamSweep(np.zeros((2, 2)))
+    bad = np.ones((2, 16, 64), complex)
+    bad[1, 3, 4] = np.inf
+    with pytest.raises(ValueError, match="non-finite"):
+        scan_beams(STRICT.asarray(bad), sweep, radar, processing)
+    with pytest.raises(ValueError, match="all zeros"):
+        scan_beams(STRICT.asarray(np.zeros((2, 16, 64), complex)), sweep, radar, processing)
+    with pytest.raises(ValueError, match="sweep has 2 angles"):
+        scan_beams(STRICT.asarray(np.ones((3, 16, 64), complex)), sweep, radar, processing)
