@@ -9,6 +9,12 @@ identical, plus the largest relative difference of the peak and P_ave values. Ti
 clock and CPU (process) seconds per cube; a closing line gives the paper DSP's speed against the
 straight paper method (the full grid) next to its exactness, all from the same run.
 
+``--device cuda`` (or ``strict``, ``numpy``) also runs the paper DSP with the cube on that device: the
+grid search where the cube lives (``dsp/devicegrid.py``), timed per cube with the cube already there
+(as in a study), and its bins checked against the host's on every cube (and on the random and
+adversarial beams). ``numpy`` runs the device search on the host's NumPy, to show what it would cost
+there; ``strict`` is CI's array_api_strict, whose cost is not a target.
+
 ``--threads 1`` runs the DSP and BLAS on one thread (one core). ``--baseline FILE`` also times
 another version of ``dsp/gridscreen.py`` (e.g. ``git show REV:dsp/gridscreen.py > /tmp/old.py``)
 on the same cubes, alternating with the current one, and checks its bins too.
@@ -17,7 +23,7 @@ Synthesis: a Table I capture of the default hall's kept paths (``simulate``), wi
 noise stream and with the fast one (float32 per-beam streams, threaded), median of ``--repeat``.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2] [--low-power 0,10]
-        [--threads 1] [--baseline /tmp/old_gridscreen.py]
+        [--threads 1] [--baseline /tmp/old_gridscreen.py] [--device cuda]
 """
 
 from __future__ import annotations
@@ -60,6 +66,28 @@ def _paper_path(cube, capture, search, screen=None):
         dsp.beamscan.screened_scan = original
 
 
+def _device_scan(cube, capture_or_radar, processing, backend, sweep=None):
+    """``dsp.scan_beams`` of a cube already on ``backend``'s device (NumPy: the device search on the host)."""
+    radar = getattr(capture_or_radar, "radar", capture_or_radar)
+    sweep = sweep if sweep is not None else capture_or_radar.sweep
+    if not backend.is_numpy:
+        return dsp.scan_beams(cube, sweep, radar, processing)
+    original = dsp.beamscan.is_host_array
+    dsp.beamscan.is_host_array = lambda x: False  # route a host cube to dsp.devicegrid (benchmark only)
+    try:
+        return dsp.scan_beams(cube, sweep, radar, processing)
+    finally:
+        dsp.beamscan.is_host_array = original
+
+
+def _device_path(cube, capture, backend):
+    """The paper's DSP on a cube already on the device. Returns (localization, wall seconds, CPU seconds)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    scan = _device_scan(cube, capture, capture.processing, backend)  # its results come back: synchronised
+    loc = dsp.localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
+    return loc, time.perf_counter() - t0, time.process_time() - c0
+
+
 def _load_baseline(path):
     """Another version of ``dsp/gridscreen.py`` loaded as a module of the package (its ``screened_scan``)."""
     spec = importlib.util.spec_from_file_location("dsp._gridscreen_baseline", path)
@@ -90,15 +118,19 @@ def _cases(low_powers=()):
             yield f"paper_hall radar {index}", hs.base, hall_paths(hs).paths
 
 
-def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=None) -> None:
-    """Screened zoom vs the full grid per case; with ``baseline`` (a screened_scan) also the older screen."""
+def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=None, device=None) -> None:
+    """Screened zoom vs the full grid per case; with ``baseline`` (a screened_scan) also the older screen;
+    with ``device`` (an ArrayBackend) also the device's grid search on the same cubes."""
     print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'cpu [s]':>8} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
           f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}"
-          + (f" {'baseline [s]':>12} {'cpu [s]':>8} {'base/zoom':>9} {'base bins':>9}" if baseline else ""))
+          + (f" {'baseline [s]':>12} {'cpu [s]':>8} {'base/zoom':>9} {'base bins':>9}" if baseline else "")
+          + (f" {'device [s]':>10} {'full/dev':>8} {'dev bins':>8} {'dev diff':>8}" if device else ""))
     cases = list(_cases(low_powers))
     ratios, exact, worst = [], [0, 0], 0.0
+    dev_ratios, dev_exact = [], [0, 0]
     for (name, scenario, paths), ss in zip(cases, np.random.SeedSequence(seed).spawn(len(cases))):
         t_zoom, c_zoom, t_full, t_base, c_base, beam, bins, est, diff, base_bins = [], [], [], [], [], 0, 0, 0, 0.0, 0
+        t_dev, dev_bins, dev_diff = [], 0, 0.0
         for r, child in enumerate(ss.spawn(realizations)):
             cap = simulate(scenario, rng=np.random.default_rng(child), paths=paths)
             if baseline is not None:  # alternating with the current screen, on the same cube
@@ -110,6 +142,11 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
             c_zoom.append(c)
             if baseline is not None:
                 base_bins += _same(old, zoom)[1]
+            if device is not None:  # the cube copied to the device first (a study's cube is there already)
+                on_dev, t, _ = _device_path(device.asarray(cap.cube), cap, device)
+                t_dev.append(t)
+                same = _same(on_dev, zoom)
+                dev_bins, dev_diff = dev_bins + (same[0] and same[1]), max(dev_diff, same[3])
             if r >= full:
                 continue
             ref, t, _ = _paper_path(cap.cube, cap, "full")
@@ -125,21 +162,40 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
         if baseline is not None:
             line += (f" {np.median(t_base):>12.3f} {np.median(c_base):>8.3f} {np.median(t_base) / mz:>9.2f} "
                      f"{base_bins:>6}/{realizations:<2}")
+        if device is not None:
+            md = float(np.median(t_dev))
+            dev_ratios.append((name, md, mf / md))
+            dev_exact = [dev_exact[0] + dev_bins, dev_exact[1] + realizations]
+            line += f" {md:>10.4f} {mf / md:>8.0f} {dev_bins:>5}/{realizations:<2} {dev_diff:>8.1e}"
         print(line)
     slowest = max(ratios, key=lambda r: r[1])
     print(f"paper DSP against the straight paper method (full grid): {min(r[3] for r in ratios):.0f}-"
           f"{max(r[3] for r in ratios):.0f}x faster, slowest case {slowest[0]} {slowest[1]:.3f} s per cube "
           f"(cpu {slowest[2]:.3f} s) [goal >= 170x, <= 0.07 s]; exact: same bins in {exact[0]}/{exact[1]} cubes, "
           f"max rel. diff of peak and P_ave {worst:.1e}")
+    if device is not None:
+        slowest = max(dev_ratios, key=lambda r: r[1])
+        print(f"paper DSP on {device.summary()}: {min(r[2] for r in dev_ratios):.0f}-{max(r[2] for r in dev_ratios):.0f}x "
+              f"the host's full grid, slowest case {slowest[0]} {slowest[1]:.4f} s per cube; the host's bins and beam "
+              f"in {dev_exact[0]}/{dev_exact[1]} cubes")
 
 
-def bench_random_beams(count: int, seed: int) -> None:
+def _device_compare(cube, radar, processing, device, reference):
+    """(same cells, exact ties) of the device search against ``reference`` (a BeamScan) on ``cube``."""
+    if device is None:
+        return 0, 0
+    scan = _device_scan(device.asarray(cube), radar, processing, device, sweep=dsp.BeamSweep(np.zeros((cube.shape[0], 2))))
+    eq = (scan.delay_bin == reference.delay_bin) & (scan.doppler_bin == reference.doppler_bin)
+    return int(eq.sum()), int(np.sum(~eq & np.isclose(scan.peak_power, reference.peak_power, rtol=1e-12, atol=0)))
+
+
+def bench_random_beams(count: int, seed: int, device=None) -> None:
     """Random Table I beams (1-6 returns, 0-40 dB spread, -20 to +30 dB noise per sample): zoom vs full."""
     scenario = paper_scenario("broadside")
     radar, processing = scenario.radar, scenario.processing
     rng = np.random.default_rng(seed)
     k, n = np.arange(radar.num_chirps)[:, None], np.arange(radar.num_samples)[None, :]
-    same, ties, worst = 0, 0, 0.0
+    same, ties, worst, dev_same, dev_ties = 0, 0, 0.0, 0, 0
     for start in range(0, count, 8):
         cube = np.zeros((min(8, count - start), radar.num_chirps, radar.num_samples), complex)
         for m in range(cube.shape[0]):
@@ -157,11 +213,14 @@ def bench_random_beams(count: int, seed: int) -> None:
         same += int(eq.sum())
         ties += int(np.sum(~eq & np.isclose(zoom.peak_power, full.peak_power, rtol=1e-12, atol=0)))
         worst = max(worst, float(np.max(np.abs(zoom.peak_power / full.peak_power - 1))))
+        a, b = _device_compare(cube, radar, processing, device, full)
+        dev_same, dev_ties = dev_same + a, dev_ties + b
     print(f"random Table I beams: {same}/{count} same grid cell as the full search, {ties} exact ties, "
-          f"largest relative peak difference {worst:.1e}")
+          f"largest relative peak difference {worst:.1e}"
+          + (f"; on the device {dev_same}/{count} the full search's cell, {dev_ties} exact ties" if device else ""))
 
 
-def bench_adversarial(batches: int, seed: int) -> None:
+def bench_adversarial(batches: int, seed: int, device=None) -> None:
     """Small beams (K = 16, N = 64) with 2-3 near-equal returns within 1.5 cells in delay and Doppler
     (interference between native samples, the screen's hard case), 4 windows: zoom vs full."""
     radar = dsp.RadarConfig(num_samples=64, num_chirps=16)
@@ -169,7 +228,7 @@ def bench_adversarial(batches: int, seed: int) -> None:
     res_nu = 1 / (radar.num_chirps * radar.carrier_frequency * radar.chirp_interval)
     k, n = np.arange(16)[:, None], np.arange(64)[None, :]
     rng = np.random.default_rng(seed)
-    total = mismatches = ties = 0
+    total = mismatches = ties = dev_same = dev_ties = 0
     for window in ("hann", "hamming", "boxcar", "blackman"):
         proc = dsp.ProcessingConfig(n_dft=127, k_dft=67, window=window)
         for _ in range(batches):
@@ -189,8 +248,11 @@ def bench_adversarial(batches: int, seed: int) -> None:
             eq = (zoom.delay_bin == full.delay_bin) & (zoom.doppler_bin == full.doppler_bin)
             tie = ~eq & np.isclose(zoom.peak_power, full.peak_power, rtol=1e-12, atol=0)
             total, mismatches, ties = total + 40, mismatches + int((~eq & ~tie).sum()), ties + int(tie.sum())
+            a, b = _device_compare(cube, radar, proc, device, full)
+            dev_same, dev_ties = dev_same + a, dev_ties + b
     print(f"adversarial small beams (2-3 near-equal returns within 1.5 cells, 4 windows): {total} beams, "
-          f"{mismatches} other cell than the full search, {ties} exact ties")
+          f"{mismatches} other cell than the full search, {ties} exact ties"
+          + (f"; on the device {total - dev_same - dev_ties} other cell, {dev_ties} exact ties" if device else ""))
 
 
 def bench_synthesis(repeat: int) -> None:
@@ -227,6 +289,8 @@ def main() -> None:
     parser.add_argument("--baseline", default="", metavar="FILE",
                         help="another dsp/gridscreen.py to time on the same cubes (before/after)")
     parser.add_argument("--no-synthesis", action="store_true", help="skip the synthesis benchmark")
+    parser.add_argument("--device", default="", choices=("", "cuda", "strict", "numpy"),
+                        help="also the paper DSP with the cube on this device (dsp/devicegrid.py)")
     args = parser.parse_args()
     print(f"risloc-rt fast-path benchmark; {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
           f"numpy {np.__version__}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
@@ -237,11 +301,16 @@ def main() -> None:
         if args.threads:
             stack.enter_context(dsp.limit_threads(args.threads))
             stack.enter_context(threadpool_limits(args.threads))
-        bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows, baseline)
+        device = None
+        if args.device:
+            device = {"cuda": lambda: dsp.backend_for("cuda"), "strict": lambda: dsp.strict_backend("CPU_DEVICE"),
+                      "numpy": dsp.numpy_backend}[args.device]()
+            print(f"device: {device.summary()}")
+        bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows, baseline, device)
         if args.random_beams:
-            bench_random_beams(args.random_beams, args.seed)
+            bench_random_beams(args.random_beams, args.seed, device)
         if args.adversarial:
-            bench_adversarial(args.adversarial, args.seed)
+            bench_adversarial(args.adversarial, args.seed, device)
         if not args.no_synthesis:
             bench_synthesis(args.repeat)
 

@@ -256,8 +256,8 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     run r's from :func:`run_rng`) and the detector (:func:`dsp.detect_batch`) run on ``backend`` for
     the whole group; then each realization's cube goes through ``dsp.self_localize`` with its
     detection, where it lives: its whole-cube reads (the refined estimator's projections, the flags'
-    DTFTs) run on the backend and only small results come to the host (the paper's grid search takes
-    one explicit host copy). A run's row depends on the study seed, the point and its run index
+    DTFTs) and the paper's grid search (:mod:`dsp.devicegrid`) run on the backend and only small
+    results come to the host. A run's row depends on the study seed, the point and its run index
     only: not on B, the order or the worker.
 
     Parameters
