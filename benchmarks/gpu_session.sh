@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Issue 21's GPU checks in one call, for a session that is lent a GPU machine by the device tool.
 #
-# Stages, named as arguments (default: "profile outliers fig7", what the 2026-11-27 H200 session left):
+# Stages, named as arguments (default: "grid bench fig6 outliers": the paper's grid search now runs on the GPU,
+# dsp/devicegrid.py, unmeasured there; then what the 2026-11-27 H200 session left):
 #   tests     the GPU tests (tests/gpu, ~75 s)
+#   grid      bench_speedpath.py --device cuda: the paper DSP with the cube on the GPU against the host's screen and
+#             full grid on the same cubes, bin for bin, plus 160 random and 800 adversarial beams (~3 min: the host's
+#             full grid takes ~7 s per cube)
 #   bench     bench_device.py on the GPU at B = 1, 8, 64 and on the same machine's CPU (~60 s)
 #   profile   cProfile of refined and paper runs on the GPU: where a run's time goes (~40 s)
 #   fig6 fig6r fig8 fig7   the paper's figures with their files' 1000 runs per point, 14 host workers
@@ -36,7 +40,7 @@
 #
 # then call the device tool's run with carry [".whl"], timeout_s 600 and the command
 #
-#   BUDGET=540 bash benchmarks/gpu_session.sh profile outliers fig7
+#   BUDGET=540 bash benchmarks/gpu_session.sh grid bench fig6 outliers
 #
 # and record what comes back in docs/benchmarks.md ("Devices and batches"), docs/studies.md (Fig. 6
 # regenerated on a GPU) and the issue's note, with the device the reply names.
@@ -48,8 +52,8 @@ python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upg
   && export PYTHONPATH="/tmp/site:$PWD" || { echo "gpu_session.sh: carry .whl (see the header)"; exit 2; }
 cp -r .whl/*.dist-info /tmp/site/ 2>/dev/null  # the tracer's versions for the trace cache's key (map05)
 export PYTHONUNBUFFERED=1
-# the stages to run (arguments; default: what the 2026-11-27 H200 session left: profile, outliers, fig7)
-STAGES=${*:-profile outliers fig7}
+# the stages to run (arguments; default: the GPU grid search, the bench and Fig. 6 again, then the outliers)
+STAGES=${*:-grid bench fig6 outliers}
 # one budget for the whole call (BUDGET seconds, default 570): each stage runs under its own cap and never past it
 BUDGET=${BUDGET:-570}
 t0=$(date +%s)
@@ -79,6 +83,13 @@ if stage tests; then
   stamp "GPU tests"
   deadline 200 python3 -m pytest -q -m gpu tests/gpu -p no:cacheprovider --durations=6 -rA 2>&1 \
     | tee "$OUT/gpu_tests.txt" | tail -30
+fi
+
+# the paper's grid search on the GPU (dsp/devicegrid.py) against the host's, on the same cubes, bin for bin
+if stage grid; then
+  stamp "grid search on the GPU"
+  deadline 240 python3 benchmarks/bench_speedpath.py --device cuda --realizations 5 --full 1 --low-power 0,10 \
+    --random-beams 160 --adversarial 5 --no-synthesis 2>&1 | tee "$OUT/grid_cuda.txt"
 fi
 
 # speed beside error: the GPU at several batch sizes, then this machine's CPU (one core) as the baseline

@@ -38,7 +38,7 @@ def gpu():
 def test_table1_captures_give_the_hosts_cells_on_the_gpu(gpu, tx_dbm):
     scenario = paper_scenario("off-broadside", mode="relay")
     scenario = dataclasses.replace(scenario, radar=dataclasses.replace(scenario.radar, tx_power_dbm=tx_dbm))
-    for seed in range(8):
+    for seed in range(4):
         capture = simulate(scenario, rng=np.random.default_rng(1000 + seed))
         args = (capture.sweep, capture.radar, capture.processing)
         host = scan_beams(capture.cube, *args)
