@@ -54,7 +54,7 @@ from .xp import ArrayBackend
 __all__ = ["DEVICE_SCAN_BYTES", "device_scan", "device_scan_bytes"]
 
 #: Most bytes one chunk of beams may hold on the device (the transform, plane and masks).
-DEVICE_SCAN_BYTES = 2 * 2**30
+DEVICE_SCAN_BYTES = 2**30
 
 #: Relative slack of a float64 value in a bound (per unit ‖x‖₁; module notes).
 _SLACK = 1e-10
