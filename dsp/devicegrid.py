@@ -219,7 +219,9 @@ class _Plan:
         # 4. Szegő: the intervals [r, r+1] of a column with a candidate end, and what their ends exclude
         reach = min(0.5 * (self.sigma / length + 2.0 * self.alpha0), 0.5 * math.pi)
         mask = amp >= (t * math.cos(reach) - slack)[:, None, None]
-        mask = xp.logical_and(mask, backend.asarray(~skip)[:, None, None])
+        # a beam without a positive T (its searchable grid is within the slack of 0) finds no candidate: whole grid
+        searched = xp.logical_and(backend.asarray(~skip), t > 0.0)
+        mask = xp.logical_and(mask, searched[:, None, None])
         ends = xp.logical_or(mask, xp.roll(mask, -1, axis=1))
         beam, r, col = xp.nonzero(ends)
         flat_amp = xp.reshape(amp, (-1,))
@@ -245,12 +247,15 @@ class _Plan:
         q_lo = xp.astype(xp.ceil(lo * k_dft), xp.int64) - 1
         count = xp.astype(xp.floor(hi * k_dft), xp.int64) + 2 - q_lo
         total = int(backend.to_host(xp.sum(count)))
-        if total == 0:  # cannot happen for a beam that is not zero: the maximum's interval survives
+        if total == 0:  # no beam with a positive T (the maximum's interval survives in every other): whole grids
             return self._fallback(a, skip)
+        # bin i belongs to sub-interval src (the first whose running count passes i): a repeat by counts
+        # that stay on the device (CuPy's repeat takes host counts only)
         ends_at = xp.cumulative_sum(count)
-        offset = xp.arange(total, dtype=xp.int64, device=dev) - xp.repeat(ends_at - count, count)
-        q = (xp.repeat(q_lo, count) + offset) % k_dft
-        cell_col = xp.repeat(beam * n_dft + col, count)
+        index = xp.arange(total, dtype=xp.int64, device=dev)
+        src = xp.searchsorted(ends_at, index, side="right")
+        q = (xp.take(q_lo, src) + index - xp.take(ends_at - count, src)) % k_dft
+        cell_col = xp.take(beam * n_dft + col, src)
         power = xp.empty((total,), dtype=xp.float64, device=dev)
         for s in range(0, total, _CANDIDATE_BLOCK):
             e = min(total, s + _CANDIDATE_BLOCK)
@@ -269,7 +274,7 @@ class _Plan:
         qh, ph = np.zeros(c, np.int64), np.full(c, self.first, np.int64)
         found = np.zeros(c, bool)
         qh[got[0]], ph[got[0]], found[got[0]] = got[1], got[2], True
-        if not np.all(found | skip):  # cannot happen (as above): those beams on their whole grid
+        if not np.all(found | skip):  # the beams without a positive T (as above): on their whole grid
             for j in np.flatnonzero(~(found | skip)):
                 qh[j], ph[j] = self._whole_grid(a[int(j), ...])
         return qh, ph

@@ -192,6 +192,17 @@ def test_tiny_beams_and_the_full_search_on_the_whole_grid(make_radar, make_proce
              expect_whole=3)
 
 
+def test_a_beam_without_a_positive_lower_bound_is_searched_on_its_whole_grid(make_radar, make_processing, tone,
+                                                                              whole_grid, monkeypatch):
+    # T = (largest grid value found) - slack; with a slack above every value no beam has a positive T, so
+    # none can be pruned: each goes to its whole grid, with the oracle's cells.
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    cube = add_noise(np.zeros((3, 16, 64), complex) + 0.5 * tone(radar, 3e-8, 1e-9), 1.0, np.random.default_rng(8))
+    monkeypatch.setattr(devicegrid, "_SLACK", 10.0)
+    _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=3)
+
+
 def test_chunks_and_candidate_blocks_do_not_change_the_result(make_radar, make_processing, tone, monkeypatch):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
