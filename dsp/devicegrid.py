@@ -32,10 +32,15 @@ values that decide agree with the full transform's to ~1e-13 relative (different
 order): the same cell wins unless two cells are that close (a true tie; either is then the
 grid maximum). A beam whose ‖x‖₁ is below ``_TINY`` (its |z|² would underflow where the full
 search's does not, or the reverse) or that is all zeros is searched on its whole float64 grid
-instead (every cell of a zero beam ties at 0: the first searchable one wins, as in the full search).
+instead (every cell of a zero beam ties at 0: the first searchable one wins, as in the full search),
+and so is a beam whose kept intervals could hold more than
+:func:`dsp.gridscreen.whole_grid_bins` bins: its spectrum is flat in Doppler over most delay
+columns (its energy in one ADC sample, a glitch), there is nothing to prune, and its grid is
+cheaper than its candidates.
 
-**Memory.** A chunk of c beams holds ≈ c·(N_DFT·(32K + 27L) + 16·K·N) bytes
-(:func:`device_scan_bytes`: 14 MB per beam at Table I); chunks are sized to
+**Memory.** A chunk of c beams holds at most c·:func:`device_scan_bytes` (40 MB per beam at
+Table I, of which 14 MB in every case: the transform, the plane and its masks; the rest is the
+bound of the candidate arrays, reached only by a beam with nothing to prune); chunks are sized to
 ``DEVICE_SCAN_BYTES`` or the device's free memory, whichever is smaller. The candidates' values
 are evaluated in blocks of ``_CANDIDATE_BLOCK``.
 """
@@ -48,13 +53,14 @@ from typing import Any
 
 import numpy as np
 
+from .gridscreen import whole_grid_bins
 from .processing import ProcessingConfig
 from .xp import ArrayBackend
 
 __all__ = ["DEVICE_SCAN_BYTES", "device_scan", "device_scan_bytes"]
 
 #: Most bytes one chunk of beams may hold on the device (the transform, plane and masks).
-DEVICE_SCAN_BYTES = 2**30
+DEVICE_SCAN_BYTES = 2 * 2**30
 
 #: Relative slack of a float64 value in a bound (per unit ‖x‖₁; module notes).
 _SLACK = 1e-10
@@ -66,13 +72,16 @@ _TINY = 1e-120
 _CANDIDATE_BLOCK = 1 << 15
 
 
-def device_scan_bytes(k: int, n: int, n_dft: int) -> int:
-    """Device bytes per beam of :func:`device_scan`: ``N_DFT·(32K + 27L) + 16·K·N`` (L the plane's length) [B].
+def device_scan_bytes(k: int, n: int, n_dft: int, k_dft: int) -> int:
+    """Device bytes per beam of :func:`device_scan`, at most [B].
 
     The windowed beam (16·K·N), its range transform and its columns (2 × 16·K·N_DFT), the complex
-    plane and its magnitude (24·L·N_DFT) and three boolean masks (3·L·N_DFT).
+    plane and its magnitude (24·L·N_DFT, L the plane's length), three boolean masks (3·L·N_DFT),
+    the intervals with a candidate end and their values (≤ 72 B for each of the L·N_DFT plane
+    cells) and the candidate bins (40 B each, at most :func:`dsp.gridscreen.whole_grid_bins` per beam):
+    ``N_DFT·(32K + 99L) + 16·K·N + 40·whole_grid_bins`` (40 MB at Table I).
     """
-    return n_dft * (32 * k + 27 * _plane_length(k)) + 16 * k * n
+    return n_dft * (32 * k + 99 * _plane_length(k)) + 16 * k * n + 40 * whole_grid_bins(k_dft, n_dft)
 
 
 def _plane_length(k: int) -> int:
@@ -121,7 +130,7 @@ def device_scan(
     """
     xp = backend.xp
     m, k, n = (int(v) for v in cube.shape)
-    per_beam = device_scan_bytes(k, n, processing.n_dft)
+    per_beam = device_scan_bytes(k, n, processing.n_dft, processing.k_dft)
     budget = DEVICE_SCAN_BYTES
     free = backend.free_memory()
     if free is not None:
@@ -230,6 +239,11 @@ class _Plan:
         t_i, s_i = xp.take(t, beam), xp.take(slack, beam)
         gap_l, gap_r = self._exclusion(left, t_i, s_i), self._exclusion(right, t_i, s_i)
         keep = gap_l + gap_r <= (1.0 + 1e-9) / length  # float64 rounding of the test itself
+        # a beam whose kept intervals could hold more than whole_grid_bins has nothing to prune (flat in Doppler
+        # over most columns, e.g. one ADC sample): its whole grid instead, as on the host
+        heavy = self._kept_per_beam(beam, keep, c) * (-(-k_dft // length) + 4) > whole_grid_bins(k_dft, n_dft)
+        if np.any(heavy):
+            keep = xp.logical_and(keep, xp.take(backend.asarray(~heavy), beam))
         idx = xp.nonzero(keep)[0]
         beam, r, col = xp.take(beam, idx), xp.take(r, idx), xp.take(col, idx)
         gap_l, gap_r, t_i, s_i = xp.take(gap_l, idx), xp.take(gap_r, idx), xp.take(t_i, idx), xp.take(s_i, idx)
@@ -247,7 +261,7 @@ class _Plan:
         q_lo = xp.astype(xp.ceil(lo * k_dft), xp.int64) - 1
         count = xp.astype(xp.floor(hi * k_dft), xp.int64) + 2 - q_lo
         total = int(backend.to_host(xp.sum(count)))
-        if total == 0:  # no beam with a positive T (the maximum's interval survives in every other): whole grids
+        if total == 0:  # no beam with a positive T and something to prune (the maximum's interval survives): whole grids
             return self._fallback(a, skip)
         # bin i belongs to sub-interval src (the first whose running count passes i): a repeat by counts
         # that stay on the device (CuPy's repeat takes host counts only)
@@ -274,10 +288,17 @@ class _Plan:
         qh, ph = np.zeros(c, np.int64), np.full(c, self.first, np.int64)
         found = np.zeros(c, bool)
         qh[got[0]], ph[got[0]], found[got[0]] = got[1], got[2], True
-        if not np.all(found | skip):  # the beams without a positive T (as above): on their whole grid
+        if not np.all(found | skip):  # no positive T or nothing to prune (as above): on their whole grid
             for j in np.flatnonzero(~(found | skip)):
                 qh[j], ph[j] = self._whole_grid(a[int(j), ...])
         return qh, ph
+
+    def _kept_per_beam(self, beam: Any, keep: Any, c: int) -> np.ndarray:
+        """Per beam of the chunk, how many of its intervals are kept (``beam`` ascending, as ``nonzero`` gives it) [c]."""
+        xp, dev = self.xp, self.backend.device
+        prefix = xp.concat([xp.zeros((1,), dtype=xp.int64, device=dev), xp.cumulative_sum(xp.astype(keep, xp.int64))])
+        starts = xp.searchsorted(beam, xp.arange(c + 1, dtype=beam.dtype, device=dev), side="left")
+        return self.backend.to_host(xp.take(prefix, starts[1:]) - xp.take(prefix, starts[:-1]))
 
     def _fallback(self, a: Any, skip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every beam not in ``skip`` on its whole grid."""
@@ -292,5 +313,5 @@ class _Plan:
         xp = self.xp
         ratio = xp.minimum(xp.ones_like(value), (value + slack) / t)
         if self.sigma == 0.0:  # one chirp: |g| is the same at every Doppler
-            return xp.where(ratio < 1.0, math.inf, 0.0)
+            return xp.where(ratio < 1.0, xp.full_like(ratio, math.inf), xp.zeros_like(ratio))
         return xp.maximum(xp.zeros_like(value), xp.acos(ratio) - self.alpha0) / self.sigma

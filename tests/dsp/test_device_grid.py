@@ -203,13 +203,37 @@ def test_a_beam_without_a_positive_lower_bound_is_searched_on_its_whole_grid(mak
     _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=3)
 
 
+def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processing, whole_grid):
+    # A beam whose energy is in one ADC sample (a glitch) is flat over the whole grid: Szegő's bound prunes
+    # nothing, so it is searched on its whole grid (as on the host). One chirp (a burst) is flat in Doppler
+    # only near its delay and noise is pruned: both stay with the bounded search.
+    radar = make_radar(num_samples=600, num_chirps=128)
+    processing = make_processing(radar, n_dft=1199, k_dft=4793)
+    rng = np.random.default_rng(12)
+    burst = np.zeros((128, 600), complex)
+    burst[7] = np.exp(2j * np.pi * 0.1 * np.arange(600))
+    impulse = np.zeros((128, 600), complex)
+    impulse[5, 100] = 1.0
+    cube = np.stack([add_noise(burst, 1e-12, rng), add_noise(impulse, 1e-12, rng), add_noise(burst, 1.0, rng)])
+    _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=1)  # the impulse
+
+
+def test_one_chirp_has_no_doppler_to_search(make_radar, make_processing, whole_grid):
+    # K = 1: every Doppler bin of a column holds the same value (σ = 0): the first, q = 0, wins.
+    radar = make_radar(num_samples=32, num_chirps=1)
+    processing = make_processing(radar, n_dft=63, k_dft=5, window="boxcar")
+    cube = add_noise(np.zeros((2, 1, 32), complex), 1.0, np.random.default_rng(8))
+    scan = _compare(cube, radar, processing)
+    assert np.all(scan.doppler_bin == 0)
+
+
 def test_chunks_and_candidate_blocks_do_not_change_the_result(make_radar, make_processing, tone, monkeypatch):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
     rng = np.random.default_rng(9)
     cube = add_noise(np.zeros((7, 16, 64), complex) + 0.2 * tone(radar, 1e-8, 2e-9), 1.0, rng)
     one = _on_device(cube, radar, processing)
-    monkeypatch.setattr(devicegrid, "DEVICE_SCAN_BYTES", 3 * devicegrid.device_scan_bytes(16, 64, 127))
+    monkeypatch.setattr(devicegrid, "DEVICE_SCAN_BYTES", 3 * devicegrid.device_scan_bytes(16, 64, 127, 67))
     monkeypatch.setattr(devicegrid, "_CANDIDATE_BLOCK", 7)
     chunked = _on_device(cube, radar, processing)
     for name in ("delay_bin", "doppler_bin", "peak_power", "average_power"):
