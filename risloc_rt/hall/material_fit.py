@@ -1,7 +1,9 @@
 """Fit the hall's materials (ε_r, σ at the carrier) to observed peak powers, by gradients through the tracer.
 
 The engine of ``risloc calibrate --materials`` (issue 23); there is no CLI and no scene writing
-here. Every gain and derivative comes from
+here. The observations, the paths each peak explains and its model power are
+:mod:`risloc_rt.hall.material_observations`; the result types :mod:`risloc_rt.hall.material_fit_result`
+(both re-exported here). Every gain and derivative comes from
 :func:`risloc_rt.hall.raytrace.material_gradients.material_jacobian` (no sionna import here).
 
 Model
@@ -80,14 +82,12 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from dsp import RadarConfig
-from dsp.validation import as_finite_array
-
+from .material_fit_result import IdentifiabilityReport, MaterialFit
+from .material_observations import DEFAULT_WINDOW, Observation, assign_paths, peak_model, synthetic_observations
 from .raytrace.material_gradients import MaterialJacobian, material_jacobian
 from .raytrace.result import TraceSettings
 
@@ -95,8 +95,6 @@ __all__ = ["Observation", "MaterialFit", "IdentifiabilityReport", "fit_materials
            "assign_paths", "DEFAULT_WINDOW", "DEFAULT_THRESHOLD",
            "PROFILE_RATIO", "SHARE_RANGE", "SEARCH_EPS_R", "SEARCH_S", "SEARCH_DESCENTS"]
 
-#: Default delay window [s]: half Table I's Rayleigh delay resolution (the paths one beat peak merges).
-DEFAULT_WINDOW: float = RadarConfig().delay_resolution / 2.0
 #: Default identifiability threshold: smallest singular value of the column-scaled weighted
 #: Jacobian, relative to its largest, below which a direction is not identifiable (condition 1e3).
 DEFAULT_THRESHOLD: float = 1e-3
@@ -104,7 +102,6 @@ DEFAULT_THRESHOLD: float = 1e-3
 _COMPONENT = 0.1
 #: Profile check: a rise of the cost at ±1σ outside [0.5/PROFILE_RATIO, 0.5·PROFILE_RATIO] marks the 1σ as weak.
 PROFILE_RATIO: float = 2.0
-_DB = 10.0 / math.log(10.0)
 _LOG_SIGMA_BOUNDS = (-40.0, 20.0)  # ln σ [ln(S/m)]: 4e-18 to 5e8 S/m; at e^40 S/m sionna-rt's float32 slab model loses every path
 #: The scattered share u = S² the fit moves within [unitless]: S from 1e-3 (a specular loss of 4e-6 dB per bounce,
 #: nothing a peak shows) to 0.995 (the specular reflection 20 dB down per bounce). A fit at the lower end means
@@ -120,392 +117,6 @@ SEARCH_EPS_R: tuple[float, ...] = tuple(float(x) for x in np.round(np.linspace(0
 SEARCH_S: tuple[float, ...] = (0.0, 0.15, 0.3, 0.45, 0.6, 0.75, 0.9)
 #: Most descents started from the search grid's local minima, per scattering material.
 SEARCH_DESCENTS: int = 3
-
-
-@dataclass(frozen=True)
-class Observation:
-    """One radar position and the peaks observed there.
-
-    Parameters
-    ----------
-    radar_position : float array [3]
-        Radar position, world frame [m].
-    delay : float array [K]
-        Round-trip delay of each observed peak [s] (as the tracer reports path delays).
-    power_db : float array [K]
-        Observed power of each peak [dB], in units of |a|² plus ``offset_db``.
-    sigma_db : float array [K] or float
-        1σ of each observed power [dB], > 0 (a scalar applies to every peak).
-    offset_db : float or float array [K]
-        Known constant added to the model power of this position's peaks (radar/RIS link budget)
-        [dB]: one number for every peak, or one per peak (e.g. a measured capture's link budget
-        from |a|² to the peak's power in the range profile, which includes the antenna gains
-        toward that path and the coherent merging of the peak's paths:
-        :mod:`risloc_rt.measured.compare.material_peaks`). Stored as given (a float, or a
-        read-only array); :meth:`offsets` gives it per peak.
-    path_weight : float array [P], optional
-        A weight >= 0 [unitless] per monostatic path of the material tracer at this position (in
-        :func:`~risloc_rt.hall.raytrace.material_gradients.material_jacobian`'s order, which does
-        not depend on the materials): a peak's model power is then ``Σ_{p∈k} w_p |a_p|²``. A
-        capture's paths reach the receiver through the radar's antenna pattern, which weights the
-        paths of one peak differently (a double bounce arriving from behind the radar against a
-        triple bounce at the same delay); a path the simulator prunes has weight 0. ``None``: all 1.
-    """
-
-    radar_position: np.ndarray
-    delay: np.ndarray
-    power_db: np.ndarray
-    sigma_db: np.ndarray
-    offset_db: float | np.ndarray = 0.0
-    path_weight: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        pos = as_finite_array(self.radar_position, "radar_position", shape=(3,))
-        delay = np.array(self.delay, dtype=float).reshape(-1)
-        k = delay.size
-        power = np.array(self.power_db, dtype=float).reshape(-1)
-        sigma = np.broadcast_to(np.array(self.sigma_db, dtype=float), (k,)).copy() if np.ndim(self.sigma_db) == 0 \
-            else np.array(self.sigma_db, dtype=float).reshape(-1)
-        if k == 0:
-            raise ValueError("an Observation needs at least one peak (delay is empty)")
-        if power.size != k or sigma.size != k:
-            raise ValueError(f"delay, power_db and sigma_db must have one entry per peak; got {k}, {power.size}, "
-                             f"{sigma.size}")
-        if not (np.all(np.isfinite(delay)) and np.all(delay > 0)):
-            raise ValueError("delay must be finite and > 0 [s]")
-        if not np.all(np.isfinite(power)):
-            raise ValueError("power_db must be finite [dB]")
-        if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
-            raise ValueError("sigma_db must be finite and > 0 [dB]")
-        if np.ndim(self.offset_db) == 0:
-            if not math.isfinite(float(self.offset_db)):
-                raise ValueError(f"offset_db={self.offset_db!r} must be finite [dB]")
-            offset: float | np.ndarray = float(self.offset_db)
-        else:
-            offset = np.array(self.offset_db, dtype=float).reshape(-1)
-            if offset.size != k or not np.all(np.isfinite(offset)):
-                raise ValueError(f"offset_db must be one finite number or one per peak ({k}) [dB]; got "
-                                 f"{offset.size} value(s)")
-            offset.setflags(write=False)
-        for name, value in (("radar_position", pos), ("delay", delay), ("power_db", power), ("sigma_db", sigma)):
-            value.setflags(write=False)
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "offset_db", offset)
-        if self.path_weight is not None:
-            weight = np.array(self.path_weight, dtype=float).reshape(-1)
-            if not (np.all(np.isfinite(weight)) and np.all(weight >= 0)):
-                raise ValueError("path_weight must be finite and >= 0 (one per traced monostatic path)")
-            weight.setflags(write=False)
-            object.__setattr__(self, "path_weight", weight)
-
-    def __len__(self) -> int:
-        return int(self.delay.size)
-
-    def offsets(self) -> np.ndarray:
-        """The offset of every peak [dB].
-
-        Returns
-        -------
-        float array [K]
-            ``offset_db`` broadcast to one value per peak [dB].
-        """
-        return np.broadcast_to(np.asarray(self.offset_db, dtype=float), (len(self),))
-
-
-@dataclass(frozen=True)
-class IdentifiabilityReport:
-    """What the explained peaks can tell about each material.
-
-    Attributes
-    ----------
-    parameters : tuple of str
-        The 2Q + Q_s parameter names, ``"<material>:eps_r"`` [unitless] and ``"<material>:ln_sigma"``
-        [ln(S/m)] per material, then ``"<material>:scattering"`` (the scattered share S² [unitless])
-        for the Q_s materials whose S is fitted, in the order of the Jacobian's columns.
-    peaks : tuple of (int, int)
-        (observation index, peak index) of every explained peak, in the order of the rows.
-    unexplained : tuple of (int, int)
-        The observed peaks no traced path lies within the window of (left out of the fit).
-    constrains : bool array [K, Q]
-        Explained peak k has a path touching material q.
-    jacobian_db : float array [K, 2Q + Q_s]
-        ∂P_k[dB]/∂θ at the solution (unweighted) [dB per unit ε_r, ln σ or S²].
-    singular_values : float array [2Q + Q_s]
-        Of the weighted Jacobian with unit-norm columns, descending [unitless].
-    condition : float
-        Largest over smallest singular value (inf when the smallest is 0).
-    threshold : float
-        Relative singular value below which a direction is not identifiable.
-    not_identifiable : dict
-        ``{parameter name: reason}`` for every flagged parameter (empty when all are identifiable).
-    profile_cost : dict
-        ``{parameter name: (Δcost at −1σ, Δcost at +1σ)}``: the re-traced rise of the cost ½χ²
-        when the parameter moves by its stated 1σ along its linear profile direction (the others
-        following their regression on it); 0.5 on both sides for a quadratic likelihood. Empty
-        when the check was not asked for.
-    profile_cost_2sigma : dict
-        The same at ±2σ: ``(Δcost at −2σ, Δcost at +2σ)``, 2 on both sides for a quadratic likelihood.
-    weak : dict
-        ``{parameter name: reason}`` for identifiable parameters whose profile check rose outside
-        [``0.5/PROFILE_RATIO``, ``0.5·PROFILE_RATIO``] at ±1σ or [``2/PROFILE_RATIO``, ``2·PROFILE_RATIO``]
-        at ±2σ on either side: the stated 1σ is a local figure.
-    fixed : tuple of str
-        Parameters held at their start value (``fit_materials(fixed=...)``): not fitted, 1σ 0,
-        their correlations NaN; the others' 1σ are conditional on them.
-    """
-
-    parameters: tuple[str, ...]
-    peaks: tuple[tuple[int, int], ...]
-    unexplained: tuple[tuple[int, int], ...]
-    constrains: np.ndarray
-    jacobian_db: np.ndarray
-    singular_values: np.ndarray
-    condition: float
-    threshold: float
-    not_identifiable: dict[str, str]
-    profile_cost: dict[str, tuple[float, float]] = field(default_factory=dict)
-    weak: dict[str, str] = field(default_factory=dict)
-    profile_cost_2sigma: dict[str, tuple[float, float]] = field(default_factory=dict)
-    fixed: tuple[str, ...] = ()
-
-    @property
-    def identifiable(self) -> bool:
-        """True when no parameter is flagged."""
-        return not self.not_identifiable
-
-    def summary(self) -> str:
-        """One line per material: the peaks constraining it and any flag.
-
-        Returns
-        -------
-        str
-            Human-readable report (multi-line).
-        """
-        lines = [f"condition {self.condition:.3g} (limit {1 / self.threshold:.3g}); singular values "
-                 + ", ".join(f"{s:.3g}" for s in self.singular_values)]
-        materials = list(dict.fromkeys(p.rpartition(":")[0] for p in self.parameters))
-        for q, m in enumerate(materials):
-            n = int(self.constrains[:, q].sum())
-            flags = [f"{p.split(':')[1]}: {r}" for p, r in self.not_identifiable.items() if p.split(":")[0] == m]
-            weak = [f"{p.split(':')[1]}: {r}" for p, r in self.weak.items() if p.split(":")[0] == m]
-            held = [p.split(":")[1] for p in self.fixed if p.split(":")[0] == m]
-            lines.append(f"{m}: {n} peak(s)" + ("; " + "; ".join(flags) if flags else "; identifiable")
-                         + ("; held at its start value (not fitted): " + ", ".join(held) if held else "")
-                         + ("; weak: " + "; ".join(weak) if weak else ""))
-        return "\n".join(lines)
-
-
-@dataclass(frozen=True)
-class MaterialFit:
-    """Result of :func:`fit_materials`.
-
-    Attributes
-    ----------
-    materials : tuple of str
-        The fitted radio materials (sionna-rt names).
-    relative_permittivity : float array [Q]
-        Fitted ε_r [unitless] (meaningless alone for a flagged parameter: see its σ and the report).
-    conductivity : float array [Q]
-        Fitted σ [S/m] (meaningless alone for a flagged parameter).
-    relative_permittivity_sigma : float array [Q]
-        1σ of ε_r from the Fisher information [unitless]; inf when not identifiable.
-    log_conductivity_sigma : float array [Q]
-        1σ of ln σ [unitless]; inf when not identifiable.
-    covariance : float array [2Q, 2Q]
-        (JᵀWJ)⁻¹ in the parameters (ε_r, ln σ) per material [unit ε_r², ln σ²]; inf/NaN where
-        not identifiable.
-    correlation : float array [2Q, 2Q]
-        The correlation matrix (NaN rows/columns for flagged parameters).
-    start : dict
-        ``{material: (ε_r, σ [S/m])}`` the fit started from.
-    residuals_start_db, residuals_db : float array [K]
-        Observed − model power of every explained peak at the start and at the solution [dB].
-    rms_start_db, rms_db : float
-        Their root mean square [dB].
-    chi2 : float
-        Σ (residual/σ_dB)² at the solution [unitless].
-    iterations : int
-        Levenberg–Marquardt iterations (accepted or not).
-    evaluations : int
-        Calls of ``material_jacobian`` per radar position (traces of the whole set of positions).
-    converged : bool
-        The last accepted step changed the cost by less than its tolerance.
-    seconds : float
-        Wall-clock time of the fit [s].
-    identifiability : IdentifiabilityReport
-        Which peaks constrain which material, singular values, flags.
-    history : tuple of float
-        Cost ½χ² after each iteration.
-    scattering : tuple of str
-        The Q_s materials whose scattering coefficient was fitted (in the order of ``materials``).
-    scattering_share : float array [Q_s]
-        Their fitted scattered share S² [unitless] (``SHARE_RANGE``'s lower end: no scattering seen).
-    scattering_share_sigma : float array [Q_s]
-        1σ of S² from the Fisher information [unitless]; inf when not identifiable.
-    search_evaluations : int
-        Traces without derivatives of the start search (every radar position once each; one solve
-        instead of 2·Q + Q_s), not counted in ``evaluations``.
-
-    The covariance and correlation matrices are [2Q + Q_s]² when S is fitted (the S² columns last).
-    """
-
-    materials: tuple[str, ...]
-    relative_permittivity: np.ndarray
-    conductivity: np.ndarray
-    relative_permittivity_sigma: np.ndarray
-    log_conductivity_sigma: np.ndarray
-    covariance: np.ndarray
-    correlation: np.ndarray
-    start: dict[str, tuple[float, float]]
-    residuals_start_db: np.ndarray
-    residuals_db: np.ndarray
-    chi2: float
-    iterations: int
-    evaluations: int
-    converged: bool
-    seconds: float
-    identifiability: IdentifiabilityReport
-    history: tuple[float, ...] = field(default=())
-    scattering: tuple[str, ...] = ()
-    scattering_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    scattering_share_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    search_evaluations: int = 0
-
-    @property
-    def scattering_coefficient(self) -> np.ndarray:
-        """The fitted S = √(S²) of the ``scattering`` materials [unitless], float [Q_s]."""
-        return np.sqrt(self.scattering_share)
-
-    def values(self) -> dict[str, tuple[float, ...]]:
-        """Every fitted material's values as the tracer takes them.
-
-        Returns
-        -------
-        dict
-            ``{material: (ε_r, σ [S/m])}``, with S [unitless] as a third entry for the
-            ``scattering`` materials (meaningless alone for a flagged parameter: see ``value``).
-        """
-        out: dict[str, tuple[float, ...]] = {m: (float(self.relative_permittivity[q]), float(self.conductivity[q]))
-                                             for q, m in enumerate(self.materials)}
-        for j, m in enumerate(self.scattering):
-            out[m] = (*out[m], float(self.scattering_coefficient[j]))
-        return out
-
-    @property
-    def conductivity_sigma(self) -> np.ndarray:
-        """1σ of σ by the delta method, σ · σ_lnσ [S/m] (inf when not identifiable)."""
-        return self.conductivity * self.log_conductivity_sigma
-
-    @property
-    def rms_start_db(self) -> float:
-        """RMS of the start residuals [dB]."""
-        return float(np.sqrt(np.mean(self.residuals_start_db ** 2)))
-
-    @property
-    def rms_db(self) -> float:
-        """RMS of the residuals at the solution [dB]."""
-        return float(np.sqrt(np.mean(self.residuals_db ** 2)))
-
-    @property
-    def seconds_per_evaluation(self) -> float:
-        """Wall-clock seconds per evaluation (all positions traced and differentiated once) [s]."""
-        return self.seconds / max(self.evaluations, 1)
-
-    @property
-    def seconds_per_iteration(self) -> float:
-        """Wall-clock seconds per Levenberg–Marquardt iteration, rejected trials and profile check included [s]."""
-        return self.seconds / max(self.iterations, 1)
-
-    def value(self, material: str) -> tuple[float, float, float, float]:
-        """One material's fitted values and 1σ; refuses a flagged one.
-
-        Parameters
-        ----------
-        material : str
-            One of ``materials``.
-
-        Returns
-        -------
-        tuple of float
-            (ε_r [unitless], σ [S/m], 1σ of ε_r [unitless], 1σ of σ [S/m]).
-
-        Raises
-        ------
-        ValueError
-            Unknown material, or one of its parameters is not identifiable (the reason).
-        """
-        if material not in self.materials:
-            raise ValueError(f"material {material!r} was not fitted; fitted: {', '.join(self.materials)}")
-        flags = {p: r for p, r in self.identifiability.not_identifiable.items() if p.split(":")[0] == material}
-        if flags:
-            raise ValueError(f"material {material!r} is not identifiable from these peaks: "
-                             + "; ".join(f"{p}: {r}" for p, r in flags.items()))
-        q = self.materials.index(material)
-        return (float(self.relative_permittivity[q]), float(self.conductivity[q]),
-                float(self.relative_permittivity_sigma[q]), float(self.conductivity_sigma[q]))
-
-
-def assign_paths(path_delay: np.ndarray, peak_delay: np.ndarray, window: float) -> np.ndarray:
-    """The peak that explains each traced path: the nearest one within ``window``, else -1.
-
-    Parameters
-    ----------
-    path_delay : float array [P]
-        Round-trip delays of the traced paths [s].
-    peak_delay : float array [K]
-        Round-trip delays of the observed peaks [s].
-    window : float
-        Largest |path delay − peak delay| that explains the path [s].
-
-    Returns
-    -------
-    int array [P]
-        Peak index per path, -1 for a path no peak explains.
-    """
-    path_delay = np.asarray(path_delay, dtype=float).reshape(-1)
-    peak_delay = np.asarray(peak_delay, dtype=float).reshape(-1)
-    if path_delay.size == 0 or peak_delay.size == 0:
-        return np.full(path_delay.size, -1, dtype=np.int64)
-    dist = np.abs(path_delay[:, None] - peak_delay[None, :])
-    best = np.argmin(dist, axis=1)
-    return np.where(dist[np.arange(path_delay.size), best] <= window, best, -1).astype(np.int64)
-
-
-def _peak_model(jac: MaterialJacobian, assign: np.ndarray, k: int,
-                weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per-peak power [dB, without offset], its Jacobian [K, 2Q + Q_s] w.r.t. (ε_r, ln σ) and S², and touches [K, Q]."""
-    q = len(jac.materials)
-    qs = len(jac.scattering)
-    power = np.zeros(k)
-    d_power = np.zeros((k, 2 * q + qs))
-    # ∂/∂(S²) = ∂/∂S / (2S); S = 0 only at a scene's own smooth values, which no fit step uses (SHARE_RANGE).
-    s_at = np.array([jac.scattering_coefficient[jac.materials.index(m)] for m in jac.scattering])
-    per_share = np.divide(0.5, s_at, out=np.zeros(qs), where=s_at > 0)
-    touches = np.zeros((k, q), dtype=bool)
-    a = jac.a
-    sig = jac.conductivity
-    if weight is None:
-        weight = np.ones(a.size)
-    elif weight.size != a.size:
-        raise ValueError(f"path_weight has {weight.size} entries for the {a.size} traced monostatic paths at "
-                         f"{np.round(jac.paths.tx_position, 3).tolist()} m: give one per path of the material tracer")
-    for i in range(k):
-        m = (assign == i) & (weight > 0)
-        if not m.any():
-            continue
-        power[i] = float(np.sum(weight[m] * np.abs(a[m]) ** 2))
-        conj = (weight[m] * np.conj(a[m]))[:, None]
-        d_power[i, 0:2 * q:2] = np.sum(2.0 * np.real(conj * jac.d_eps[m]), axis=0)
-        d_power[i, 1:2 * q:2] = np.sum(2.0 * np.real(conj * jac.d_sigma[m]), axis=0) * sig
-        if qs:
-            d_power[i, 2 * q:] = np.sum(2.0 * np.real(conj * jac.d_scattering[m]), axis=0) * per_share
-        touches[i] = jac.touches[m].any(axis=0)
-    explained = power > 0
-    db = np.full(k, np.nan)
-    jdb = np.zeros((k, 2 * q + qs))
-    db[explained] = _DB * np.log(power[explained])
-    jdb[explained] = _DB * d_power[explained] / power[explained, None]
-    return db, jdb, touches, explained
 
 
 def _values_of(materials: Sequence[str], theta: np.ndarray,
@@ -525,78 +136,6 @@ def _project(theta: np.ndarray, q: int) -> np.ndarray:
     out[1:2 * q:2] = np.clip(out[1:2 * q:2], *_LOG_SIGMA_BOUNDS)
     out[2 * q:] = np.clip(out[2 * q:], *SHARE_RANGE)
     return out
-
-
-def synthetic_observations(
-    scene: str | os.PathLike[str],
-    positions: Any,
-    values: Mapping[str, tuple[float, float]],
-    *,
-    sigma_db: float,
-    rng: np.random.Generator | None,
-    settings: TraceSettings | None = None,
-    window: float = DEFAULT_WINDOW,
-    offset_db: float = 0.0,
-) -> tuple[list[Observation], list[np.ndarray]]:
-    """Observations made by the tracer itself at given material values (the fit's self-consistency oracle).
-
-    The traced paths of each position are grouped into peaks (a group starts at the first path
-    not yet grouped and takes every path up to ``window`` later); a peak's delay is its paths'
-    power-weighted mean delay; its power is the model's (:func:`assign_paths` then the incoherent
-    sum) plus Gaussian noise of 1σ ``sigma_db``.
-
-    Parameters
-    ----------
-    scene : path-like
-        Scene folder or its ``scene.xml``.
-    positions : float array [N, 3]
-        Radar positions [m].
-    values : mapping
-        ``{material: (ε_r [unitless], σ [S/m])}`` the "true" hall is traced with (at least one),
-        or ``(ε_r, σ, S)`` triples with the scattering coefficient.
-    sigma_db : float
-        1σ of the Gaussian power noise and the stated σ of every peak [dB], > 0.
-    rng : numpy.random.Generator or None
-        Noise source; None for noise-free powers.
-    settings : TraceSettings, optional
-        Solver options (as for the fit).
-    window : float
-        Delay window [s] (as for the fit).
-    offset_db : float
-        Constant added to every power [dB] (stored as each observation's ``offset_db``).
-
-    Returns
-    -------
-    observations : list of Observation
-        One per position.
-    truth_db : list of float array
-        The noise-free powers of each observation's peaks [dB].
-    """
-    if not values:
-        raise ValueError("values is empty: name at least one material with its (eps_r, sigma [S/m])")
-    if not (isinstance(sigma_db, (int, float)) and math.isfinite(sigma_db) and sigma_db > 0):
-        raise ValueError(f"sigma_db={sigma_db!r} must be finite and > 0 [dB]")
-    pos = np.asarray(positions, dtype=float).reshape(-1, 3)
-    observations, truths = [], []
-    for p in pos:
-        jac = material_jacobian(scene, p, [next(iter(values))], values=values, settings=settings)
-        d = jac.delay
-        order = np.argsort(d, kind="stable")
-        groups: list[list[int]] = []
-        for i in order:
-            if groups and d[i] - d[groups[-1][0]] <= window:
-                groups[-1].append(int(i))
-            else:
-                groups.append([int(i)])
-        power = np.abs(jac.a) ** 2
-        delays = np.array([np.sum(d[g] * power[g]) / np.sum(power[g]) for g in groups])
-        assign = assign_paths(d, delays, window)
-        db, _, _, explained = _peak_model(jac, assign, delays.size)
-        delays, db = delays[explained], db[explained] + offset_db
-        noisy = db + (rng.normal(0.0, sigma_db, db.size) if rng is not None else 0.0)
-        observations.append(Observation(p, delays, noisy, sigma_db, offset_db=offset_db))
-        truths.append(db)
-    return observations, truths
 
 
 def _check_start(materials: tuple[str, ...], start: Any, own: MaterialJacobian | None,
@@ -795,7 +334,7 @@ def fit_materials(
             jac = material_jacobian(scene, o.radar_position, names, values=values, settings=settings,
                                     scattering=rough, derivatives=derivatives)
             jacs.append(jac)
-            db, jdb, t, explained = _peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o), o.path_weight)
+            db, jdb, t, explained = peak_model(jac, assign_paths(jac.delay, o.delay, window), len(o), o.path_weight)
             offsets = o.offsets()
             for k in range(len(o)):
                 if explained[k]:
