@@ -19,6 +19,7 @@ import pytest
 
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, RisPose
 from risloc_rt.model.paths import PathSet
+from risloc_rt.model.beat import add_noise
 from risloc_rt.model.ris import RisConfig
 from risloc_rt.model.scenario import PAPER_DISTANCE, PAPER_RCS, PointTarget, Scenario, paper_scenario
 from risloc_rt.model.simulate import simulate
@@ -123,11 +124,84 @@ def _tone(radar: RadarConfig, tau: float, nu: float) -> np.ndarray:
     return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
 
 
+def _grid_tone(radar: RadarConfig, processing: ProcessingConfig, p: int, q: int) -> np.ndarray:
+    tau = p / (processing.n_dft * radar.slope * radar.sample_period)
+    nu = (q if q < processing.k_dft // 2 else q - processing.k_dft) / (processing.k_dft * radar.carrier_frequency
+                                                                        * radar.chirp_interval)
+    return _tone(radar, tau - radar.carrier_frequency * nu / radar.slope, nu)  # the fast-time tone carries f_c ν too
+
+
+def _multipath_cube(radar: RadarConfig, count: int, rng: np.random.Generator) -> np.ndarray:
+    cube = np.zeros((count, radar.num_chirps, radar.num_samples), complex)
+    for m in range(count):
+        for _ in range(rng.integers(1, 7)):
+            tau = rng.uniform(0.0, 0.95) * radar.max_delay
+            nu = rng.uniform(-1.0, 1.0) / (2.0 * radar.carrier_frequency * radar.chirp_interval)
+            cube[m] += 10 ** (-rng.uniform(0, 40) / 20) * np.exp(2j * np.pi * rng.uniform()) * _tone(radar, tau, nu)
+        cube[m] = add_noise(cube[m], 10 ** (rng.uniform(-20, 30) / 10), rng)
+    return cube
+
+
+def _hard_table1_beams(radar: RadarConfig, processing: ProcessingConfig, rng: np.random.Generator) -> np.ndarray:
+    res = radar.max_delay / radar.num_samples
+    cube = np.zeros((6, radar.num_chirps, radar.num_samples), complex)
+    cube[0] = _tone(radar, 300.3 * res, 1e-9) + 0.9 * _tone(radar, 301.8 * res, 1.2e-9)
+    a, b = _grid_tone(radar, processing, 200, 4700), _grid_tone(radar, processing, 800, 60)  # on grid cells
+    cube[1] = a + (1 + 5e-7) * b
+    cube[2] = (1 + 5e-7) * a + b
+    cube[3] = _tone(radar, 250.7 * res, 0.0)  # at -15 dB per sample: ≈ +30 dB after integration
+    for m, snr_db in [(0, 20), (3, -15), (4, 0)]:  # beams 1, 2 noiseless: the 5e-7 decides; 4 noise only
+        cube[m] = add_noise(cube[m], 10 ** (-snr_db / 10), rng)
+    return cube  # beam 5 all zero
+
+
+def _glitch_beams(rng: np.random.Generator) -> np.ndarray:
+    burst = np.zeros((128, 600), complex)
+    burst[7] = np.exp(2j * np.pi * 0.1 * np.arange(600))
+    impulse = np.zeros((128, 600), complex)
+    impulse[5, 100] = 1.0
+    return np.stack([add_noise(burst, 1e-12, rng), add_noise(impulse, 1e-12, rng)])
+
+
 @pytest.fixture(scope="session")
 def tone():
     """``tone(radar, tau, nu) -> complex [K, N]``: one unit path of eq. (1), built with numpy only:
     ``exp(-j2π((Sτ + f_c ν) n T_s + f_c ν k T_c))``, delay τ [s], delay rate ν [s/s]."""
     return _tone
+
+
+@pytest.fixture(scope="session")
+def grid_tone():
+    """``grid_tone(radar, processing, p, q) -> complex [K, N]``: a unit tone on grid cell (q, p) of the
+    N_DFT × K_DFT grid: delay bin p, Doppler bin q (FFT order)."""
+    return _grid_tone
+
+
+@pytest.fixture(scope="session")
+def multipath_cube():
+    """``multipath_cube(radar, count, rng) -> complex [count, K, N]``: independent beams, each 1-6 returns of
+    random delay (up to 0.95 of the unambiguous delay), Doppler (up to ±v_max), phase and amplitude (0-40 dB
+    spread) plus receiver noise from -20 to +30 dB per sample relative to a unit return: from clean to noise
+    only after integration (the grid searches' random test beams)."""
+    return _multipath_cube
+
+
+@pytest.fixture(scope="session")
+def hard_table1_beams():
+    """``hard_table1_beams(radar, processing, rng) -> complex [6, K, N]`` for Table I's N, K, N_DFT = 1199 and
+    K_DFT = 4793: (0) two returns 1.5 resolution cells apart (they interfere between native delay samples) at
+    20 dB per sample; (1, 2) two equal noiseless returns on grid cells (q, p) = (4700, 200) and (60, 800) whose
+    powers differ by 1e-6, either one stronger; (3) a return at -15 dB per sample (≈ +30 dB after
+    integration); (4) noise only; (5) all zeros (every cell ties at 0)."""
+    return _hard_table1_beams
+
+
+@pytest.fixture(scope="session")
+def glitch_beams():
+    """``glitch_beams(rng) -> complex [2, 128, 600]`` (Table I's K, N): a tone in one chirp (an interference
+    burst: flat in Doppler near its delay) and one ADC sample (a glitch: flat over the whole grid), each with
+    receiver noise of power 1e-12."""
+    return _glitch_beams
 
 
 @pytest.fixture(scope="session")

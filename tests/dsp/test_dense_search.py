@@ -217,7 +217,7 @@ def test_one_chirp_has_no_doppler_to_search(make_radar, make_processing):
     assert q == 0
 
 
-def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processing, monkeypatch):
+def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processing, glitch_beams, monkeypatch):
     # Regression: a beam whose energy is in one ADC sample (a glitch) has |z| flat over the whole grid,
     # so Szegő's bound rules nothing out and ~K_DFT·N_DFT candidate bins were evaluated (Table I: 7.3 s
     # and 4.6 GB per beam). Such a beam is now searched on its whole float64 grid
@@ -225,12 +225,7 @@ def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processi
     # (an interference burst) is flat in Doppler only near its delay: it stays with the bounded search.
     radar = make_radar(num_samples=600, num_chirps=128)
     processing = make_processing(radar, n_dft=1199, k_dft=4793)
-    rng = np.random.default_rng(12)
-    burst = np.zeros((128, 600), complex)
-    burst[7] = np.exp(2j * np.pi * 0.1 * np.arange(600))
-    impulse = np.zeros((128, 600), complex)
-    impulse[5, 100] = 1.0
-    cube = np.stack([add_noise(burst, 1e-12, rng), add_noise(impulse, 1e-12, rng)])
+    cube = glitch_beams(np.random.default_rng(12))
     whole = []
     original = gridscreen._full_beam
     monkeypatch.setattr(gridscreen, "_full_beam", lambda *a: whole.append(1) or original(*a))

@@ -78,48 +78,25 @@ def _compare(cube, radar, processing, *, allow_ties=False, whole_grid=None, expe
     return scan
 
 
-def _grid_tone(tone, radar, processing, p, q):
-    """A unit tone on grid cell (q, p): delay bin p, Doppler bin q (FFT order)."""
-    tau = p / (processing.n_dft * radar.slope * radar.sample_period)
-    nu = (q if q < processing.k_dft // 2 else q - processing.k_dft) / (processing.k_dft * radar.carrier_frequency
-                                                                        * radar.chirp_interval)
-    return tone(radar, tau - radar.carrier_frequency * nu / radar.slope, nu)  # the fast-time tone carries f_c ν too
-
-
 @pytest.mark.parametrize("window", ["hann", "hamming", "boxcar"])
-def test_random_multipath_beams_give_the_full_grid_cell(window, make_radar, make_processing, tone, whole_grid):
+def test_random_multipath_beams_give_the_full_grid_cell(window, make_radar, make_processing, multipath_cube,
+                                                        whole_grid):
     # 40 beams per window, each an independent draw: 1-6 returns with random delay, Doppler (up to
     # ±v_max) and amplitude (0-40 dB spread), plus noise from -20 to +30 dB per sample relative to the
     # strongest return: from clean to noise only after integration.
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67, window=window)
-    rng = np.random.default_rng(sum(map(ord, window)) + 1)
-    cube = np.zeros((40, 16, 64), complex)
-    for m in range(40):
-        for _ in range(rng.integers(1, 7)):
-            tau = rng.uniform(0.0, 0.95) * radar.max_delay
-            nu = rng.uniform(-1.0, 1.0) / (2.0 * radar.carrier_frequency * radar.chirp_interval)
-            cube[m] += 10 ** (-rng.uniform(0, 40) / 20) * np.exp(2j * np.pi * rng.uniform()) * tone(radar, tau, nu)
-        cube[m] = add_noise(cube[m], 10 ** (rng.uniform(-20, 30) / 10), rng)
+    cube = multipath_cube(radar, 40, np.random.default_rng(sum(map(ord, window)) + 1))
     _compare(cube, radar, processing, whole_grid=whole_grid)
 
 
-def test_table1_sizes_close_returns_near_ties_low_snr_noise_and_a_zero_beam(make_radar, make_processing, tone,
-                                                                           whole_grid):
+def test_table1_sizes_close_returns_near_ties_low_snr_noise_and_a_zero_beam(make_radar, make_processing,
+                                                                           hard_table1_beams, whole_grid):
     # Table I's N, K, N_DFT, K_DFT: two returns 1.5 resolution cells apart; two equal returns far apart
     # whose powers differ by 1e-6 (either order); a return at -15 dB per sample; noise only; a zero beam.
     radar = make_radar(num_samples=600, num_chirps=128)
     processing = make_processing(radar, n_dft=1199, k_dft=4793)
-    rng = np.random.default_rng(11)
-    res = radar.max_delay / radar.num_samples
-    cube = np.zeros((6, 128, 600), complex)
-    cube[0] = tone(radar, 300.3 * res, 1e-9) + 0.9 * tone(radar, 301.8 * res, 1.2e-9)
-    a, b = _grid_tone(tone, radar, processing, 200, 4700), _grid_tone(tone, radar, processing, 800, 60)
-    cube[1] = a + (1 + 5e-7) * b
-    cube[2] = (1 + 5e-7) * a + b
-    cube[3] = tone(radar, 250.7 * res, 0.0)
-    for m, snr_db in [(0, 20), (3, -15), (4, 0)]:
-        cube[m] = add_noise(cube[m], 10 ** (-snr_db / 10), rng)
+    cube = hard_table1_beams(radar, processing, np.random.default_rng(11))
     scan = _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=1)  # the zero beam
     assert (scan.delay_bin[1], scan.delay_bin[2]) == (800, 200)  # the 1e-6 stronger return wins either way
     assert (scan.doppler_bin[5], scan.delay_bin[5]) == (0, 0)  # every cell of a zero beam ties at 0: the first
@@ -141,11 +118,11 @@ def test_a_noisy_table1_capture_gives_the_hosts_screened_answer(whole_grid):
     assert not whole_grid
 
 
-def test_exact_ties_pick_a_maximum(make_radar, make_processing, tone, whole_grid):
+def test_exact_ties_pick_a_maximum(make_radar, make_processing, grid_tone, whole_grid):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
-    cube = np.stack([_grid_tone(tone, radar, processing, 20, 5) + _grid_tone(tone, radar, processing, 90, 5),
-                     _grid_tone(tone, radar, processing, 40, 3) + _grid_tone(tone, radar, processing, 40, 60)])
+    cube = np.stack([grid_tone(radar, processing, 20, 5) + grid_tone(radar, processing, 90, 5),
+                     grid_tone(radar, processing, 40, 3) + grid_tone(radar, processing, 40, 60)])
     scan = _compare(cube, radar, processing, allow_ties=True, whole_grid=whole_grid)
     for m, cells in enumerate([{(5, 20), (5, 90)}, {(3, 40), (60, 40)}]):
         assert (int(scan.doppler_bin[m]), int(scan.delay_bin[m])) in cells
@@ -203,18 +180,15 @@ def test_a_beam_without_a_positive_lower_bound_is_searched_on_its_whole_grid(mak
     _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=3)
 
 
-def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processing, whole_grid):
+def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processing, glitch_beams, whole_grid):
     # A beam whose energy is in one ADC sample (a glitch) is flat over the whole grid: Szegő's bound prunes
     # nothing, so it is searched on its whole grid (as on the host). One chirp (a burst) is flat in Doppler
     # only near its delay and noise is pruned: both stay with the bounded search.
     radar = make_radar(num_samples=600, num_chirps=128)
     processing = make_processing(radar, n_dft=1199, k_dft=4793)
     rng = np.random.default_rng(12)
-    burst = np.zeros((128, 600), complex)
-    burst[7] = np.exp(2j * np.pi * 0.1 * np.arange(600))
-    impulse = np.zeros((128, 600), complex)
-    impulse[5, 100] = 1.0
-    cube = np.stack([add_noise(burst, 1e-12, rng), add_noise(impulse, 1e-12, rng), add_noise(burst, 1.0, rng)])
+    beams = glitch_beams(rng)
+    cube = np.concatenate([beams, add_noise(beams[:1], 1.0, rng)])  # and the burst in noise
     _compare(cube, radar, processing, whole_grid=whole_grid, expect_whole=1)  # the impulse
 
 

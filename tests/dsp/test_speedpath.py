@@ -20,22 +20,6 @@ from dsp.gridscreen import scalloping_loss_db
 from risloc_rt.model.beat import add_noise
 
 
-def _tone(radar, tau, nu):
-    f1 = (radar.slope * tau + radar.carrier_frequency * nu) * radar.sample_period
-    f2 = radar.carrier_frequency * nu * radar.chirp_interval
-    k, n = radar.num_chirps, radar.num_samples
-    return np.exp(-2j * np.pi * ((np.arange(k)[:, None] * f2 + np.arange(n)[None, :] * f1) % 1.0))
-
-
-def _grid_tone(radar, processing, p, q):
-    """A unit tone on grid cell (q, p): delay bin p, Doppler bin q (FFT order)."""
-    tau = p / (processing.n_dft * radar.slope * radar.sample_period)
-    nu = (q if q < processing.k_dft // 2 else q - processing.k_dft) / (processing.k_dft * radar.carrier_frequency
-                                                                        * radar.chirp_interval)
-    tau -= radar.carrier_frequency * nu / radar.slope  # the fast-time tone carries f_c ν too
-    return _tone(radar, tau, nu)
-
-
 def _compare(cube, radar, processing, *, allow_ties=False, monkeypatch=None):
     """Both searches on ``cube``; returns (zoom scan, full scan, beams the screen left to the dense search)."""
     dense: list[int] = []
@@ -60,40 +44,25 @@ def _compare(cube, radar, processing, *, allow_ties=False, monkeypatch=None):
 
 
 @pytest.mark.parametrize("window", ["hann", "hamming", "boxcar"])
-def test_random_multipath_cubes_give_the_full_grid_answer(window, make_radar, make_processing, monkeypatch):
+def test_random_multipath_cubes_give_the_full_grid_answer(window, make_radar, make_processing, monkeypatch,
+                                                          multipath_cube):
     # 40 beams per window, each an independent draw: 1-6 returns with random delay, Doppler
     # (up to ±v_max) and amplitude (0-40 dB spread), plus noise from -20 to +30 dB per sample
     # relative to the strongest return, i.e. from clean to noise-only after integration.
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67, window=window)
-    rng = np.random.default_rng(sum(map(ord, window)))
-    cube = np.zeros((40, 16, 64), complex)
-    for m in range(40):
-        for _ in range(rng.integers(1, 7)):
-            tau = rng.uniform(0.0, 0.95) * radar.max_delay
-            nu = rng.uniform(-1.0, 1.0) / (2.0 * radar.carrier_frequency * radar.chirp_interval)
-            cube[m] += 10 ** (-rng.uniform(0, 40) / 20) * np.exp(2j * np.pi * rng.uniform()) * _tone(radar, tau, nu)
-        cube[m] = add_noise(cube[m], 10 ** (rng.uniform(-20, 30) / 10), rng)
+    cube = multipath_cube(radar, 40, np.random.default_rng(sum(map(ord, window))))
     *_, dense = _compare(cube, radar, processing, monkeypatch=monkeypatch)
     assert 0 < dense < 30  # the screen decides most beams; noise-dominated ones go dense
 
 
-def test_table1_sizes_two_close_returns_and_low_snr(make_radar, make_processing, monkeypatch):
+def test_table1_sizes_two_close_returns_and_low_snr(make_radar, make_processing, monkeypatch, hard_table1_beams):
     # Table I's N, K, N_DFT, K_DFT on 6 beams: two returns 1.5 resolution cells apart (they
     # interfere between native delay samples), equal-power returns far apart with 1e-6 relative
     # power difference, a return at -15 dB per sample, noise only and an all-zero beam.
     radar = make_radar(num_samples=600, num_chirps=128)
     processing = make_processing(radar, n_dft=1199, k_dft=4793)
-    rng = np.random.default_rng(7)
-    res = radar.max_delay / radar.num_samples
-    cube = np.zeros((6, 128, 600), complex)
-    cube[0] = _tone(radar, 300.3 * res, 1e-9) + 0.9 * _tone(radar, 301.8 * res, 1.2e-9)
-    a, b = _grid_tone(radar, processing, 200, 4700), _grid_tone(radar, processing, 800, 60)  # on grid cells
-    cube[1] = a + (1 + 5e-7) * b
-    cube[2] = (1 + 5e-7) * a + b
-    cube[3] = _tone(radar, 250.7 * res, 0.0)  # at -15 dB per sample: ≈ +30 dB after integration
-    for m, snr_db in [(0, 20), (3, -15), (4, 0)]:  # beams 1, 2 noiseless: the 5e-7 decides; 4 noise only
-        cube[m] = add_noise(cube[m], 10 ** (-snr_db / 10), rng)
+    cube = hard_table1_beams(radar, processing, np.random.default_rng(7))
     # Beam 5 all zero: every cell ties at 0 and the first searchable one wins.
     zoom, full, dense = _compare(cube, radar, processing, monkeypatch=monkeypatch)
     assert dense == 2  # beams 4 (noise only) and 5 (zero): the screen cannot prune
@@ -101,25 +70,25 @@ def test_table1_sizes_two_close_returns_and_low_snr(make_radar, make_processing,
     assert zoom.delay_bin[5] == 0 and zoom.doppler_bin[5] == 0
 
 
-def test_exact_ties_pick_a_maximum(make_radar, make_processing):
+def test_exact_ties_pick_a_maximum(make_radar, make_processing, grid_tone):
     # Two unit tones on grid cells: the same power to rounding; the full search takes the first in
     # (Doppler, delay) FFT order, the screened one a cell equal to it within 1e-12.
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
-    cube = np.stack([_grid_tone(radar, processing, 20, 5) + _grid_tone(radar, processing, 90, 5),
-                     _grid_tone(radar, processing, 40, 3) + _grid_tone(radar, processing, 40, 60),
-                     _grid_tone(radar, processing, 30, 0) + _grid_tone(radar, processing, 31, 0)])
+    cube = np.stack([grid_tone(radar, processing, 20, 5) + grid_tone(radar, processing, 90, 5),
+                     grid_tone(radar, processing, 40, 3) + grid_tone(radar, processing, 40, 60),
+                     grid_tone(radar, processing, 30, 0) + grid_tone(radar, processing, 31, 0)])
     zoom, full, _ = _compare(cube, radar, processing, allow_ties=True)
     for m, cells in enumerate([{(5, 20), (5, 90)}, {(3, 40), (60, 40)}]):
         assert (int(zoom.doppler_bin[m]), int(zoom.delay_bin[m])) in cells
 
 
-def test_min_range_is_honoured_by_the_screen(make_radar, make_processing):
+def test_min_range_is_honoured_by_the_screen(make_radar, make_processing, tone):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67, min_range=5.0)
     res = radar.max_delay / radar.num_samples
     near = 2 * 3.0 / 299792458.0  # a 100x stronger return at 3 m, inside the excluded range
-    cube = (10 * _tone(radar, near, 0.0) + _tone(radar, 40.4 * res, 2e-9))[None]
+    cube = (10 * tone(radar, near, 0.0) + tone(radar, 40.4 * res, 2e-9))[None]
     zoom, *_ = _compare(cube, radar, processing)
     assert zoom.distance[0] > 5.0
 
@@ -132,11 +101,11 @@ def test_scalloping_loss_is_the_window_response_between_bins(window, offset, los
     assert scalloping_loss_db(window, 4096, offset) == pytest.approx(loss_db, abs=2e-3)
 
 
-def test_threads_do_not_change_the_result(make_radar, make_processing):
+def test_threads_do_not_change_the_result(make_radar, make_processing, tone):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
     rng = np.random.default_rng(3)
-    cube = add_noise(np.zeros((9, 16, 64), complex) + 0.3 * _tone(radar, 1e-8, 2e-9), 1.0, rng)
+    cube = add_noise(np.zeros((9, 16, 64), complex) + 0.3 * tone(radar, 1e-8, 2e-9), 1.0, rng)
     windows = (np.hanning(17)[:-1], np.hanning(65)[:-1])
     runs = [gridscreen.screened_scan(cube, processing, 0, windows, lambda p: np.array([p]), workers=w) for w in (1, 3)]
     for a, b in zip(*runs):

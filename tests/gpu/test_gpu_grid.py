@@ -21,7 +21,6 @@ import dsp
 from dsp import BeamSweep, scan_beams
 from dsp.spectrum import dft_windows
 from risloc_rt.model import paper_scenario, simulate
-from risloc_rt.model.beat import add_noise
 
 GPU_OK, GPU_WHY = dsp.cuda_available()
 pytestmark = [pytest.mark.gpu, pytest.mark.skipif(not GPU_OK, reason=f"no GPU: {GPU_WHY}")]
@@ -49,17 +48,11 @@ def test_table1_captures_give_the_hosts_cells_on_the_gpu(gpu, tx_dbm):
         np.testing.assert_allclose(dev.average_power, host.average_power, rtol=1e-9)
 
 
-def test_random_multipath_beams_give_the_full_grid_cell_on_the_gpu(gpu, make_radar, make_processing, tone):
+def test_random_multipath_beams_and_glitches_give_the_full_grid_cell_on_the_gpu(gpu, make_radar, make_processing,
+                                                                               multipath_cube, glitch_beams):
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=127, k_dft=67)
-    rng = np.random.default_rng(77)
-    cube = np.zeros((160, 16, 64), complex)
-    for m in range(cube.shape[0]):
-        for _ in range(rng.integers(1, 7)):
-            tau = rng.uniform(0.0, 0.95) * radar.max_delay
-            nu = rng.uniform(-1.0, 1.0) / (2.0 * radar.carrier_frequency * radar.chirp_interval)
-            cube[m] += 10 ** (-rng.uniform(0, 40) / 20) * np.exp(2j * np.pi * rng.uniform()) * tone(radar, tau, nu)
-        cube[m] = add_noise(cube[m], 10 ** (rng.uniform(-20, 30) / 10), rng)
+    cube = multipath_cube(radar, 160, np.random.default_rng(77))
     dev = scan_beams(gpu.asarray(cube), BeamSweep(np.zeros((cube.shape[0], 2))), radar, processing)
     w_k, w_n, gain = dft_windows(radar, processing)
     z = np.fft.ifft2(cube * np.outer(w_k, w_n), s=(processing.k_dft, processing.n_dft)) \
@@ -69,6 +62,15 @@ def test_random_multipath_beams_give_the_full_grid_cell_on_the_gpu(gpu, make_rad
     np.testing.assert_array_equal(dev.doppler_bin, q)
     np.testing.assert_array_equal(dev.delay_bin, p)
     np.testing.assert_allclose(dev.peak_power, power.max(axis=1) / gain**2, rtol=1e-9)
+    # an interference burst and a glitch at Table I sizes (the glitch on its whole grid there): the host's cells
+    table = make_radar(num_samples=600, num_chirps=128)
+    table_processing = make_processing(table, n_dft=1199, k_dft=4793)
+    beams = glitch_beams(np.random.default_rng(12))
+    sweep = BeamSweep(np.zeros((2, 2)))
+    host = scan_beams(beams, sweep, table, table_processing)
+    dev = scan_beams(gpu.asarray(beams), sweep, table, table_processing)
+    np.testing.assert_array_equal(dev.delay_bin, host.delay_bin)
+    np.testing.assert_array_equal(dev.doppler_bin, host.doppler_bin)
 
 
 def test_paper_estimator_on_the_gpu_takes_the_hosts_beam_and_cells(gpu):
