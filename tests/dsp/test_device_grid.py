@@ -226,3 +226,33 @@ def test_a_device_cube_with_bad_values_is_refused_where_it_lives(make_radar, mak
         scan_beams(STRICT.asarray(np.zeros((2, 16, 64), complex)), sweep, radar, processing)
     with pytest.raises(ValueError, match="sweep has 2 angles"):
         scan_beams(STRICT.asarray(np.ones((3, 16, 64), complex)), sweep, radar, processing)
+
+
+class _CupyLikeNamespace:
+    """array_api_strict with CuPy's (before v14) narrower ``repeat``: counts held on the device are refused."""
+
+    def __init__(self, xp):
+        self._xp = xp
+
+    def __getattr__(self, name):
+        return getattr(self._xp, name)
+
+    def repeat(self, x, repeats, /, *, axis=None):
+        if not isinstance(repeats, int):
+            raise ValueError("cupy.ndarray cannot be specified as `repeats` argument.")
+        return self._xp.repeat(x, repeats, axis=axis)
+
+
+def test_the_search_keeps_to_what_cupy_accepts(make_radar, make_processing, multipath_cube):
+    # CuPy's repeat takes host counts only: the candidate bins are expanded by searchsorted instead, so a
+    # namespace that refuses device counts gives the same cells.
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    cube = multipath_cube(radar, 12, np.random.default_rng(31))
+    backend = dsp.ArrayBackend("array_api_strict", _CupyLikeNamespace(STRICT.xp), STRICT.device)
+    w_k, w_n, _ = dft_windows(radar, processing)
+    q, p, *_ = devicegrid.device_scan(backend.asarray(cube), processing, 0, (w_k, w_n),
+                                      radar.delay_grid(processing.n_dft), backend)
+    oracle = _oracle(cube, radar, processing)
+    np.testing.assert_array_equal(q, oracle[0])
+    np.testing.assert_array_equal(p, oracle[1])
