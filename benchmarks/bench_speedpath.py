@@ -15,6 +15,10 @@ grid search where the cube lives (``dsp/devicegrid.py``), timed per cube with th
 adversarial beams). ``numpy`` runs the device search on the host's NumPy, to show what it would cost
 there; ``strict`` is CI's array_api_strict, whose cost is not a target.
 
+``--hard-shapes`` times beams the bounds may not prune (a glitch in one ADC sample, a tone in one chirp,
+impulses, structured patterns), two of each, on the host (and the device), with the peak RSS, and checks
+their cells against the full search.
+
 ``--threads 1`` runs the DSP and BLAS on one thread (one core). ``--baseline FILE`` also times
 another version of ``dsp/gridscreen.py`` (e.g. ``git show REV:dsp/gridscreen.py > /tmp/old.py``)
 on the same cubes, alternating with the current one, and checks its bins too.
@@ -255,6 +259,65 @@ def bench_adversarial(batches: int, seed: int, device=None) -> None:
           + (f"; on the device {total - dev_same - dev_ties} other cell, {dev_ties} exact ties" if device else ""))
 
 
+def _hard_shapes(rng):
+    """Table I beams the bounds may not prune (name, beam [K, N]): glitches, bursts and structured patterns."""
+    k, n = 128, 600
+
+    def put(index, value):
+        beam = np.zeros((k, n), complex)
+        beam[index] = value
+        return beam
+
+    huge = rng.standard_normal((k, n)) + 0j
+    huge[0] = 1e6
+    return [
+        ("one ADC sample (a glitch)", put((5, 100), 1.0)),
+        ("a tone in one chirp (a burst)", put(7, np.exp(2j * np.pi * 0.1 * np.arange(n)))),
+        ("noise in one chirp", put(3, rng.standard_normal(n) + 1j * rng.standard_normal(n))),
+        ("noise in one sample column", put((slice(None), 50), rng.standard_normal(k) + 1j * rng.standard_normal(k))),
+        ("5 impulses", put(np.unravel_index(rng.integers(0, k * n, 5), (k, n)), 1.0)),
+        ("50 impulses", put(np.unravel_index(rng.integers(0, k * n, 50), (k, n)), rng.standard_normal(50))),
+        ("constant", np.ones((k, n), complex)),
+        ("one random row in every chirp", np.broadcast_to(np.exp(2j * np.pi * rng.uniform(size=n)), (k, n)).copy()),
+        ("random chirp phases", np.broadcast_to(np.exp(2j * np.pi * rng.uniform(size=(k, 1))), (k, n)).copy()),
+        ("sign noise", np.sign(rng.standard_normal((k, n))) + 0j),
+        ("alternate chirps", put(slice(None, None, 2), 1.0)),
+        ("one huge chirp over noise", huge),
+    ]
+
+
+def bench_hard_shapes(seed: int, device=None) -> None:
+    """Per shape (two beams of it), seconds per beam and peak RSS of the host's screen, the device's search,
+    and whether both give the full search's cells."""
+    import resource
+
+    scenario = paper_scenario("broadside")
+    radar, processing = scenario.radar, scenario.processing
+    print(f"{'beam shape':<32} {'host [s/beam]':>13} {'device [s/beam]':>15} {'full grid cells':>15} {'peak RSS [MB]':>13}")
+    rng = np.random.default_rng(seed)
+    for name, beam in _hard_shapes(rng):
+        cube = add_noise_like(np.stack([beam, 0.5 * beam]), rng)
+        sweep = dsp.BeamSweep(np.zeros((2, 2)))
+        t0 = time.perf_counter()
+        host = dsp.scan_beams(cube, sweep, radar, processing)
+        t_host = (time.perf_counter() - t0) / 2
+        full = dsp.scan_beams(cube, sweep, radar, replace(processing, doppler_search="full"))
+        same = np.array_equal(host.delay_bin, full.delay_bin) and np.array_equal(host.doppler_bin, full.doppler_bin)
+        t_dev = float("nan")
+        if device is not None:
+            t0 = time.perf_counter()
+            dev = _device_scan(device.asarray(cube), radar, processing, device, sweep=sweep)
+            t_dev = (time.perf_counter() - t0) / 2
+            same = same and np.array_equal(dev.delay_bin, full.delay_bin) and np.array_equal(dev.doppler_bin, full.doppler_bin)
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+        print(f"{name:<32} {t_host:>13.3f} {t_dev:>15.3f} {str(same):>15} {rss:>13}")
+
+
+def add_noise_like(cube, rng):
+    """``cube`` plus circular Gaussian noise of power 1e-12 per sample (breaks exact ties of flat spectra)."""
+    return cube + np.sqrt(0.5e-12) * (rng.standard_normal(cube.shape) + 1j * rng.standard_normal(cube.shape))
+
+
 def bench_synthesis(repeat: int) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AliasWarning)
@@ -289,6 +352,8 @@ def main() -> None:
     parser.add_argument("--baseline", default="", metavar="FILE",
                         help="another dsp/gridscreen.py to time on the same cubes (before/after)")
     parser.add_argument("--no-synthesis", action="store_true", help="skip the synthesis benchmark")
+    parser.add_argument("--hard-shapes", action="store_true",
+                        help="also time beams the bounds may not prune (a glitch, a burst, impulses, patterns)")
     parser.add_argument("--device", default="", choices=("", "cuda", "strict", "numpy"),
                         help="also the paper DSP with the cube on this device (dsp/devicegrid.py)")
     args = parser.parse_args()
@@ -311,6 +376,8 @@ def main() -> None:
             bench_random_beams(args.random_beams, args.seed, device)
         if args.adversarial:
             bench_adversarial(args.adversarial, args.seed, device)
+        if args.hard_shapes:
+            bench_hard_shapes(args.seed, device)
         if not args.no_synthesis:
             bench_synthesis(args.repeat)
 
