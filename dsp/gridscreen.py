@@ -536,7 +536,7 @@ def _dense_beam(y: np.ndarray, x32: np.ndarray, plan: _DensePlan, work: _DenseWo
     amp = np.abs(scipy.fft.ifft(work.padded, axis=1, norm="forward"), out=work.amp)
     if first:
         b_out, a_out = np.nonzero(plan.column < first)
-        amp[b_out, :, a_out] = -1.0
+        amp[b_out, :, a_out] = -np.inf  # below any threshold, whatever the slack (not -1: a slack may exceed it)
     # d. T: the largest grid value next to the plane's maximum, less its error bound.
     b0, r0, a0 = np.unravel_index(int(amp.argmax()), amp.shape)
     q0 = np.arange((r0 - 1) * k_dft // length, -(-(r0 + 1) * k_dft // length) + 1) % k_dft

@@ -236,3 +236,24 @@ def test_a_glitch_in_one_sample_goes_to_the_whole_grid(make_radar, make_processi
         fq, fp, fvalue = _full_grid(cube[m], w_k, w_n, 1199, 4793)
         assert (int(zoom.doppler_bin[m]), int(zoom.delay_bin[m])) == (fq, fp)
         assert zoom.peak_power[m] == pytest.approx(fvalue / gain**2, rel=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e6])
+def test_gated_columns_never_win_at_any_scale(make_radar, make_processing, scale):
+    # Regression (found by tests/dsp/test_grid_search_property.py): on a Doppler grid as coarse as
+    # K_DFT = K the exclusion reaches past π/2, so the candidate threshold T·cos(·) is 0 less the slack;
+    # the plane's columns inside min_range were marked -1, which passed it once the float32 slack
+    # exceeded 1 (here at amplitude 1e6: slack ≈ 5e-6·‖x‖₁ ≈ 40), and such a column won. They are now -inf.
+    # Boxcar, N = 2, N_DFT = 2: delay column 0 is y₀ + y₁, column 1 is y₀ - y₁. With y₁ = y₀(1 - 10⁻³e^{jφ})
+    # nearly all the energy is in column 0, which min_range excludes: the maximum is in column 1.
+    radar = make_radar(num_samples=2, num_chirps=4)
+    processing = make_processing(radar, n_dft=2, k_dft=4, min_range=0.2 * radar.max_range, window="boxcar")
+    w_k, w_n, _ = dft_windows(radar, processing)
+    rng = np.random.default_rng(3)
+    y0 = scale * (rng.standard_normal(4) + 1j * rng.standard_normal(4))
+    y = np.stack([y0, y0 * (1 - 1e-3 * np.exp(2j * np.pi * rng.uniform(size=4)))], axis=1)  # [K, N]
+    first = 1
+    q, p, value, *_ = _dense(y, processing, w_k, w_n, first=first)
+    fq, fp, fvalue = _full_grid(y, w_k, w_n, 2, 4, first=first)
+    assert fp == first and (q, p) == (fq, fp)
+    assert value == pytest.approx(fvalue, rel=1e-12)
