@@ -89,7 +89,7 @@ fi
 if stage grid; then
   stamp "grid search on the GPU"
   deadline 240 python3 benchmarks/bench_speedpath.py --device cuda --realizations 5 --full 1 --low-power 0,10 \
-    --random-beams 160 --adversarial 5 --no-synthesis 2>&1 | tee "$OUT/grid_cuda.txt"
+    --random-beams 160 --adversarial 5 --hard-shapes --no-synthesis 2>&1 | tee "$OUT/grid_cuda.txt"
 fi
 
 # speed beside error: the GPU at several batch sizes, then this machine's CPU (one core) as the baseline
