@@ -16,8 +16,8 @@ adversarial beams). ``numpy`` runs the device search on the host's NumPy, to sho
 there; ``strict`` is CI's array_api_strict, whose cost is not a target.
 
 ``--hard-shapes`` times beams the bounds may not prune (a glitch in one ADC sample, a tone in one chirp,
-impulses, structured patterns), two of each, on the host (and the device), with the peak RSS, and checks
-their cells against the full search.
+impulses, structured patterns), two of each, on the host (and the device), with the process's peak RSS
+so far (``--realizations 0`` runs them alone), and checks their cells against the full search.
 
 ``--threads 1`` runs the DSP and BLAS on one thread (one core). ``--baseline FILE`` also times
 another version of ``dsp/gridscreen.py`` (e.g. ``git show REV:dsp/gridscreen.py > /tmp/old.py``)
@@ -293,7 +293,8 @@ def bench_hard_shapes(seed: int, device=None) -> None:
 
     scenario = paper_scenario("broadside")
     radar, processing = scenario.radar, scenario.processing
-    print(f"{'beam shape':<32} {'host [s/beam]':>13} {'device [s/beam]':>15} {'full grid cells':>15} {'peak RSS [MB]':>13}")
+    print(f"{'beam shape':<32} {'host [s/beam]':>13} {'device [s/beam]':>15} {'full grid cells':>15} "
+          f"{'process peak RSS so far [MB]':>28}")
     rng = np.random.default_rng(seed)
     for name, beam in _hard_shapes(rng):
         cube = add_noise_like(np.stack([beam, 0.5 * beam]), rng)
@@ -310,7 +311,7 @@ def bench_hard_shapes(seed: int, device=None) -> None:
             t_dev = (time.perf_counter() - t0) / 2
             same = same and np.array_equal(dev.delay_bin, full.delay_bin) and np.array_equal(dev.doppler_bin, full.doppler_bin)
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
-        print(f"{name:<32} {t_host:>13.3f} {t_dev:>15.3f} {str(same):>15} {rss:>13}")
+        print(f"{name:<32} {t_host:>13.3f} {t_dev:>15.3f} {str(same):>15} {rss:>28}")
 
 
 def add_noise_like(cube, rng):
@@ -371,7 +372,8 @@ def main() -> None:
             device = {"cuda": lambda: dsp.backend_for("cuda"), "strict": lambda: dsp.strict_backend("CPU_DEVICE"),
                       "numpy": dsp.numpy_backend}[args.device]()
             print(f"device: {device.summary()}")
-        bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows, baseline, device)
+        if args.realizations > 0:  # 0: only the other parts (e.g. --hard-shapes alone, for its peak RSS)
+            bench_dsp(args.realizations, min(args.full, args.realizations), args.seed, lows, baseline, device)
         if args.random_beams:
             bench_random_beams(args.random_beams, args.seed, device)
         if args.adversarial:
