@@ -22,6 +22,7 @@ from .drift import DelayDrift
 from .floor_bounce import RUNGS, FloorLadder
 from .moving_clutter import ClutterCancellation
 from .geometry import RisPose
+from .impulses import ImpulseScreen
 from .qualify import Uncertainty, is_one_dimensional, position_at
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
@@ -51,6 +52,8 @@ FLAG_CODES: dict[str, str] = {
     "damaged-beams": "frames of some beams hold zero-filled lost packets: their power and phase are wrong",
     "uncalibrated": "measured data without a calibration file: range offset and tau_RB are nominal",
     "inconsistent-ris": "the fixes of several RISs disagree beyond their 1σ: one is left out (named), or none can be",
+    "impulsive-samples": ("lone ADC samples far above their chirp (a glitch, no beat signal) were zeroed before "
+                          "detection"),
     # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
     "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
     "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",
@@ -159,6 +162,9 @@ class FlagContext:
     clutter : ClutterCancellation or None
         The hall echoes moving with the radar that were searched for and removed before the fit
         (:func:`dsp.cancel_moving_clutter`), when the return moves: ``moving-clutter`` reads it.
+    impulses : ImpulseScreen or None
+        The impulsive samples zeroed before detection (:func:`dsp.impulses.screen_impulses`), when the
+        cube was screened: ``impulsive-samples`` reads it.
     """
 
     detection: Detection
@@ -183,6 +189,7 @@ class FlagContext:
     floor: FloorLadder | None = None
     floor_moved: bool = False
     clutter: ClutterCancellation | None = None
+    impulses: ImpulseScreen | None = None
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -430,3 +437,8 @@ def _pattern_does_not_fit(c: FlagContext) -> str | None:
             f"{fit.dof:.0f} effective degrees of freedom): the AoD is the best fit of a wrong model, its 1σ (and the "
             f"position's) is widened {np.sqrt(fit.statistic):.1f}×; check the RIS mode (relay or reflective), its "
             "rows, columns, element spacing and facing/yaw against the hardware")
+
+
+@_rule("impulsive-samples")
+def _impulses_zeroed(c: FlagContext) -> str | None:
+    return c.impulses.describe() if c.impulses is not None and c.impulses.count else None

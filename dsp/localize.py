@@ -21,8 +21,9 @@ from .beamscan import scan_beams
 from .detection import DEFAULT_PFA, Detection, check_beat_cube, detect_batch, detect_validated
 from .drift import delay_drift, motion_rate
 from .estimators import ESTIMATORS, SweepEstimate, SweepInputs
-from .flags import GRATING_LOBE_DB, FlagContext, sweep_flags
+from .flags import GRATING_LOBE_DB, Flag, FlagContext, sweep_flags
 from .floor_bounce import FloorLadder, floor_ladder, rung_spacing
+from .impulses import screen_impulses
 from .geometry import RisPose, direction_from_angles
 from .localization import Alternative, Localization, NoPositionError, localize, no_position
 from .moving_clutter import ClutterCancellation, cancel_moving_clutter
@@ -110,12 +111,15 @@ def self_localize(
         (:func:`dsp.detect_batch`) and every read of the cube by the estimators and the flags
         (:func:`dsp.dtft_subspace.contract_samples` and its siblings: small results come back).
         A host cube is copied there once. Default: where ``cube`` lives (NumPy for host data; a
-        CuPy or array_api_strict cube stays on its device). The paper's grid search
-        (:func:`dsp.scan_beams`) runs on the host: it gets one explicit copy of the cube.
+        CuPy or array_api_strict cube stays on its device), the paper's grid search
+        (:func:`dsp.scan_beams`: :mod:`dsp.devicegrid` on a device) included.
     detection : Detection, optional
         This cube's detection, already made by :func:`dsp.detect_batch` with the same ``pfa``,
         ``processing.min_range``, ``pattern``, ``sweep`` and ``oversample=2`` (a study's batch); it is
-        then not computed again.
+        then not computed again, and the cube is not screened for impulsive samples (the detection
+        was made on it as given). Without it, lone ADC samples more than 20 dB above their chirp's
+        median power (glitches: no beat signal reaches that) are zeroed first
+        (:func:`dsp.impulses.screen_impulses`) and the flag ``impulsive-samples`` says how many and where.
     floor_height : float, optional
         World z of a floor under the radar and the RIS [m] (0 in a traced hall): the floor's ladder of
         the RIS return is read around the estimate (:func:`dsp.floor_bounce.floor_ladder`). When an
@@ -138,6 +142,11 @@ def self_localize(
     if backend is not None and not backend.is_numpy and is_host_array(inp.cube):
         # one explicit host -> device copy: the detector and the estimator's whole-cube reads run there
         inp = dataclasses.replace(inp, cube=backend.asarray(inp.cube))
+    impulses = None
+    if detection is None:  # a detection passed in was made on the cube as given (dsp.detect_batch: the studies)
+        cube, impulses = screen_impulses(inp.cube)  # lone glitched ADC samples zeroed (dsp.impulses)
+        if impulses.count:
+            inp = dataclasses.replace(inp, cube=cube)
     if detection is not None:
         if not isinstance(detection, Detection):
             raise TypeError(f"detection must be a dsp.Detection (from dsp.detect_batch), got {type(detection).__name__}")
@@ -153,7 +162,10 @@ def self_localize(
     # the paper's grid search runs where the cube is (dsp.devicegrid on a device): M results come back
     grid = scan_beams(inp.cube, sweep, radar, processing) if scan or steps.needs_scan else None
     if not det.detected:
-        return no_position(grid, det)
+        loc = no_position(grid, det)
+        if impulses is not None and impulses.count:
+            loc = dataclasses.replace(loc, flags=loc.flags + (Flag("impulsive-samples", impulses.describe()),))
+        return loc
     est = steps.estimate(inp, det, grid)
     floor_height = None if floor_height is None else finite(floor_height, "floor_height", "m")
     floor, moved = None, False
@@ -183,7 +195,7 @@ def self_localize(
                        extra_distance_std=_floor_distance_std(floor, moved))
     context = _flag_context(inp, est, det, steps.residual_frequency, aod, distance, ue_height=ue_height,
                             height_solved=height_solved, height_range=height_range, std=std)
-    context = dataclasses.replace(context, floor=floor, floor_moved=moved, clutter=clutter)
+    context = dataclasses.replace(context, floor=floor, floor_moved=moved, clutter=clutter, impulses=impulses)
     if context.pattern_fit is not None and context.pattern_fit.mismatch:
         std = _widened(std, inp.pose, aod, distance, context.pattern_fit.excess,
                        ue_height if height_solved else None)
