@@ -276,13 +276,14 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     from dsp.detection import Detection
     from dsp.flags import GRATING_LOBE_DB, SWEEP_FLAG_RULES, sweep_flags
     from dsp.floor_bounce import FloorLadder
+    from dsp.impulses import ImpulseScreen
     from dsp.moving_clutter import ClutterCancellation, MovingEcho
     from dsp.qualify import Uncertainty
 
     assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
                                       "unresolved-peaks", "moving-clutter", "floor-leg", "first-arrival",
                                       "before-ris-delay",
-                                      "elevation-assumed", "unobservable", "pattern-mismatch"]
+                                      "elevation-assumed", "unobservable", "pattern-mismatch", "impulsive-samples"]
     quiet = _quiet_context()
     assert sweep_flags(quiet) == ()
     one_d = BeamSweep.azimuth_grid(*np.deg2rad([-12.0, 12.0, 3.0]))  # 9 beams at el 0
@@ -315,6 +316,8 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
                                              position=np.array([np.inf, 0.0, 0.06]), peak_snr_db=30.0, kind="crb")),
         # the beam pattern fits 50× worse than the noise allows (threshold 1.5)
         "pattern-mismatch": dict(pattern_fit=PatternFit(statistic=50.0, threshold=1.5, dof=59.0, aod=quiet.aod)),
+        # two glitched ADC samples zeroed before detection
+        "impulsive-samples": dict(impulses=ImpulseScreen(samples=np.array([[3, 1, 7], [5, 0, 2]]), largest_db=42.0)),
     }
     for code, change in causes.items():
         assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **change))] == [code], code
