@@ -52,8 +52,8 @@ FLAG_CODES: dict[str, str] = {
     "damaged-beams": "frames of some beams hold zero-filled lost packets: their power and phase are wrong",
     "uncalibrated": "measured data without a calibration file: range offset and tau_RB are nominal",
     "inconsistent-ris": "the fixes of several RISs disagree beyond their 1σ: one is left out (named), or none can be",
-    "impulsive-samples": ("lone ADC samples far above their chirp (a glitch, no beat signal) were zeroed before "
-                          "detection"),
+    "impulsive-samples": ("lone ADC samples far above their chirp (a glitch, no beat signal): localization zeroes "
+                          "them before detection"),
     # capture inspection (risloc_rt.measured.inspect_capture): the raw recording itself
     "dropped-packets": "the DCA1000 lost packets: frames hold zeros in their place",
     "truncated-frame": "the recording ends inside a frame: the incomplete frame is dropped",
@@ -68,7 +68,7 @@ FLAG_CODES: dict[str, str] = {
 #: The codes an inspection of a raw capture (not a localization) may carry.
 INSPECTION_CODES: frozenset[str] = frozenset({
     "dropped-packets", "truncated-frame", "clipping", "dc-offset", "iq-imbalance", "iq-order", "peak-at-dc",
-    "device-timing"})
+    "device-timing", "impulsive-samples"})
 
 
 @dataclass(frozen=True)

@@ -107,6 +107,24 @@ def test_inspect_flags_lost_packets_clipping_and_truncation(tmp_path, make_confi
     assert res.clipped_fraction > 0.1 and res.peak.range_bin == 6
 
 
+def test_inspect_flags_a_glitch_and_not_a_clean_recording(tmp_path, make_config, make_tone):
+    # one ADC sample of frame 1 (loop 2, channel 3) 33 dB above its chirp's tone: a glitch, no beat signal
+    cfg = make_config()
+    cube = make_tone(cfg, 3, range_bin=6, amplitude=0.02)                  # [frames, loops, channels, samples]
+    (tmp_path / "clean").mkdir()
+    (tmp_path / "glitch").mkdir()
+    em = write_raw_capture(cube, cfg, tmp_path / "clean")
+    clean = inspect_capture(em.files[0], em.cfg_path)
+    assert "impulsive-samples" not in {f.code for f in clean.flags} and clean.impulsive_samples == 0
+    cube[1, 2, 3, 10] = 0.9
+    em = write_raw_capture(cube, cfg, tmp_path / "glitch")
+    res = inspect_capture(em.files[0], em.cfg_path)
+    flag = next(f for f in res.flags if f.code == "impulsive-samples")
+    assert res.impulsive_samples == 1 and res.impulsive_frames == (1,) and "frames [1]" in flag.message
+    assert res.impulsive_largest_db == pytest.approx(20 * np.log10(0.9 / 0.02), abs=0.1)
+    assert res.to_dict()["impulsive_samples"]["count"] == 1
+
+
 def test_combine_channels_gives_the_localization_cube(make_config, make_tone):
     cfg = make_config()
     cube = make_tone(cfg, 2, range_bin=3).astype(np.complex64)             # random phase per channel

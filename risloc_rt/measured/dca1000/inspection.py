@@ -1,8 +1,9 @@
 """``risloc capture inspect RAW --config CFG``: what a raw capture holds and whether it looks healthy.
 
 :func:`inspect_capture` streams the capture once (memory: a few frames) and returns a
-:class:`CaptureInspection`: counts, the range–Doppler peak, lost packets, clipping, DC offset,
-I/Q imbalance and I/Q order, each problem as a named flag with its remedy.
+:class:`CaptureInspection`: counts, the range–Doppler peak, lost packets, clipping, impulsive
+samples (glitches), DC offset, I/Q imbalance and I/Q order, each problem as a named flag with its
+remedy.
 :func:`plot_inspection` draws the range profile and the range–Doppler map.
 """
 
@@ -19,6 +20,7 @@ import scipy.signal
 
 from dsp.budget import check_memory
 from dsp.flags import Flag
+from dsp.impulses import IMPULSE_CREST_DB, screen_impulses
 
 from ...plotting import new_figure, save_figure
 from ..errors import MeasuredFormatError
@@ -103,6 +105,10 @@ class CaptureInspection:
     notes : tuple of str
     probable_dropped_packets : int
         Of ``dropped_packets``, those found as whole packets of zeros in a raw-mode stream.
+    impulsive_samples : int
+        Lone ADC samples more than 20 dB above their chirp's median power (glitches,
+        :mod:`dsp.impulses`); ``impulsive_frames`` lists the frames that hold them and
+        ``impulsive_largest_db`` the largest excess [dB] (NaN when none).
     config_iq_swap : bool or None
         The configuration's swap flag (``adcbufCfg`` SampleSwap or Studio ``iqSwapSel``; None
         without a configuration), recorded next to the order the file was read with.
@@ -131,6 +137,9 @@ class CaptureInspection:
     notes: tuple[str, ...]
     probable_dropped_packets: int = 0
     config_iq_swap: bool | None = None
+    impulsive_samples: int = 0
+    impulsive_frames: tuple[int, ...] = ()
+    impulsive_largest_db: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON summary (no arrays): counts, peak, impairments, flags.
@@ -153,6 +162,9 @@ class CaptureInspection:
             "damaged_frames": list(self.damaged_frames),
             "truncated_bytes": self.truncated_bytes,
             "clipping": {"words": self.clipped_words, "fraction": self.clipped_fraction},
+            "impulsive_samples": {"count": self.impulsive_samples, "frames": list(self.impulsive_frames),
+                                  "largest_db": (None if np.isnan(self.impulsive_largest_db)
+                                                 else round(self.impulsive_largest_db, 2))},
             "dc_offset": {"i": self.dc_offset.real, "q": self.dc_offset.imag},
             "iq_imbalance": {"gain_db": self.iq_gain_imbalance_db, "phase": self.iq_phase_imbalance},
             "positive_frequency_excess_db": (None if np.isnan(self.positive_frequency_excess_db)
@@ -243,6 +255,9 @@ class _CaptureSums:
     dropped: int
     probable: int
     damaged: tuple[int, ...]
+    impulsive: int = 0
+    impulsive_frames: tuple[int, ...] = ()
+    impulsive_db: float = float("nan")
 
 
 def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, frames_per_block: int,
@@ -256,8 +271,10 @@ def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, f
     rd = np.zeros((K, N))
     s1 = np.zeros(2)
     s2 = np.zeros(3)                                  # Σ I², Σ Q², Σ I·Q
-    count = clipped = frames_read = dropped = probable = 0
+    count = clipped = frames_read = dropped = probable = impulsive = 0
     damaged: list[int] = []
+    impulsive_frames: set[int] = set()
+    impulsive_db = float("nan")
     for block in iter_frames(info, frames_per_block=frames_per_block, max_frames=max_frames):
         y = block.cube                                # complex64 [f, K, V, N], paper convention
         i_hw, q_hw = y.real.astype(np.float64), -y.imag.astype(np.float64)
@@ -266,6 +283,12 @@ def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, f
         count += i_hw.size
         words = (i_hw, q_hw) if layout.is_complex else (i_hw,)
         clipped += sum(int(np.count_nonzero((w <= lo) | (w >= hi))) for w in words)
+        # lone samples far above their chirp (glitches): each (frame, loop) a row, each channel its chirp
+        _, screen = screen_impulses(y.reshape(len(y) * K, layout.num_virtual, N))
+        if screen.count:
+            impulsive += screen.count
+            impulsive_frames.update(block.first_frame + int(r) // K for r in screen.samples[:, 0])
+            impulsive_db = float(np.fmax(impulsive_db, screen.largest_db))
         # eq. (2DDFT) sign: e^{+j2πpn/N}, e^{+j2πqk/K} (numpy's ifft times the length)
         z = np.fft.ifft(np.fft.ifft(y * wn, axis=-1) * wk[:, None, None], axis=1) * (N * K)
         rd += (np.abs(z) ** 2).sum(axis=(0, 2)) / gain
@@ -279,7 +302,8 @@ def _stream_sums(info: CaptureInfo, layout: RawLayout, bits: int, window: str, f
     rd = np.fft.fftshift(rd, axes=0)
     return _CaptureSums(range_doppler=rd, s1=s1, s2=s2, count=count, words=2 if layout.is_complex else 1,
                         clipped=clipped, frames_read=frames_read, dropped=dropped, probable=probable,
-                        damaged=tuple(damaged))
+                        damaged=tuple(damaged), impulsive=impulsive, impulsive_frames=tuple(sorted(impulsive_frames)),
+                        impulsive_db=impulsive_db)
 
 
 def _iq_statistics(sums: _CaptureSums, profile: np.ndarray,
@@ -320,6 +344,12 @@ def _inspection_flags(sums: _CaptureSums, info: CaptureInfo, cfg: TiChirpConfig 
     if sums.clipped:
         flags.append(Flag("clipping", f"{sums.clipped} of {sums.count * sums.words} ADC words at a rail: lower the "
                           "Rx gain (profileCfg rxGain) or move away from strong reflectors"))
+    if sums.impulsive:
+        frames = list(sums.impulsive_frames)
+        flags.append(Flag("impulsive-samples", f"{sums.impulsive} lone ADC sample(s) stood up to {sums.impulsive_db:.0f} dB "
+                          f"above their chirp's median power (a beat signal stays within {IMPULSE_CREST_DB:.0f} dB: a "
+                          f"glitch of the ADC or its link) in frames {frames[:10]}{' …' if len(frames) > 10 else ''}: "
+                          "localization zeroes them; check the link for bit errors"))
     if abs(dc) > 0.01 * full:
         flags.append(Flag("dc-offset", f"DC offset {abs(dc) / full:.1%} of full scale: remove the mean per chirp"))
     if abs(g_db) > 1.0 or abs(phase) > np.deg2rad(5):
@@ -413,7 +443,8 @@ def inspect_capture(raw: str | Path | Sequence[str | Path], config: str | Path |
         clipped_fraction=sums.clipped / (sums.count * sums.words),
         dc_offset=dc, iq_gain_imbalance_db=g_db, iq_phase_imbalance=phase, positive_frequency_excess_db=excess,
         flags=flags, notes=info.notes, probable_dropped_packets=sums.probable,
-        config_iq_swap=None if cfg is None else bool(cfg.iq_swap))
+        config_iq_swap=None if cfg is None else bool(cfg.iq_swap), impulsive_samples=sums.impulsive,
+        impulsive_frames=sums.impulsive_frames, impulsive_largest_db=sums.impulsive_db)
 
 
 def plot_inspection(result: CaptureInspection, path: str | Path | None = None, *, dynamic_range_db: float = 60.0):
