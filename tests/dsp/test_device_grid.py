@@ -1,8 +1,8 @@
 """The paper's grid search where the cube lives (``dsp.devicegrid``): the full grid's answer on a device.
 
 Oracle: the whole float64 N_DFT × K_DFT transform of every beam on the host (``numpy.fft.ifft2``
-below, the paper's eq. (2DDFT) + eq. (argmaxmap) with ties to the first cell in (q, p) order) and
-eq. (P_ave) on its row: ``mean |z(q, p')|²`` over the delay bins within ±Δ of the peak. The device is
+in ``grid_oracle.py``, the paper's eq. (2DDFT) + eq. (argmaxmap) with ties to the first cell in (q, p)
+order) and eq. (P_ave) on its row: ``mean |z(q, p')|²`` over the delay bins within ±Δ of the peak. The device is
 array_api_strict's ``device1``, which refuses every implicit host copy and every operation outside
 the array API standard, so what passes here is written for CuPy's namespace too
 (``tests/gpu/test_gpu_grid.py`` runs it there).
@@ -24,6 +24,7 @@ from dsp import BeamSweep, devicegrid, scan_beams
 from dsp.spectrum import dft_windows
 from risloc_rt.model import paper_scenario, simulate
 from risloc_rt.model.beat import add_noise
+from grid_oracle import grid_maxima  # registered by tests/dsp/conftest.py
 
 STRICT = dsp.strict_backend("device1")
 
@@ -37,25 +38,6 @@ def whole_grid(monkeypatch):
     return calls
 
 
-def _oracle(cube, radar, processing):
-    """Per beam (q, p, |z|²/gain², P_ave/gain²) of the whole float64 grid, ties to the first in (q, p) order."""
-    w_k, w_n, gain = dft_windows(radar, processing)
-    delays = radar.delay_grid(processing.n_dft)
-    first = int(np.searchsorted(delays, 2.0 * processing.min_range / dsp.SPEED_OF_LIGHT))
-    out = []
-    for y in cube:
-        z = np.fft.ifft2(y * np.outer(w_k, w_n), s=(processing.k_dft, processing.n_dft))
-        z *= processing.k_dft * processing.n_dft  # Σ x e^{+j2π(qk/K_DFT + pn/N_DFT)}
-        power = z.real**2 + z.imag**2
-        power[:, :first] = -1.0
-        q, p = np.unravel_index(int(power.argmax()), power.shape)
-        window = np.abs(delays - delays[p]) <= processing.delta * (1.0 + 1e-9)
-        row = z[q].real**2 + z[q].imag**2
-        out.append((int(q), int(p), power[q, p] / gain**2, row[window].mean() / gain**2))
-    q, p, peak, average = map(np.array, zip(*out))
-    return q, p, peak, average
-
-
 def _on_device(cube, radar, processing):
     """``scan_beams`` of the cube copied to device1 (one explicit copy)."""
     sweep = BeamSweep(np.zeros((cube.shape[0], 2)))
@@ -66,7 +48,7 @@ def _compare(cube, radar, processing, *, allow_ties=False, whole_grid=None, expe
     scan = _on_device(cube, radar, processing)
     if whole_grid is not None:  # the bounded search decided every other beam itself
         assert len(whole_grid) == expect_whole
-    q, p, peak, average = _oracle(cube, radar, processing)
+    q, p, peak, average = grid_maxima(cube, radar, processing)
     same = (scan.doppler_bin == q) & (scan.delay_bin == p)
     if allow_ties:  # a differing cell must be a tie: its power equals the maximum
         np.testing.assert_allclose(scan.peak_power[~same], peak[~same], rtol=1e-12)
@@ -253,6 +235,6 @@ def test_the_search_keeps_to_what_cupy_accepts(make_radar, make_processing, mult
     w_k, w_n, _ = dft_windows(radar, processing)
     q, p, *_ = devicegrid.device_scan(backend.asarray(cube), processing, 0, (w_k, w_n),
                                       radar.delay_grid(processing.n_dft), backend)
-    oracle = _oracle(cube, radar, processing)
+    oracle = grid_maxima(cube, radar, processing)
     np.testing.assert_array_equal(q, oracle[0])
     np.testing.assert_array_equal(p, oracle[1])

@@ -4,7 +4,7 @@ Hypothesis draws the radar's K (1-12 chirps) and N (2-24 samples), the grids N_D
 (K to 6K, so the Doppler grid may be coarser or finer than the 2K-point plane), the window, a
 ``min_range`` gate, and beams mixed from tones (off-grid delay and Doppler), impulses, whole chirps,
 noise and zeros at amplitudes 10⁻⁶ to 10⁶. Oracle: the whole float64 N_DFT × K_DFT transform of each
-beam (``numpy.fft.ifft2``), ties to the first cell in (q, p) order. The host's screened search
+beam (``numpy.fft.ifft2``, ``grid_oracle.py``). The host's screened search
 (``doppler_search="zoom"``) and the device search (array_api_strict's ``device1``) must both return a
 cell whose power equals the grid maximum to 1e-10 relative — the oracle's cell, or one tied with it
 within float64 rounding — and the oracle's P_ave at that cell.
@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 import dsp
 from dsp import BeamSweep, ProcessingConfig, RadarConfig, scan_beams
-from dsp.spectrum import dft_windows
+from grid_oracle import whole_grid  # registered by tests/dsp/conftest.py
 
 STRICT = dsp.strict_backend("device1")
 SETTINGS = settings(max_examples=int(os.environ.get("GRID_EXAMPLES", 200)), deadline=None, derandomize=True, database=None,
@@ -66,18 +66,6 @@ def _beam(kind, radar, rng):
     return scale * y
 
 
-def _oracle(cube, radar, processing):
-    w_k, w_n, gain = dft_windows(radar, processing)
-    delays = radar.delay_grid(processing.n_dft)
-    first = int(np.searchsorted(delays, 2.0 * processing.min_range / dsp.SPEED_OF_LIGHT))
-    out = []
-    for y in cube:
-        z = np.fft.ifft2(y * np.outer(w_k, w_n), s=(processing.k_dft, processing.n_dft))
-        z *= processing.k_dft * processing.n_dft
-        out.append((z.real**2 + z.imag**2, first, delays))
-    return out, gain
-
-
 @SETTINGS
 @given(cases())
 def test_host_and_device_searches_give_the_grid_maximum(case):
@@ -98,8 +86,8 @@ def test_host_and_device_searches_give_the_grid_maximum(case):
             scan_beams(STRICT.asarray(cube), sweep, radar, processing)
         return
     dev = scan_beams(STRICT.asarray(cube), sweep, radar, processing)
-    grids, gain = _oracle(cube, radar, processing)
-    for m, (power, first, delays) in enumerate(grids):
+    grids, first, delays, gain = whole_grid(cube, radar, processing)
+    for m, power in enumerate(grids):
         best = power[:, first:].max()  # the searchable cells
         for scan in (host, dev):
             q, p = int(scan.doppler_bin[m]), int(scan.delay_bin[m])

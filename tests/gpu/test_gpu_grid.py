@@ -1,4 +1,4 @@
-"""The paper's grid search on an NVIDIA GPU (``dsp.devicegrid`` on CuPy) against the host (issue 21, item 3).
+"""The paper's grid search (``dsp.devicegrid``) and the impulse screen (``dsp.impulses``) on an NVIDIA GPU (CuPy) against the host (issue 21, item 3).
 
 Skipped, with the reason, where there is no GPU (``dsp.cuda_available()``); run with
 ``./setup.sh --gpu && .venv/bin/python -m pytest -m gpu``. The same code runs in CI on
@@ -83,3 +83,16 @@ def test_paper_estimator_on_the_gpu_takes_the_hosts_beam_and_cells(gpu):
     np.testing.assert_array_equal(dev.scan.delay_bin, host.scan.delay_bin)
     np.testing.assert_array_equal(dev.scan.doppler_bin, host.scan.doppler_bin)
     assert dev.distance == pytest.approx(host.distance, abs=1e-9)
+
+
+def test_impulsive_samples_are_found_on_the_gpu_as_on_the_host(gpu):
+    from dsp.impulses import screen_impulses
+
+    capture = simulate(paper_scenario("off-broadside", mode="relay"), rng=np.random.default_rng(4))
+    cube = capture.cube.copy()
+    cube[7, 1, 2] = cube[50, 127, 599] = 1e3 * np.sqrt(capture.radar.noise_power)
+    host_out, host = screen_impulses(cube)
+    dev_out, dev = screen_impulses(gpu.asarray(cube))
+    np.testing.assert_array_equal(dev.samples, host.samples)
+    assert dev.largest_db == pytest.approx(host.largest_db, rel=1e-12)
+    np.testing.assert_array_equal(gpu.to_host(dev_out), host_out)
