@@ -19,8 +19,8 @@ device, explicit) and :meth:`ArrayBackend.to_host` (device → host, explicit); 
 
 Library-specific primitives live here and nowhere else: the transform (``scipy.fft`` on NumPy for
 its threads, the namespace's ``fft`` extension otherwise), the median and the k-th smallest value
-(NumPy's and CuPy's selection; a sort where a namespace has none — the same value) and the random normals of the
-receiver noise (the array API has no random numbers: NumPy and array_api_strict draw on the host
+(NumPy's and CuPy's selection; a sort where a namespace has none — the same value) and the random
+normals of the receiver noise (the array API has no random numbers: NumPy and array_api_strict draw on the host
 from the run's ``numpy.random.Generator``, CuPy on the GPU from cuRAND seeded by it).
 """
 
@@ -116,14 +116,14 @@ class ArrayBackend:
         NumPy and CuPy by a partial sort (``partition``: 5× faster than ``median`` on NumPy); other
         namespaces by a sort (the same value).
         """
-        xp = self.xp
-        index = xp.asarray([int(k)], device=self.device)
+        xp, k = self.xp, int(k)
         if self.name == "numpy":
-            return np.take(np.partition(x, int(k), axis=axis), int(k), axis=axis)
+            return np.take(np.partition(x, k, axis=axis), k, axis=axis)
+        index = xp.asarray([k], device=self.device)
         if self.name == "cupy":
             import cupy
 
-            return xp.squeeze(xp.take(cupy.partition(x, int(k), axis=axis), index, axis=axis), axis=axis)
+            return xp.squeeze(xp.take(cupy.partition(x, k, axis=axis), index, axis=axis), axis=axis)
         return xp.squeeze(xp.take(xp.sort(x, axis=axis), index, axis=axis), axis=axis)
 
     def median(self, x: Any, axis: int) -> Any:
