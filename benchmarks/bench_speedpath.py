@@ -297,7 +297,7 @@ def bench_hard_shapes(seed: int, device=None) -> None:
           f"{'process peak RSS so far [MB]':>28}")
     rng = np.random.default_rng(seed)
     for name, beam in _hard_shapes(rng):
-        cube = add_noise_like(np.stack([beam, 0.5 * beam]), rng)
+        cube = _with_tiny_noise(np.stack([beam, 0.5 * beam]), rng)
         sweep = dsp.BeamSweep(np.zeros((2, 2)))
         t0 = time.perf_counter()
         host = dsp.scan_beams(cube, sweep, radar, processing)
@@ -314,7 +314,7 @@ def bench_hard_shapes(seed: int, device=None) -> None:
         print(f"{name:<32} {t_host:>13.3f} {t_dev:>15.3f} {str(same):>15} {rss:>28}")
 
 
-def add_noise_like(cube, rng):
+def _with_tiny_noise(cube, rng):
     """``cube`` plus circular Gaussian noise of power 1e-12 per sample (breaks exact ties of flat spectra)."""
     return cube + np.sqrt(0.5e-12) * (rng.standard_normal(cube.shape) + 1j * rng.standard_normal(cube.shape))
 

@@ -184,8 +184,9 @@ class _Plan:
         q = np.zeros(c, np.int64)
         p = np.full(c, self.first, np.int64)
         if not self.full and not np.all(whole):
-            qd, pd = self._dense(a, l1, whole)
-            q[~whole], p[~whole] = qd[~whole], pd[~whole]
+            qd, pd, found = self._dense(a, l1, whole)
+            q[found], p[found] = qd[found], pd[found]
+            whole |= ~found  # no positive T, or nothing to prune (module notes): their whole grid
         for j in np.flatnonzero(whole):
             q[j], p[j] = self._whole_grid(a[int(j), ...])
         # the Doppler row of q: |z(q, p')|² at every p', its value at p and its mean over the P_ave window
@@ -210,8 +211,11 @@ class _Plan:
         flat = int(self.backend.to_host(xp.argmax(xp.reshape(power, (-1,)))))
         return divmod(flat, self.n_dft)
 
-    def _dense(self, a: Any, l1: np.ndarray, skip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(q, p) of every beam of ``a [c, K, N_DFT]`` not in ``skip`` by the bounded search (module notes)."""
+    def _dense(self, a: Any, l1: np.ndarray, skip: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, p, found) of the beams of ``a [c, K, N_DFT]`` not in ``skip`` by the bounded search (module notes).
+
+        ``found`` [c] marks the beams it decided; the others (``skip``, no positive T, nothing to prune)
+        are left to their whole grid."""
         xp, backend = self.xp, self.backend
         c, k, n_dft, k_dft, length = int(a.shape[0]), self.k, self.n_dft, self.k_dft, self.length
         dev = backend.device
@@ -267,8 +271,9 @@ class _Plan:
         q_lo = xp.astype(xp.ceil(lo * k_dft), xp.int64) - 1
         count = xp.astype(xp.floor(hi * k_dft), xp.int64) + 2 - q_lo
         total = int(backend.to_host(xp.sum(count)))
-        if total == 0:  # no beam with a positive T and something to prune (the maximum's interval survives): whole grids
-            return self._fallback(a, skip)
+        qh, ph, found = np.zeros(c, np.int64), np.full(c, self.first, np.int64), np.zeros(c, bool)
+        if total == 0:  # no beam with a positive T and something to prune (the maximum's interval survives)
+            return qh, ph, found
         # bin i belongs to sub-interval src (the first whose running count passes i): a repeat by counts
         # that stay on the device (CuPy's repeat takes host counts only)
         ends_at = xp.cumulative_sum(count)
@@ -291,13 +296,8 @@ class _Plan:
         head = xp.concat([xp.ones((1,), dtype=xp.bool, device=dev), sorted_beam[1:] != sorted_beam[:-1]])
         win = xp.take(order, xp.nonzero(head)[0])
         got = backend.to_host(xp.stack([xp.take(b_of, win), xp.take(q, win), xp.take(cell_col % n_dft, win)]))
-        qh, ph = np.zeros(c, np.int64), np.full(c, self.first, np.int64)
-        found = np.zeros(c, bool)
         qh[got[0]], ph[got[0]], found[got[0]] = got[1], got[2], True
-        if not np.all(found | skip):  # no positive T or nothing to prune (as above): on their whole grid
-            for j in np.flatnonzero(~(found | skip)):
-                qh[j], ph[j] = self._whole_grid(a[int(j), ...])
-        return qh, ph
+        return qh, ph, found
 
     def _kept_per_beam(self, beam: Any, keep: Any, c: int) -> np.ndarray:
         """Per beam of the chunk, how many of its intervals are kept (``beam`` ascending, as ``nonzero`` gives it) [c]."""
@@ -305,14 +305,6 @@ class _Plan:
         prefix = xp.concat([xp.zeros((1,), dtype=xp.int64, device=dev), xp.cumulative_sum(xp.astype(keep, xp.int64))])
         starts = xp.searchsorted(beam, xp.arange(c + 1, dtype=beam.dtype, device=dev), side="left")
         return self.backend.to_host(xp.take(prefix, starts[1:]) - xp.take(prefix, starts[:-1]))
-
-    def _fallback(self, a: Any, skip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every beam not in ``skip`` on its whole grid."""
-        c = int(a.shape[0])
-        q, p = np.zeros(c, np.int64), np.full(c, self.first, np.int64)
-        for j in np.flatnonzero(~skip):
-            q[j], p[j] = self._whole_grid(a[int(j), ...])
-        return q, p
 
     def _exclusion(self, value: Any, t: Any, slack: Any) -> Any:
         """(arccos(min(1, (value + slack)/t)) - α₀)/σ, >= 0: the reach [cycles] of a value's exclusion."""
