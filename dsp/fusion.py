@@ -8,7 +8,8 @@ where its sweep sees it) in its own frame, each with a 1σ (:class:`RisFix`, e.g
 
 by trust-region Gauss–Newton (:func:`scipy.optimize.least_squares`) from the best single fix
 (azimuth residuals wrapped to (−π, π]). Its covariance
-is the inverse of the summed Fisher information ``Σᵢ Jᵢᵀ Wᵢ Jᵢ`` (Jᵢ = ∂hᵢ/∂x at x̂, Wᵢ = diag(1/σ²)):
+is the inverse of the summed Fisher information ``Σᵢ Jᵢᵀ Wᵢ Jᵢ`` (Jᵢ = ∂hᵢ/∂x at x̂ in closed form,
+:meth:`RisFix.linearised`; Wᵢ = diag(1/σ²)):
 with each fix's σ its Cramér–Rao bound this is the multi-RIS position bound, and ``peb`` its trace's
 square root.
 
@@ -171,6 +172,28 @@ class RisFix:
             out.append((self.aod[1] - el) / self.std_aod[1])
         return np.asarray(out)
 
+    def linearised(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals at x and their Jacobian ∂r/∂x [n], [n, 3] [1/m].
+
+        Analytic: with q = Rᵀ(x − p) the RIS-frame offset, d = ‖q‖ and ρ = √(q_u² + q_n²),
+        ∂d/∂q = q/d, ∂az/∂q = (q_n, 0, −q_u)/ρ², ∂el/∂q = (−q_w q_u/ρ, ρ, −q_w q_n/ρ)/d², and ∂/∂x = (∂/∂q) Rᵀ.
+        Where they do not exist (x at the RIS, or on its column axis where the azimuth is undefined) it is the
+        central difference of :meth:`residuals`, as before.
+        """
+        x = np.asarray(x, dtype=float)
+        r = self.residuals(x)
+        rot = self.pose.rotation
+        q = (x - self.pose.position) @ rot
+        dist, rho = float(np.linalg.norm(q)), math.hypot(float(q[0]), float(q[2]))
+        if not (dist > 0 and rho > 0):
+            return r, central_jacobian(self.residuals, x)
+        rows = [-(q / dist) / self.std_distance]
+        if np.isfinite(self.std_aod[0]):
+            rows.append(-np.array([q[2], 0.0, -q[0]]) / (rho**2 * self.std_aod[0]))
+        if np.isfinite(self.std_aod[1]):
+            rows.append(-np.array([-q[1] * q[0] / rho, rho, -q[1] * q[2] / rho]) / (dist**2 * self.std_aod[1]))
+        return r, np.stack(rows) @ rot.T
+
     def position(self, elevation: float | None = None) -> np.ndarray:
         """The fix's own position [3] [m] (its elevation, or ``elevation`` [rad] where it cannot see it)."""
         el = self.aod[1] if elevation is None else elevation
@@ -249,11 +272,6 @@ def central_jacobian(fun: Any, x: np.ndarray, step: float = 1e-6) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def _jacobian(fix: RisFix, x: np.ndarray) -> np.ndarray:
-    """∂r/∂x of the fix's normalised residuals at x [n_i, 3] (1 µm steps)."""
-    return central_jacobian(fix.residuals, x)
-
-
 def _solve(fixes: list[RisFix], start: np.ndarray,
            height: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Weighted least squares from ``start``: (x̂, information [3, 3] at x̂ [1/m²], T at x̂).
@@ -269,10 +287,13 @@ def _solve(fixes: list[RisFix], start: np.ndarray,
 
     def jacobian(x: np.ndarray) -> np.ndarray:
         known = [] if height is None else [np.array([[0.0, 0.0, -1.0 / height[1]]])]
-        return np.vstack([_jacobian(f, x) for f in fixes] + known)  # ∂r/∂x = −∂h/∂x / σ
+        return np.vstack([f.linearised(x)[1] for f in fixes] + known)  # ∂r/∂x = −∂h/∂x / σ
 
-    fit = scipy.optimize.least_squares(residuals, np.array(start, dtype=float), jac=jacobian, method="trf",
-                                       xtol=_TOLERANCE, ftol=1e-15, gtol=1e-15, max_nfev=20 * _MAX_STEPS)
+    # Along a direction no fix sees the analytic Jacobian has an exactly zero singular value; at the converged
+    # point scipy's trust-region subproblem then divides 0 by 0 for that step, which it rejects (T does not fall).
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = scipy.optimize.least_squares(residuals, np.array(start, dtype=float), jac=jacobian, method="trf",
+                                           xtol=_TOLERANCE, ftol=1e-15, gtol=1e-15, max_nfev=20 * _MAX_STEPS)
     x = fit.x
     jac, r = jacobian(x), residuals(x)
     return x, jac.T @ jac, float(r @ r)

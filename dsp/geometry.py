@@ -18,6 +18,7 @@ The wavenumber vector used by the array model is ``g = 2π/λ · d``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -154,10 +155,12 @@ class RisPose:
         """Row axis **u** = w × n (azimuth turns toward it), world frame, unit [3]."""
         return np.cross(self.column_axis, self.normal)
 
-    @property
+    @functools.cached_property
     def rotation(self) -> np.ndarray:
-        """Rotation matrix [3, 3] whose columns are ``(u, w, n)``: ``world = R @ local``."""
-        return np.column_stack([self.row_axis, self.column_axis, self.normal])
+        """Rotation matrix [3, 3] whose columns are ``(u, w, n)``: ``world = R @ local`` (read-only, computed once)."""
+        rot = np.column_stack([self.row_axis, self.column_axis, self.normal])
+        rot.setflags(write=False)
+        return rot
 
     def to_world(self, local: Any) -> np.ndarray:
         """Directions [..., 3] in the RIS frame ``(u, w, n)`` -> world frame (no translation)."""

@@ -53,8 +53,8 @@ def multi_ris_peb(bounds: Any, position: Any) -> float:
     :func:`risloc_rt.studies.kernel.point_bound`, which the map's cell preparer computes from the
     RIS's own noiseless return; a 1-D sweep measures no elevation). With ``h(x, y)`` the
     measurements at height z = ``position[2]`` (known), the information on (x, y) is
-    ``J = Σᵢ Hᵢᵀ diag(1/σ_d,ᵢ², 1/σ_az,ᵢ²) Hᵢ``, ``Hᵢ = ∂(dᵢ, azᵢ)/∂(x, y)`` (``dsp.fusion.central_jacobian``
-    of ``dsp.RisFix.residuals`` at the truth), and the PEB is ``sqrt(trace(J⁻¹))``. For one RIS at
+    ``J = Σᵢ Hᵢᵀ diag(1/σ_d,ᵢ², 1/σ_az,ᵢ²) Hᵢ``, ``Hᵢ = ∂(dᵢ, azᵢ)/∂(x, y)`` (the closed form of
+    ``dsp.RisFix.linearised`` at the truth), and the PEB is ``sqrt(trace(J⁻¹))``. For one RIS at
     the radar's height this is its own PEB, ``sqrt(σ_d² + d² σ_az²)`` (a test checks it against the
     bound's ``position``).
 
@@ -71,7 +71,6 @@ def multi_ris_peb(bounds: Any, position: Any) -> float:
         PEB [m] (inf when the RISs cannot determine the position, e.g. no bound given).
     """
     from dsp import RisFix
-    from dsp.fusion import central_jacobian
 
     x = np.asarray(position, dtype=float)
     fixes = []
@@ -83,7 +82,7 @@ def multi_ris_peb(bounds: Any, position: Any) -> float:
                             aod=np.asarray(pose.angles_to(x), dtype=float), std_aod=[float(crb["angle"]), np.nan]))
     if not fixes:
         return float("inf")
-    jac = central_jacobian(lambda q: np.concatenate([f.residuals(np.array([q[0], q[1], x[2]])) for f in fixes]), x[:2])
+    jac = np.vstack([f.linearised(x)[1][:, :2] for f in fixes])  # ∂r/∂(x, y) at the known height
     info = jac.T @ jac
     if np.linalg.cond(info) > 1e12:
         return float("inf")
