@@ -1,7 +1,8 @@
 """Cost and accuracy of the material Jacobian (risloc_rt.hall.raytrace.material_gradients).
 
-Part 1, cost: seconds per Jacobian (2·Q sionna-rt solves in evaluated loop mode, each with one
-forward-mode derivative) against the number of paths (ray-tracing depth) and of materials Q, on the
+Part 1, cost: seconds per Jacobian (Q sionna-rt solves in evaluated loop mode, each with one
+forward-mode derivative, ∂a/∂σ from the holomorphic identity; and 2·Q solves with ``sigma_by_identity=False``,
+σ by a pass of its own, side by side) against the number of paths (ray-tracing depth) and of materials Q, on the
 default hall (``scenes/paper_hall``, one material) and the L hall (``scenes/l_hall``, six), next to
 the plain warm trace of :func:`risloc_rt.hall.raytrace.trace_scene` (symbolic loops, no
 derivatives). Every Jacobian is timed warm (second call in the process; the first call of a
@@ -10,7 +11,8 @@ of re-traced gains (ε_r ± h, ± 2h, and σ likewise, h = 0.01) for the first t
 ``max |FD − AD| / |AD|`` over the paths that touch the material.
 
 Part 2, mechanisms: the same check on a small hall with a glass pane (refraction through it), diffuse reflection (S = 0.3)
-and diffraction on, by interaction type, and the holomorphic identity ∂a/∂σ = −j/(ε0 ω)·∂a/∂ε_r.
+and diffraction on, by interaction type, and the holomorphic identity ∂a/∂σ = −j/(ε0 ω)·∂a/∂ε_r (checked on
+Jacobians whose σ derivative is a pass of its own, ``sigma_by_identity=False``).
 
     .venv/bin/python benchmarks/bench_material_gradients.py [--quick]
 """
@@ -109,7 +111,7 @@ def part_cost(quick: bool) -> None:
     depths = (1, 2) if quick else (1, 2, 3, 4)
     print("\nPart 1: seconds per Jacobian (warm, best of 2) against paths P and materials Q; samples_per_src = 1e5")
     print(f"{'hall':<11}{'depth':>6}{'P':>6}{'Q':>4}{'seen':>5}{'trace [s]':>11}{'Jacobian [s]':>14}"
-          f"{'per solve [s]':>15}{'FD/AD eps':>11}{'FD/AD sig':>11}")
+          f"{'per solve [s]':>15}{'2 passes [s]':>14}{'ratio':>7}{'FD/AD eps':>11}{'FD/AD sig':>11}")
     for hall, (position, materials) in HALLS.items():
         scene = _scene(hall)
         counts = sorted({1, min(3, len(materials)), len(materials)})
@@ -120,6 +122,9 @@ def part_cost(quick: bool) -> None:
                                                     frequency=FREQUENCY, settings=settings))
             for count in counts:
                 t_jac, jac = _timed(lambda: material_jacobian(scene, position, materials[:count], settings=settings))
+                t_two, two = _timed(lambda: material_jacobian(scene, position, materials[:count], settings=settings,
+                                                              sigma_by_identity=False))
+                assert jac.sigma_by_identity and np.array_equal(jac.d_eps, two.d_eps)
                 err = {"eps": [], "sigma": []}
                 if count == counts[0] or count == counts[-1] and not quick:
                     for m in [m for m in jac.materials[:2] if m not in jac.unseen]:
@@ -128,7 +133,8 @@ def part_cost(quick: bool) -> None:
                                 err[k].append(v)
                 fmt = {k: (f"{np.max(np.concatenate(v)):.1e}" if v else "-") for k, v in err.items()}
                 print(f"{hall:<11}{depth:>6}{len(jac.paths):>6}{count:>4}{int(jac.seen.sum()):>5}{t_trace:>11.3f}"
-                      f"{t_jac:>14.3f}{t_jac / (2 * count):>15.3f}{fmt['eps']:>11}{fmt['sigma']:>11}")
+                      f"{t_jac:>14.3f}{t_jac / count:>15.3f}{t_two:>14.3f}{t_two / t_jac:>7.2f}{fmt['eps']:>11}"
+                      f"{fmt['sigma']:>11}")
 
 
 PANE_SPEC = """
@@ -182,8 +188,9 @@ def part_mechanisms() -> None:
     print(f"{'case':<24}{'material':<20}{'type':<12}{'paths':>6}{'eps med/p95/max/scaled':>32}{'sigma med/p95/max/scaled':>32}"
           f"{'holo':>9}{'J [s]':>7}")
     for label, settings in cases.items():
-        material_jacobian(scene, position, materials[:2], settings=settings)
-        t_jac, jac = _timed(lambda: material_jacobian(scene, position, materials[:2], settings=settings), repeat=1)
+        material_jacobian(scene, position, materials[:2], settings=settings, sigma_by_identity=False)
+        t_jac, jac = _timed(lambda: material_jacobian(scene, position, materials[:2], settings=settings,
+                                                      sigma_by_identity=False), repeat=1)
         factor = -1j / (EPSILON_0 * 2 * np.pi * jac.frequency)
         for m in jac.materials:
             q = jac.materials.index(m)

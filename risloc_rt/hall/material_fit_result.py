@@ -145,7 +145,7 @@ class MaterialFit:
         1σ of S² from the Fisher information [unitless]; inf when not identifiable.
     search_evaluations : int
         Traces without derivatives of the start search (every radar position once each; one solve
-        instead of 2·Q + Q_s), not counted in ``evaluations``.
+        instead of Q + Q_s, or 2·Q + Q_s with diffuse reflection), not counted in ``evaluations``.
 
     The covariance and correlation matrices are [2Q + Q_s]² when S is fitted (the S² columns last).
     """

@@ -156,14 +156,19 @@ def test_double_bounce_over_two_materials(jac):
         assert jac.d_eps[p, jac.materials.index(CONCRETE)] == 0
 
 
-def test_sigma_derivative_is_the_eps_derivative_times_minus_j_over_eps0_omega(jac):
-    """Two independent AD passes, related by a·(η) holomorphic: ∂a/∂σ = ∂a/∂ε_r · ∂η/∂σ / ∂η/∂ε_r."""
+def test_sigma_derivative_is_the_eps_derivative_times_minus_j_over_eps0_omega(hall, jac):
+    """Two independent AD passes (``sigma_by_identity=False``), related by a·(η) holomorphic:
+    ∂a/∂σ = ∂a/∂ε_r · ∂η/∂σ / ∂η/∂ε_r, which is how the default Jacobian (``jac``) takes d_sigma without a solve."""
+    two = material_jacobian(hall, RADAR, MATERIALS, frequency=FREQUENCY, settings=SETTINGS, sigma_by_identity=False)
+    assert jac.sigma_by_identity and not two.sigma_by_identity
+    np.testing.assert_array_equal(two.d_eps, jac.d_eps)  # the same deterministic ε_r passes
     factor = -1j / (EPSILON_0 * 2 * np.pi * jac.frequency)
     for q in range(3):
-        scale = np.abs(jac.d_sigma[:, q]).max()
+        scale = np.abs(two.d_sigma[:, q]).max()
         assert scale > 0
         # float32: 1e-4 of the column's largest entry (measured 7e-6 to 3.4e-5).
-        np.testing.assert_allclose(jac.d_sigma[:, q], factor * jac.d_eps[:, q], rtol=0, atol=1e-4 * scale)
+        np.testing.assert_allclose(two.d_sigma[:, q], factor * two.d_eps[:, q], rtol=0, atol=1e-4 * scale)
+        np.testing.assert_allclose(jac.d_sigma[:, q], two.d_sigma[:, q], rtol=0, atol=1e-4 * scale)
 
 
 @pytest.mark.slow

@@ -21,8 +21,9 @@ How (sionna-rt 2.2.0, Mitsuba 3.9.1, Dr.Jit 1.5.0)
   sizes``.
 - Dr.Jit refuses to keep the AD graph of a solve for a second traversal (``ad_traverse(): tried to
   forward-propagate derivatives across edge ... outside of the current dr.isolate_grad() scope``),
-  so each of the 2·Q parameters gets its own deterministic solve followed by one
-  ``dr.forward_to(a)``. Each solve is sorted as the tracer sorts (sionna-rt's raw order of
+  so each differentiated parameter gets its own deterministic solve followed by one
+  ``dr.forward_to(a)``. With diffuse reflection off, σ needs none (Conventions: ∂a/∂σ follows from
+  ∂a/∂ε_r), so Q solves give both Jacobians; with it on, 2·Q. Each solve is sorted as the tracer sorts (sionna-rt's raw order of
   diffuse paths changes from solve to solve; the set does not), and the sorted paths and gains of
   all solves are checked to be identical.
 - Dr.Jit computes in float32 (``*_mono_polarized`` variants): the gains and their derivatives
@@ -35,7 +36,10 @@ SI units. ``a`` is sionna-rt's ``Paths.a`` (V-polarised isotropic antennas at bo
 path of unfolded length L. The complex relative permittivity is ``η = ε_r − jσ/(ε0 ω)``, so for
 every path whose gain is a holomorphic function of η (specular reflection, refraction and
 diffraction, measured to 3e-5) ``∂a/∂σ = −j/(ε0 ω) · ∂a/∂ε_r``; a diffusely reflected path's gain
-is not (the identity fails by more than the derivative itself), so both are computed by AD.
+is not (the identity fails by more than the derivative itself). So with diffuse reflection off (every
+path specular, refracted or diffracted) ``d_sigma`` is ``−j/(ε0 ω)·d_eps`` (``sigma_by_identity``; a test
+holds it against a σ pass of its own and against finite differences), and with it on both are computed
+by AD.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.constants
 
 from dsp.validation import as_finite_array, positive
 
@@ -106,7 +111,7 @@ class MaterialJacobian:
         :func:`risloc_rt.hall.raytrace.scene_content_hash` of the traced scene.
     timing : dict
         Wall-clock seconds: ``load`` (0 when the scene was loaded before in this process),
-        ``solve`` (all 2·Q + Q_s solves and their forward derivatives), ``convert``, ``total``.
+        ``solve`` (all Q or 2·Q, + Q_s, solves and their forward derivatives), ``convert``, ``total``.
     scattering : tuple of str
         The Q_s materials (a subset of ``materials``, in their order) whose scattering coefficient
         was differentiated; empty by default.
@@ -119,6 +124,9 @@ class MaterialJacobian:
         :mod:`risloc_rt.hall.material_fit`). With diffuse reflection on, sionna-rt samples each
         bounce's interaction type with probabilities set by S, so the *set* of diffuse paths
         changes with S (the specular set does not): the derivative holds at fixed paths.
+    sigma_by_identity : bool
+        ``d_sigma`` is ``−j/(ε0 ω)·d_eps`` (diffuse reflection off: every gain holomorphic in η, module
+        notes) rather than a solve and forward pass of its own.
     """
 
     paths: TracedPaths
@@ -136,6 +144,7 @@ class MaterialJacobian:
     scattering: tuple[str, ...] = ()
     scattering_coefficient: np.ndarray | None = None
     d_scattering: np.ndarray | None = None
+    sigma_by_identity: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.paths, TracedPaths):
@@ -367,6 +376,7 @@ def material_jacobian(
     settings: TraceSettings | None = None,
     scattering: Sequence[str] = (),
     derivatives: bool = True,
+    sigma_by_identity: bool = True,
 ) -> MaterialJacobian:
     """Trace a monostatic radar and differentiate every path's gain w.r.t. named materials' ε_r, σ (and S).
 
@@ -398,7 +408,11 @@ def material_jacobian(
         (``d_scattering``); not with ``settings.scattering_coefficient``, which overrides every S.
     derivatives : bool
         ``False``: one solve without automatic differentiation, the gains only (every derivative
-        array is 0): for a search over values (1/(2·Q + Q_s) of the cost).
+        array is 0): for a search over values (1/(Q + Q_s) of the cost).
+    sigma_by_identity : bool
+        With diffuse reflection off, take ``d_sigma`` as ``−j/(ε0 ω)·d_eps`` (exact for gains holomorphic in η,
+        module notes), saving Q of the solves; ``False``: a solve of its own for each σ (to check the identity).
+        Ignored with diffuse reflection on.
 
     Returns
     -------
@@ -416,12 +430,12 @@ def material_jacobian(
     BackendError
         No usable Dr.Jit backend.
     RuntimeError
-        The 2·Q solves did not return the same paths (cannot happen with the deterministic solver).
+        The solves did not return the same paths (cannot happen with the deterministic solver).
 
     Notes
     -----
-    Cost: 2·Q + Q_s solves with ``loop_mode="evaluated"``, each followed by one forward-mode
-    derivative. The scene's materials are restored to their own values afterwards (the loaded
+    Cost: Q + Q_s solves (2·Q + Q_s with diffuse reflection on, or ``sigma_by_identity=False``) with
+    ``loop_mode="evaluated"``, each followed by one forward-mode derivative. The scene's materials are restored to their own values afterwards (the loaded
     scene is cached per process, keyed by content hash and frequency).
     """
     t0 = time.perf_counter()
@@ -470,7 +484,9 @@ def material_jacobian(
                     mat.scattering_coefficient = settings.scattering_coefficient
         at = np.array([[float(mats[n].relative_permittivity[0]), float(mats[n].conductivity[0]),
                         float(mats[n].scattering_coefficient[0])] for n in names])
-        wanted = [(n, k) for n in names for k in ("relative_permittivity", "conductivity")]
+        by_identity = bool(sigma_by_identity) and not settings.diffuse_reflection
+        kinds = ("relative_permittivity",) if by_identity else ("relative_permittivity", "conductivity")
+        wanted = [(n, k) for n in names for k in kinds]
         wanted += [(n, "scattering_coefficient") for n in rough]
         if not derivatives:
             wanted = [(names[0], None)]
@@ -513,7 +529,10 @@ def material_jacobian(
         return grads.get((name, kind), np.zeros(p_count, complex))
 
     d_eps = np.stack([column(n, "relative_permittivity") for n in names], axis=1).reshape(p_count, len(names))
-    d_sigma = np.stack([column(n, "conductivity") for n in names], axis=1).reshape(p_count, len(names))
+    if by_identity and derivatives:  # η = ε_r − jσ/(ε0 ω): ∂a/∂σ = ∂a/∂η·∂η/∂σ = −j/(ε0 ω)·∂a/∂ε_r
+        d_sigma = d_eps * (-1j / (scipy.constants.epsilon_0 * 2 * math.pi * frequency))
+    else:
+        d_sigma = np.stack([column(n, "conductivity") for n in names], axis=1).reshape(p_count, len(names))
     objects_of = material_objects(loaded)
     index_of = {obj: i for i, obj in enumerate(traced.object_names)}
     touches = np.zeros((len(traced), len(names)), dtype=bool)
@@ -528,7 +547,7 @@ def material_jacobian(
         material_objects={n: objects_of.get(n, ()) for n in names}, frequency=frequency, settings=settings,
         scene_hash=loaded.content_hash,
         timing={"load": t_load, "solve": t_solve, "convert": t_convert, "total": time.perf_counter() - t0},
-        scattering=rough, scattering_coefficient=at[:, 2],
+        scattering=rough, scattering_coefficient=at[:, 2], sigma_by_identity=by_identity and derivatives,
         d_scattering=np.stack([column(n, "scattering_coefficient") for n in rough], axis=1).reshape(p_count, len(rough))
         if rough else None,
     )
