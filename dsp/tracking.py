@@ -13,10 +13,10 @@ on fused fixes — with the measurement function
 
     h(s) = (‖p − pᵢ‖, az(Rᵢᵀ(p − pᵢ)), el(…), v · (p − pᵢ)/‖p − pᵢ‖),
 
-its Jacobian in closed form (:meth:`RisMeasurement.linearised`), the azimuth innovation wrapped to (−π, π], relinearised at the
-updated state until it settles (the iterated extended Kalman filter: a prior a metre wide against
-millimetre measurements is beyond one linearisation, whose update was overconfident, NEES 27 for
-6), and the Joseph form of the covariance update (symmetric and positive definite in floating
+its Jacobian in closed form (:meth:`RisMeasurement.linearised`), the azimuth innovation wrapped to (−π, π],
+relinearised at the updated state until it settles (the iterated extended Kalman filter: a prior a metre wide
+against millimetre measurements is beyond one linearisation, whose update was overconfident, NEES 27 for 6),
+and the Joseph form of the covariance update (symmetric and positive definite in floating
 point). Each update's
 normalised innovation squared (NIS) is χ² with as many degrees of freedom as the measurement has
 numbers when the filter is consistent; a measurement whose NIS exceeds its χ² level at ``gate_pfa``

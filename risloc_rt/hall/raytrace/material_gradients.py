@@ -20,12 +20,12 @@ How (sionna-rt 2.2.0, Mitsuba 3.9.1, Dr.Jit 1.5.0)
   forward derivative raises ``RuntimeError: ... jit_var_add(...): operands have incompatible
   sizes``.
 - Dr.Jit refuses to keep the AD graph of a solve for a second traversal (``ad_traverse(): tried to
-  forward-propagate derivatives across edge ... outside of the current dr.isolate_grad() scope``),
-  so each differentiated parameter gets its own deterministic solve followed by one
-  ``dr.forward_to(a)``. With diffuse reflection off, σ needs none (Conventions: ∂a/∂σ follows from
-  ∂a/∂ε_r), so Q solves give both Jacobians; with it on, 2·Q. Each solve is sorted as the tracer sorts (sionna-rt's raw order of
-  diffuse paths changes from solve to solve; the set does not), and the sorted paths and gains of
-  all solves are checked to be identical.
+  forward-propagate derivatives across edge ... outside of the current dr.isolate_grad() scope``), so each
+  differentiated parameter gets its own deterministic solve followed by one ``dr.forward_to(a)``. With diffuse
+  reflection off, σ needs none (Conventions: ∂a/∂σ follows from ∂a/∂ε_r), so Q solves give both Jacobians;
+  with it on, 2·Q. Each solve is sorted as the tracer sorts (sionna-rt's raw order of diffuse paths changes
+  from solve to solve; the set does not), and the sorted paths and gains of all solves are checked to be
+  identical.
 - Dr.Jit computes in float32 (``*_mono_polarized`` variants): the gains and their derivatives
   carry float32 rounding (relative ~1e-6 of the largest terms).
 
@@ -435,8 +435,9 @@ def material_jacobian(
     Notes
     -----
     Cost: Q + Q_s solves (2·Q + Q_s with diffuse reflection on, or ``sigma_by_identity=False``) with
-    ``loop_mode="evaluated"``, each followed by one forward-mode derivative. The scene's materials are restored to their own values afterwards (the loaded
-    scene is cached per process, keyed by content hash and frequency).
+    ``loop_mode="evaluated"``, each followed by one forward-mode derivative. The scene's materials are
+    restored to their own values afterwards (the loaded scene is cached per process, keyed by content hash and
+    frequency).
     """
     t0 = time.perf_counter()
     settings = TraceSettings() if settings is None else settings
