@@ -14,7 +14,11 @@ Part 2, mechanisms: the same check on a small hall with a glass pane (refraction
 and diffraction on, by interaction type, and the holomorphic identity ∂a/∂σ = −j/(ε0 ω)·∂a/∂ε_r (checked on
 Jacobians whose σ derivative is a pass of its own, ``sigma_by_identity=False``).
 
-    .venv/bin/python benchmarks/bench_material_gradients.py [--quick]
+Part 3, other scenes alive: five Jacobians of the default hall alone, next to 1-4 other loaded halls, and after
+releasing them; and the cost of loading the hall again for every Jacobian (why the tracer and the Jacobian keep
+only their last loaded scene).
+
+    .venv/bin/python benchmarks/bench_material_gradients.py [--quick] [--alive]
 """
 
 from __future__ import annotations
@@ -214,10 +218,44 @@ def part_mechanisms() -> None:
                       f"{holo:>9.1e}{t_jac:>7.2f}")
 
 
+def part_alive() -> None:
+    """Print the cost of other loaded scenes, and of reloading the scene (Part 3)."""
+    import gc
+
+    import risloc_rt.hall.raytrace.material_gradients as gradients
+    from risloc_rt.hall.raytrace.scene import load_scene
+
+    settings = TraceSettings(max_depth=3, samples_per_src=20_000)
+    position, materials = HALLS["paper_hall"]
+
+    def five() -> float:
+        return _timed(lambda: [material_jacobian(_scene("paper_hall"), position, materials, settings=settings)
+                               for _ in range(5)])[0]
+
+    def reloaded() -> None:
+        gradients._scenes.clear()
+        gc.collect()
+        material_jacobian(_scene("paper_hall"), position, materials, settings=settings)
+
+    five()
+    print("\nPart 3: 5 Jacobians of paper_hall (depth 3, 2e4 rays, best of 2) next to other loaded scenes")
+    print(f"alone: {five():.3f} s")
+    alive = []
+    for name in ("l_hall", "l_hall_2ris", "pillars_hall", "l_hall"):
+        alive.append(load_scene(os.path.join(_scene(name), "scene.xml"), frequency=FREQUENCY + len(alive)))
+        print(f"with {len(alive)} other scene(s) loaded (last {name}): {five():.3f} s")
+    alive.clear()
+    gc.collect()
+    print(f"after releasing them: {five():.3f} s")
+    t_reload, _ = _timed(lambda: [reloaded() for _ in range(5)])
+    print(f"the scene loaded again for every Jacobian: {t_reload:.3f} s")
+
+
 def main() -> None:
     """Run both parts and print the tables."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="depths 1-2 only, FD check on Q = 1 only, no Part 2")
+    parser.add_argument("--alive", action="store_true", help="Part 3 only")
     args = parser.parse_args()
     info = backend_info()
     print(f"sionna-rt {info['sionna-rt']}, mitsuba {info['mitsuba']}, drjit {info['drjit']}, variant {info['variant']}, "
@@ -226,9 +264,13 @@ def main() -> None:
     material_jacobian(_scene("paper_hall"), HALLS["paper_hall"][0], ["concrete-200mm"],
                       settings=TraceSettings(max_depth=1, samples_per_src=100_000))
     print(f"first Jacobian in this process (import, load, compile): {time.perf_counter() - t:.2f} s")
+    if args.alive:
+        part_alive()
+        return
     part_cost(args.quick)
     if not args.quick:
         part_mechanisms()
+        part_alive()
 
 
 if __name__ == "__main__":

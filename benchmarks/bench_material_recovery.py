@@ -83,7 +83,7 @@ def record(scene: Path, position: np.ndarray, folder: Path, seed):
     plan = RecordingPlan(lead_frames=3.0, sync_on=2, sync_off=2, sync_cycles=2, sync_gap=1, tail_frames=2)
     rec = emulate_recording(hs.base, folder, plan=plan, paths=_TRACED[key].paths, rng=np.random.default_rng(seed))
     exp = rec.experiment
-    first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
+    first = round(rec.start)
     return import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
 
 

@@ -70,7 +70,7 @@ def _captures(root: Path, model: Path, true_s: float, seed: int) -> tuple[list[P
         rec = emulate_recording(hs.base, root / f"rec{index}", plan=plan, paths=traced.paths,
                                 rng=np.random.default_rng(11 + 100 * seed + index))
         exp = rec.experiment
-        first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
+        first = round(rec.start)
         capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
         paths.append(save_capture(capture, root / f"capture{index}.npz"))
     return paths, cache.directory, true_scene

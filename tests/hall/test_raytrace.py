@@ -303,6 +303,30 @@ def test_moving_the_radar_reuses_the_loaded_scene(hall, trace, monkeypatch, box_
     assert abs(moved.monostatic.delay[ceiling[0]] * C - 2 * (box_hall.size[2] - 1.7)) <= LENGTH_TOL
 
 
+def test_a_process_keeps_only_the_last_loaded_scene(hall):
+    """Regression (2026-11-28): every loaded scene's radio materials stay in Dr.Jit's registry and each solve
+    dispatches over all of them, so the four scenes the tracer and the Jacobian each kept made every solve up to
+    4x slower (docs/benchmarks.md). Tracing another hall, then differentiating a third, must release the first."""
+    import gc
+
+    from risloc_rt.hall.raytrace.material_gradients import material_jacobian
+    from risloc_rt.hall.raytrace.scene import LoadedScene
+
+    def alive(xml: str) -> int:
+        gc.collect()
+        return sum(1 for o in gc.get_objects() if isinstance(o, LoadedScene) and o.path == os.path.abspath(xml))
+
+    small = rr.TraceSettings(max_depth=1, samples_per_src=1000)
+    rr.trace_scene(hall, radar_position=RADAR, frequency=FREQUENCY, settings=small)
+    material_jacobian(hall, RADAR, [next(iter(rr.load_scene(hall, frequency=FREQUENCY).materials))], settings=small)
+    assert alive(hall) == 2  # one in the tracer, one in the Jacobian (the fixture's trace holds none)
+    other = os.path.join("scenes", "paper_hall", "scene.xml")
+    rr.trace_scene(other, radar_position=[6.0, 9.0, 1.2], frequency=FREQUENCY, settings=small)
+    assert alive(hall) == 1
+    material_jacobian(other, [6.0, 9.0, 1.2], ["concrete-200mm"], settings=small)
+    assert alive(hall) == 0 and alive(other) == 2
+
+
 def test_cache_hit_is_bit_identical(hall, trace, tmp_path):
     cache = rr.TraceCache(tmp_path / "cache")
     kwargs = dict(radar_position=RADAR, ris_positions=RIS, radar_velocity=VELOCITY, frequency=FREQUENCY,

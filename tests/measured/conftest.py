@@ -126,7 +126,7 @@ def injected_hall(tmp_path_factory):
     exp = rec.experiment
     # The sweep's first frame is given (lead frames + sync code = 12), not found: these tests are about calibration
     # and comparison, the aligner has its own (tests/measured/test_align.py).
-    first_frame = round(plan.start(plan.program(true.base.sweep.num_beams)))
+    first_frame = round(rec.start)
     capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first_frame)
     path = save_capture(capture, root / "capture.npz")
     return {"capture": capture, "path": path, "cache": cache, "settings": settings, "root": root,

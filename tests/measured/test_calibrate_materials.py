@@ -55,7 +55,7 @@ def _captures(true_scene, root, cache):
         rec = emulate_recording(hs.base, root / f"rec{index}", plan=plan, paths=traced.paths,
                                 rng=np.random.default_rng(11 + index))
         exp = rec.experiment
-        first = round(plan.start(plan.program(hs.base.sweep.num_beams)))
+        first = round(rec.start)
         capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path, first_frame=first)
         paths.append(save_capture(capture, root / f"capture{index}.npz"))
     return paths, 20 * math.log10(rec.experiment.counts_per_unit)
@@ -281,7 +281,7 @@ def test_cli_averages_repeats_of_one_position_into_one_observation(changed_hall,
     rec = emulate_recording(hs.base, tmp_path / "rec", plan=plan, paths=traced.paths, rng=np.random.default_rng(97))
     exp = rec.experiment
     again = save_capture(import_capture(exp.raw_path, exp.config_path, exp.schedule_path,
-                                        first_frame=round(plan.start(plan.program(hs.base.sweep.num_beams)))),
+                                        first_frame=round(rec.start)),
                          tmp_path / "again.npz")
     monkeypatch.setenv("RISLOC_CACHE_DIR", str(changed_hall["cache"].directory))
     cap0 = str(changed_hall["paths"][0])

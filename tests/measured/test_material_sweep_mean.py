@@ -107,7 +107,7 @@ def test_a_static_triple_bounce_enters_the_sweep_mean_observation(tmp_path):
     rec = emulate_recording(hs.base, tmp_path / "rec", plan=plan, paths=traced.paths, rng=np.random.default_rng(23))
     exp = rec.experiment
     capture = import_capture(exp.raw_path, exp.config_path, exp.schedule_path,
-                             first_frame=round(plan.start(plan.program(hs.base.sweep.num_beams))))
+                             first_frame=round(rec.start))
     model = hall_model(capture, "paper_hall", capture.truth.ue_position, trace=settings)
     mean = sweep_mean_observation(capture, model, ["concrete-200mm"], settings=settings, model_sigma_db=0.0)
     best = capture_observation(capture, model, ["concrete-200mm"], settings=settings, model_sigma_db=0.0,

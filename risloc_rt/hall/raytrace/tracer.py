@@ -37,8 +37,11 @@ RADAR_TX, RADAR_RX = "radar_tx", "radar_rx"
 MAX_DIFFUSE_LEGS = 256
 #: Closest a RIS point may be to the radar [m] (sionna drops segments shorter than ~1 cm).
 MIN_RIS_DISTANCE = 0.01
-#: Loaded scenes kept in memory, keyed by (content hash, frequency).
-_SCENE_CACHE_SIZE = 4
+#: Loaded scenes kept in memory, keyed by (content hash, frequency): the last one only. Every loaded scene's
+#: radio materials stay in Dr.Jit's registry while it lives, and each solve dispatches over all of them: 5
+#: Jacobians of paper_hall took 0.22-0.31 s alone and 0.53-1.12 s next to 1-4 other loaded halls, while loading
+#: the hall again for each cost 0.62 s (`bench_material_gradients.py --alive`, 2026-11-28).
+_SCENE_CACHE_SIZE = 1
 _scenes: OrderedDict[tuple[str, float], LoadedScene] = OrderedDict()
 
 
