@@ -228,9 +228,13 @@ def part_alive() -> None:
     settings = TraceSettings(max_depth=3, samples_per_src=20_000)
     position, materials = HALLS["paper_hall"]
 
-    def five() -> float:
-        return _timed(lambda: [material_jacobian(_scene("paper_hall"), position, materials, settings=settings)
-                               for _ in range(5)])[0]
+    reference = material_jacobian(_scene("paper_hall"), position, materials, settings=settings)
+
+    def five() -> str:
+        t, jacs = _timed(lambda: [material_jacobian(_scene("paper_hall"), position, materials, settings=settings)
+                                  for _ in range(5)])
+        diff = max(float(np.max(np.abs(j.d_eps - reference.d_eps))) for j in jacs) / np.abs(reference.d_eps).max()
+        return f"{t:.3f} s, largest |d_eps - alone's| / max |d_eps| {diff:.1e}"
 
     def reloaded() -> None:
         gradients._scenes.clear()
@@ -239,14 +243,14 @@ def part_alive() -> None:
 
     five()
     print("\nPart 3: 5 Jacobians of paper_hall (depth 3, 2e4 rays, best of 2) next to other loaded scenes")
-    print(f"alone: {five():.3f} s")
+    print(f"alone: {five()}")
     alive = []
     for name in ("l_hall", "l_hall_2ris", "pillars_hall", "l_hall"):
         alive.append(load_scene(os.path.join(_scene(name), "scene.xml"), frequency=FREQUENCY + len(alive)))
-        print(f"with {len(alive)} other scene(s) loaded (last {name}): {five():.3f} s")
+        print(f"with {len(alive)} other scene(s) loaded (last {name}): {five()}")
     alive.clear()
     gc.collect()
-    print(f"after releasing them: {five():.3f} s")
+    print(f"after releasing them: {five()}")
     t_reload, _ = _timed(lambda: [reloaded() for _ in range(5)])
     print(f"the scene loaded again for every Jacobian: {t_reload:.3f} s")
 

@@ -343,3 +343,24 @@ def _detect_with_candidates(cubes: Any, prep: Any, backend: Any, options: dict, 
 def detect_with_candidates():
     """``detect_with_candidates(cubes, prep, backend, options, monkeypatch)``: see :func:`_detect_with_candidates`."""
     return _detect_with_candidates
+
+
+def _impulse_screen_matches_host(cube: np.ndarray, noise_power: float, backend: Any) -> None:
+    """Two 1e3·σ glitches (beam 7 chirp 1 sample 2, beam 50 chirp 127 sample 599) put in a copy of ``cube``
+    [M ≥ 51, 128, 600]; ``dsp.impulses.screen_impulses`` on ``backend`` finds the host's samples, its largest
+    excess to 1e-12 and zeroes the same samples."""
+    from dsp.impulses import screen_impulses
+
+    cube = cube.copy()
+    cube[7, 1, 2] = cube[50, 127, 599] = 1e3 * np.sqrt(noise_power)
+    host_out, host = screen_impulses(cube)
+    dev_out, dev = screen_impulses(backend.asarray(cube))
+    np.testing.assert_array_equal(dev.samples, host.samples)
+    assert host.count == 2 and dev.largest_db == pytest.approx(host.largest_db, rel=1e-12)
+    np.testing.assert_array_equal(backend.to_host(dev_out), host_out)
+
+
+@pytest.fixture(scope="session")
+def impulse_screen_matches_host():
+    """``impulse_screen_matches_host(cube, noise_power, backend)``: see :func:`_impulse_screen_matches_host`."""
+    return _impulse_screen_matches_host

@@ -85,14 +85,6 @@ def test_paper_estimator_on_the_gpu_takes_the_hosts_beam_and_cells(gpu):
     assert dev.distance == pytest.approx(host.distance, abs=1e-9)
 
 
-def test_impulsive_samples_are_found_on_the_gpu_as_on_the_host(gpu):
-    from dsp.impulses import screen_impulses
-
+def test_impulsive_samples_are_found_on_the_gpu_as_on_the_host(gpu, impulse_screen_matches_host):
     capture = simulate(paper_scenario("off-broadside", mode="relay"), rng=np.random.default_rng(4))
-    cube = capture.cube.copy()
-    cube[7, 1, 2] = cube[50, 127, 599] = 1e3 * np.sqrt(capture.radar.noise_power)
-    host_out, host = screen_impulses(cube)
-    dev_out, dev = screen_impulses(gpu.asarray(cube))
-    np.testing.assert_array_equal(dev.samples, host.samples)
-    assert dev.largest_db == pytest.approx(host.largest_db, rel=1e-12)
-    np.testing.assert_array_equal(gpu.to_host(dev_out), host_out)
+    impulse_screen_matches_host(capture.cube, capture.radar.noise_power, gpu)

@@ -70,8 +70,8 @@ DEFAULT_FREQUENCY = 60e9
 _TX, _RX = "jacobian_tx", "jacobian_rx"
 #: Loaded scenes kept in memory, keyed by (content hash, frequency): the last one only. Every loaded scene's
 #: radio materials stay in Dr.Jit's registry while it lives, and each solve dispatches over all of them: 5
-#: Jacobians of paper_hall took 0.22-0.31 s alone and 0.53-1.12 s next to 1-4 other loaded halls, while loading
-#: the hall again for each cost 0.62 s (`bench_material_gradients.py --alive`, 2026-11-28).
+#: Jacobians of paper_hall took 0.20-0.31 s alone and 0.42-1.12 s next to 1-4 other loaded halls, while loading
+#: the hall again for each cost 0.62-0.70 s (`bench_material_gradients.py --alive`, 2026-11-28).
 _SCENE_CACHE_SIZE = 1
 _scenes: OrderedDict[tuple[str, float], tuple[LoadedScene, dict[str, tuple[float, float, float]]]] = OrderedDict()
 
