@@ -24,7 +24,7 @@ from .refine import RefinedEstimate, refine_estimate
 from .residual import beam_dtft, residual_test
 from .processing import ProcessingConfig, window_vector
 from .radar import SPEED_OF_LIGHT, RadarConfig, db_to_linear, linear_to_db
-from .spectrum import DelayDopplerMap, delay_doppler_map
+from .spectrum import DelayDopplerMap, DelayProfile, delay_doppler_map, delay_profile
 from .sweep import BeamSweep
 from .threads import limit_threads, thread_count
 from .xp import DEVICE_ENV, ArrayBackend, DeviceError, backend_for, cuda_available, device_choice, numpy_backend, strict_backend
@@ -76,6 +76,7 @@ __all__ = [
     "BeamScan",
     "BeamSweep",
     "DelayDopplerMap",
+    "DelayProfile",
     "Localization",
     "ProcessingConfig",
     "RadarConfig",
@@ -84,6 +85,7 @@ __all__ = [
     "angles_from_direction",
     "db_to_linear",
     "delay_doppler_map",
+    "delay_profile",
     "direction_from_angles",
     "linear_to_db",
     "limit_threads",

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
-from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, delay_doppler_map
+from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig, delay_profile
 
 from .._files import atomic_open
 from ..model.beat import beat_cube
@@ -160,8 +160,8 @@ def labelled_range_profile(paths: PathSet, *, radar: RadarConfig, processing: Pr
     """The range profile at ν ≈ 0 of the RIS beam ``beam`` ([az, el] [rad]), peaks labelled by path."""
     sweep = BeamSweep(np.asarray(beam, float)[None, :])
     frame = beat_cube(paths, radar=radar, sweep=sweep, ris=ris)[0]
-    ddm = delay_doppler_map(frame, radar, processing)
-    profile = ddm.profile(0.0)
+    ddm = delay_profile(frame, radar, processing)  # the map's zero-Doppler row
+    profile = ddm.power
     db = 10 * np.log10(np.maximum(profile, profile.max() * 1e-30))
     found, props = scipy.signal.find_peaks(db, prominence=3.0, height=db.max() - dynamic_range_db)
     found = found[np.argsort(props["peak_heights"])[::-1][:max_peaks]]

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 import scipy.signal
 
-from dsp import delay_doppler_map
+from dsp import delay_doppler_map, delay_profile
 from dsp.spectrum import dft_windows
 
 from ...hall.path_table import apparent_distance
@@ -217,7 +217,7 @@ def _expected_profile(side: _SimulatedSide, beam: int, radar: Any, processing: A
     frame = side.clean[beam] * math.sqrt(side.gain)                                     # [K, N] counts
     if side.gate is not None:
         frame = apply_range_gate(frame[None], side.gate)[0]
-    return delay_doppler_map(frame, radar, processing).profile(0.0)
+    return delay_profile(frame, radar, processing).power
 
 
 def delay_sigma(peak_power: float, noise: float, radar: Any, processing: Any) -> float:
@@ -316,7 +316,6 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
     """
     rng = np.random.default_rng(0) if rng is None else rng
     y = np.asarray(capture.cube)
-    M = y.shape[0]
     radar, processing = capture.radar, capture.processing
     side = _simulated_side(capture, model, calibration, rng)
     simulated, sim = side.capture, side.capture.cube
@@ -327,8 +326,8 @@ def compare_capture(capture: Capture, model: HallModel, *, calibration: Calibrat
     ddm_s = delay_doppler_map(sim[beam], radar, processing)
     dist = ddm_m.distance
     prof_m, prof_s = ddm_m.profile(0.0), ddm_s.profile(0.0)
-    mean_m = np.mean([delay_doppler_map(y[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
-    mean_s = np.mean([delay_doppler_map(sim[m], radar, processing).profile(0.0) for m in range(M)], axis=0)
+    mean_m = np.mean(delay_profile(y, radar, processing).power, axis=0)  # every beam's zero-Doppler row, not its map
+    mean_s = np.mean(delay_profile(sim, radar, processing).power, axis=0)
     expected = _expected_profile(side, beam, radar, processing)
     peaks = _peak_table(capture, side, beam, dist, _db(prof_m), _db(expected), prominence_db=prominence_db,
                         floor_db=floor_db)

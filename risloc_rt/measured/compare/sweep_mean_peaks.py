@@ -3,8 +3,9 @@
 A static (beam-independent) echo of the hall is the same in every one of the sweep's M beams: the
 radar does not move and the RIS's code does not touch it. Its power can therefore be read from the
 **complex mean of the M beams' cubes**, ``ȳ = (1/M) Σ_m y_m`` [counts], processed as one frame
-(zero-Doppler range profile of ``dsp.delay_doppler_map``): the static echo keeps its amplitude, the
-receiver noise (independent from beam to beam) drops to σ²/M per sample, 10 log10 M ≈ 17.9 dB for
+(its zero-Doppler range profile, ``dsp.delay_profile``: that row of ``dsp.delay_doppler_map``): the
+static echo keeps its amplitude, the receiver noise (independent from beam to beam) drops to σ²/M
+per sample, 10 log10 M ≈ 17.9 dB for
 61 beams, and every path via the RIS keeps only its mean response over the codebook
 ``(1/M) Σ_m r_m`` (the RIS loop-back's peak falls by ≈ 23 dB in the default hall). So weaker static
 echoes (the floor, oblique triple bounces between the walls) rise above the comparison's
@@ -70,7 +71,7 @@ from typing import Any
 import numpy as np
 import scipy.signal
 
-from dsp import SPEED_OF_LIGHT, delay_doppler_map
+from dsp import SPEED_OF_LIGHT, delay_profile
 from dsp.spectrum import dft_windows
 
 from ...hall.material_fit import DEFAULT_WINDOW, Observation, assign_paths
@@ -186,7 +187,7 @@ def sweep_mean_profile(cube: Any, radar: Any, processing: Any) -> np.ndarray:
     numpy.ndarray
         ``|DDM(mean_m cube[m])|²`` at zero Doppler on the processing's range axis [counts²].
     """
-    return delay_doppler_map(joint_mean_frame(cube), radar, processing).profile(0.0)
+    return delay_profile(joint_mean_frame(cube), radar, processing).power
 
 
 def _check_repeats(capture: Any, repeats: Any) -> list[Any]:
@@ -244,7 +245,7 @@ def sweep_mean_profiles(capture: Any, model: HallModel, comparison: Comparison,
     leak = capture.provenance.get("leakage") or {}
     if leak.get("method") == "gate":
         clean = apply_range_gate(clean[None], range_gate_basis(radar, float(leak["gate_range"])))[0]
-    expected = delay_doppler_map(clean, radar, processing).profile(0.0)
+    expected = delay_profile(clean, radar, processing).power
     repeats = _check_repeats(capture, repeats)
     measured = sweep_mean_profile([capture.cube] + [r.cube for r in repeats], radar, processing)
     w_k, w_n, coherent = dft_windows(radar, processing)
