@@ -27,13 +27,15 @@ from .qualify import Uncertainty, is_one_dimensional, position_at
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .sweep import BeamSweep
 
-__all__ = ["Flag", "FLAG_CODES", "INSPECTION_CODES", "flag_codes", "GRATING_LOBE_DB", "FlagContext", "FlagRule",
-           "SWEEP_FLAG_RULES", "sweep_flags"]
+__all__ = ["Flag", "FLAG_CODES", "INSPECTION_CODES", "flag_codes", "GRATING_LOBE_DB", "OFF_DETECTION_CELLS",
+           "FlagContext", "FlagRule", "SWEEP_FLAG_RULES", "sweep_flags"]
 
 #: Every code a :class:`Flag` may carry, with a one-line meaning (``docs/flags.md``).
 FLAG_CODES: dict[str, str] = {
     "no-detection": "nothing beam-dependent above the detection threshold: no position",
     "no-beam-dependence": "a strong return does not follow the sweep: it is not the RIS",
+    "off-detection": ("the estimate is another peak than the RIS return the detector found: its distance and "
+                      "position are not the RIS's"),
     "grating-lobe": "another lobe of the sweep is within a few dB: the AoD is ambiguous",
     "beam-edge": "the best beam is the first or last of the sweep: the UE may lie outside it",
     "aliased": "the return may lie beyond the unambiguous range or velocity",
@@ -109,6 +111,11 @@ def _deg(x: float) -> str:
 
 #: A second lobe of the AoD fit within this many dB of the best raises ``grating-lobe`` [dB].
 GRATING_LOBE_DB = 3.0
+#: An estimate farther than this many resolution cells (range or velocity) from the detected return raises
+#: ``off-detection`` [cells]. Measured (docs/flags.md): estimates of the detected return lie within 0.32 cells of
+#: the detector's cell centre (1236 Table I runs and 168 hall captures, both estimators); the paper
+#: estimator's noise peaks 32-181 cells away.
+OFF_DETECTION_CELLS = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -237,6 +244,34 @@ def _clutter_skipped(c: FlagContext) -> str | None:
     return (f"{c.detection.rejected} return(s) stronger than the one used crossed the detection threshold "
             "but do not follow the sweep (clutter, the panel's structure, leakage): they were skipped; "
             "check that the right return was taken (raise min_range to skip near ones)")
+
+
+@_rule("off-detection")
+def _not_the_detected_return(c: FlagContext) -> str | None:
+    det, radar = c.detection, c.radar
+    if c.floor_moved or not (np.isfinite(det.delay) and np.isfinite(det.delay_rate)):
+        return None  # moved down the floor's ladder on purpose (first-arrival), or a detection without a cell
+    gap = (c.delay - det.delay) * SPEED_OF_LIGHT / 2.0  # [m]
+    velocity_gap = (c.delay_rate - det.delay_rate) * SPEED_OF_LIGHT / 2.0  # [m/s]
+    # a moving return drifts across the sweep: the detector's cell is where the whole sweep's statistic peaks
+    times = radar.beam_times(c.sweep.num_beams)
+    drift = abs(det.delay_rate) * SPEED_OF_LIGHT / 2.0 * (float(times[-1] - times[0]) + radar.frame_duration)
+    allowed = OFF_DETECTION_CELLS * radar.range_resolution + drift
+    rungs = [0.0] if c.floor is None else [k * c.floor.spacing for k in RUNGS]  # the floor's legs of the return
+    off_range = min(abs(gap - r) for r in rungs) > allowed
+    off_velocity = abs(velocity_gap) > OFF_DETECTION_CELLS * radar.velocity_resolution
+    if not (off_range or off_velocity):
+        return None
+    detected = (det.delay - c.loopback_delay) * SPEED_OF_LIGHT / 2.0
+    return (f"the estimate ({c.distance:.3f} m, {c.delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s) is {abs(gap):.3f} m "
+            f"and {abs(velocity_gap):.2f} m/s from the RIS return the detector found ({detected:.3f} m, "
+            f"{det.delay_rate * SPEED_OF_LIGHT / 2:+.2f} m/s), more than a resolution cell "
+            f"({radar.range_resolution * 100:.1f} cm, {radar.velocity_resolution:.2f} m/s"
+            + (f", {drift * 100:.1f} cm of drift over the sweep" if drift > 0 else "")
+            + "): it is another peak (at low SNR the paper's estimator can take a beam's noise peak; or an echo "
+            "stronger than the RIS in the chosen beam), so its distance and position are not the RIS's and lie "
+            "beyond their 1σ; use the refined estimator, which starts from the detected return, or raise the SNR "
+            "(transmit power, chirps)")
 
 
 @_rule("grating-lobe")

@@ -74,7 +74,8 @@ _MAX_STEPS, _TOLERANCE = 50, 1e-10
 #: well conditioned.
 KNOWN_HEIGHT_STD = 1e-4
 DOUBT_CODES = frozenset({"aliased", "grating-lobe", "floor-leg", "before-ris-delay", "beam-edge",
-                         "no-beam-dependence", "schedule-mismatch", "damaged-beams", "ris-facing-away"})
+                         "no-beam-dependence", "off-detection", "schedule-mismatch", "damaged-beams",
+                         "ris-facing-away"})
 #: Information eigenvalues below this fraction of the largest are directions the fixes cannot see.
 _RANK_TOLERANCE = 1e-12
 

@@ -280,7 +280,7 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     from dsp.moving_clutter import ClutterCancellation, MovingEcho
     from dsp.qualify import Uncertainty
 
-    assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "grating-lobe", "beam-edge", "aliased",
+    assert list(SWEEP_FLAG_RULES) == ["no-beam-dependence", "off-detection", "grating-lobe", "beam-edge", "aliased",
                                       "unresolved-peaks", "moving-clutter", "floor-leg", "first-arrival",
                                       "before-ris-delay",
                                       "elevation-assumed", "unobservable", "pattern-mismatch", "impulsive-samples"]
@@ -292,6 +292,9 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
                   candidates=np.array([[np.deg2rad(-30.0), -(GRATING_LOBE_DB - 0.5)]]))
     causes = {
         "no-beam-dependence": dict(detection=Detection(True, 30.0, 15.0, 1e-3, rejected=2)),
+        # the detector's return 10 range cells from the estimate's: the estimate is another peak
+        "off-detection": dict(detection=Detection(True, 30.0, 15.0, 1e-3, delay=quiet.delay
+                                                  + 20 * quiet.radar.range_resolution / C, delay_rate=0.0)),
         "grating-lobe": dict(fit=lobe),
         # a 1-D sweep whose first beam is the strongest, the elevation solved from a known height
         "beam-edge": dict(sweep=one_d, magnitudes=edge_mags, aod=np.deg2rad([-12.0, 0.0]), ue_height=1.5,
@@ -329,5 +332,6 @@ def test_flag_rules_are_a_registry_each_raising_its_flag_for_its_cause_only():
     # (but one of floor-leg and first-arrival: the estimate was moved down the ladder or it was not)
     everything = {k: v for code, change in causes.items() if code != "first-arrival" for k, v in change.items()}
     everything.update(magnitudes=edge_mags, aod=np.deg2rad([-12.0, 0.0]), ue_height=None, height_solved=False)
+    everything["detection"] = dataclasses.replace(causes["off-detection"]["detection"], rejected=2)  # both causes
     assert [f.code for f in sweep_flags(dataclasses.replace(quiet, **everything))] == [
         c for c in SWEEP_FLAG_RULES if c != "first-arrival"]
