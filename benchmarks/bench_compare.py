@@ -123,7 +123,7 @@ def main() -> None:
 
 
 def _largest_difference(a, b) -> float:
-    """Largest relative difference between the numbers of two comparisons' summaries and peak tables (inf: other keys)."""
+    """Largest relative difference of the numbers of two comparisons' summaries and peak tables (inf: other keys)."""
     pairs = [(a.summary, b.summary)] + list(zip(a.peaks, b.peaks))
     if len(a.peaks) != len(b.peaks) or any(x.keys() != y.keys() for x, y in pairs):
         return float("inf")

@@ -21,6 +21,7 @@ from .detection import Detection
 from .drift import DelayDrift
 from .floor_bounce import RUNGS, FloorLadder
 from .moving_clutter import ClutterCancellation
+from .pattern import BeamPattern
 from .geometry import RisPose
 from .impulses import ImpulseScreen
 from .qualify import Uncertainty, is_one_dimensional, position_at
@@ -172,6 +173,9 @@ class FlagContext:
     impulses : ImpulseScreen or None
         The impulsive samples zeroed before detection (:func:`dsp.impulses.screen_impulses`), when the
         cube was screened: ``impulsive-samples`` reads it.
+    pattern : BeamPattern or None
+        The RIS's beam pattern the fit used (its wavelength set), if known: ``grating-lobe`` names
+        grating lobes as the cause only where the array has them in visible space.
     """
 
     detection: Detection
@@ -197,6 +201,7 @@ class FlagContext:
     floor_moved: bool = False
     clutter: ClutterCancellation | None = None
     impulses: ImpulseScreen | None = None
+    pattern: BeamPattern | None = None
 
 
 #: A rule: the message of its flag for this estimate, or None when the flag is not raised.
@@ -284,8 +289,20 @@ def _second_lobe(c: FlagContext) -> str | None:
     others = [f"{_deg(a)} ({lvl:+.1f} dB)" for a, lvl in strong]
     others += [f"{_deg(a)} ({lvl:+.1f} dB, beyond the swept span: not chosen, the sweep is taken to cover "
                "the UE)" for a, lvl, _ in twins]
-    return (f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(c.aod[0])} and also at "
-            f"{', '.join(others)}; a reflective RIS with λ/2 spacing has grating lobes (sin φ = sin θ ∓ 1): "
+    head = f"the AoD is ambiguous: the beam-pattern fit peaks at az {_deg(c.aod[0])} and also at {', '.join(others)}"
+    p = c.pattern
+    if p is not None and p.wavelength is not None:
+        # grating lobes repeat every λ/(q·d) in u = cos(el)·sin(az): none in visible space when that period is >= 2
+        period = p.wavelength / (p.gradient_factor * p.element_spacing)
+        kind = (f"{'relay' if p.gradient_factor == 1 else 'reflective'}, element pitch "
+                f"{p.element_spacing / p.wavelength:.2f} λ")
+        if period >= 2.0:
+            return (f"{head}; this RIS has no grating lobe in visible space ({kind}): the other maxima come from "
+                    "noise in the per-beam powers or a second return; every candidate is in estimate.alternatives; "
+                    "raise the SNR, or use a second sweep/RIS to decide")
+        return (f"{head}; this RIS ({kind}) has grating lobes (sin φ = sin θ ∓ {period:.2f}): every candidate is "
+                "in estimate.alternatives; use a relay RIS at λ/2, a narrower sweep, or a second sweep/RIS to decide")
+    return (f"{head}; a reflective RIS with λ/2 spacing has grating lobes (sin φ = sin θ ∓ 1): "
             "every candidate is in estimate.alternatives; use a relay RIS, a narrower sweep, or a second "
             "sweep/RIS to decide")
 

@@ -344,7 +344,7 @@ def _flag_context(inp: SweepInputs, est: SweepEstimate, det: Detection,
                        pose=inp.pose, delay=est.delay, apparent_delay=f1 / (radar.slope * radar.sample_period),
                        delay_rate=est.delay_rate, loopback_delay=inp.loopback_delay, distance=distance, aod=aod,
                        unresolved=unresolved, ue_height=ue_height, height_solved=height_solved,
-                       height_range=height_range, drift=drift, std=std, pattern_fit=fit)
+                       height_range=height_range, drift=drift, std=std, pattern_fit=fit, pattern=inp.pattern)
 
 
 def _unresolved(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, noise_power: float,

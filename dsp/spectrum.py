@@ -277,4 +277,5 @@ def delay_profile(frames: Any, radar: RadarConfig, processing: ProcessingConfig,
         rows = np.einsum("k,mkn->mn", slow, cube[i:i + step]) * w_n  # Σ_k w_k e^{+j2π qk/K_DFT} y[k, n] · w_n
         z = scipy.fft.ifft(rows, n=n_dft, axis=-1, norm="forward", workers=thread_count())
         power[i:i + step] = (z.real ** 2 + z.imag ** 2) / gain ** 2
-    return DelayProfile(power=power if ndim == 3 else power[0], delay=radar.delay_grid(n_dft), delay_rate=float(rates[q]))
+    return DelayProfile(power=power if ndim == 3 else power[0], delay=radar.delay_grid(n_dft),
+                        delay_rate=float(rates[q]))

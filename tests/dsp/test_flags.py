@@ -341,13 +341,15 @@ def test_off_detection_fires_when_the_estimate_is_more_than_a_cell_from_the_dete
     assert codes(detection=_detected_at(quiet.delay, -1.1 * rate_cell)) == ["off-detection"]
     far = [f for f in sweep_flags(dataclasses.replace(quiet, detection=_detected_at(quiet.delay - 40 * cell)))]
     detected = quiet.distance - 40 * RADAR.range_resolution
-    assert f"({detected:.3f} m, +0.00 m/s)" in far[0].message and f"{40 * RADAR.range_resolution:.3f} m" in far[0].message
+    assert f"({detected:.3f} m, +0.00 m/s)" in far[0].message
+    assert f"{40 * RADAR.range_resolution:.3f} m" in far[0].message
     # a floor rung away (the floor's leg of the same return) is not another peak, half a rung off is
     ladder = FloorLadder(3 * RADAR.range_resolution, (0.0, 0.0, 20.0, 9.0, 0.0), 5.0, steps_down=0, bias_std=0.0)
     rung = 2 * ladder.spacing / C
     assert codes(detection=_detected_at(quiet.delay + rung), floor=ladder) == []
     assert codes(detection=_detected_at(quiet.delay - 2 * rung), floor=ladder) == []
-    assert codes(detection=_detected_at(quiet.delay + 0.5 * rung), floor=ladder) == ["off-detection"]  # 1.5 cells from both
+    half = _detected_at(quiet.delay + 0.5 * rung)  # 1.5 cells from the estimate and from the rung
+    assert codes(detection=half, floor=ladder) == ["off-detection"]
     # moved down the floor's ladder on purpose: first-arrival says so, not off-detection
     moved = codes(detection=_detected_at(quiet.delay + 5 * cell), floor=ladder, floor_moved=True)
     assert moved == ["first-arrival"]
@@ -365,9 +367,9 @@ def test_off_detection_allows_a_moving_returns_drift_over_the_sweep():
     times = radar.beam_times(quiet.sweep.num_beams)
     drift = v * (float(times[-1] - times[0]) + radar.frame_duration)  # [m]
     assert drift > 2 * radar.range_resolution  # the test is about the drift, not the cell
-    inside = dataclasses.replace(quiet, delay_rate=rate, detection=_detected_at(quiet.delay + 2 * (drift * 0.9) / C, rate))
-    outside = dataclasses.replace(quiet, delay_rate=rate,
-                                  detection=_detected_at(quiet.delay + 2 * (drift + 1.1 * radar.range_resolution) / C, rate))
+    inside = _detected_at(quiet.delay + 2 * (0.9 * drift) / C, rate)
+    outside = _detected_at(quiet.delay + 2 * (drift + 1.1 * radar.range_resolution) / C, rate)
+    inside, outside = (dataclasses.replace(quiet, delay_rate=rate, detection=d) for d in (inside, outside))
     assert [f.code for f in sweep_flags(inside)] == []
     assert [f.code for f in sweep_flags(outside)] == ["off-detection"]
 
@@ -389,3 +391,25 @@ def test_the_paper_estimators_noise_peaks_are_flagged_off_detection_and_its_good
     assert 0 < sum(gross) < len(rows)  # both kinds are among them
     assert flagged == gross, [(r["run"], r["distance_error"], r["flags"]) for r in rows]
     assert all(abs(r["distance_error"]) < 3 * r["std_distance"] for r, g in zip(rows, gross) if not g)
+
+
+def test_grating_lobe_names_grating_lobes_only_where_the_array_has_them():
+    from dsp.aod_fit import AodFit
+    from dsp.flags import sweep_flags
+
+    quiet = _context()
+    lobe = AodFit(aod=quiet.aod, direction_cosine=quiet.fit.direction_cosine, amplitude=1.0,
+                  candidates=np.array([[np.deg2rad(-30.0), -1.0]]))
+
+    def message(pattern):
+        (flag,) = sweep_flags(dataclasses.replace(quiet, fit=lobe, pattern=pattern))
+        assert flag.code == "grating-lobe"
+        return flag.message
+
+    # the period of the array factor in u is λ/(q·d): 2 for a relay at λ/2 (no second lobe in |u| <= 1),
+    # 1 for a reflective RIS at λ/2 (a lobe at u ∓ 1), 1 for a relay at a pitch of λ
+    assert "no grating lobe in visible space (relay, element pitch 0.50 λ)" in message(RELAY)
+    assert "(reflective, element pitch 0.50 λ) has grating lobes (sin φ = sin θ ∓ 1.00)" in message(REFLECTIVE)
+    wide = dsp.BeamPattern(element_spacing=RADAR.wavelength).for_wavelength(RADAR.wavelength)
+    assert "(relay, element pitch 1.00 λ) has grating lobes (sin φ = sin θ ∓ 1.00)" in message(wide)
+    assert "a reflective RIS with λ/2 spacing has grating lobes" in message(None)  # unknown pattern: the general cause
