@@ -12,9 +12,9 @@ compared with the hall traced at depth 2 with 2·10⁴ rays (``compare_capture``
 - **map**: the same call with ``delay_profile`` replaced by the whole delay-Doppler map's row,
   ``dsp.delay_doppler_map(frame).profile(ν)`` per frame (what every profile cost before): the reference.
 
-Beside the times it prints how far apart the two paths' outputs are (largest difference of the mean profiles
-relative to their peak, and whether the peak table and the summary are identical), so the speed-up is of the
-same answer. One process, the DSP on this machine's threads; medians over ``--repeats``.
+Beside the times it prints how far apart the two paths' outputs are (the largest difference of the profiles
+relative to their peak, and the largest relative difference of the summary's and the peak table's numbers), so
+the speed-up is of the same answer. One process, the DSP on this machine's threads; medians over ``--repeats``.
 """
 
 from __future__ import annotations
@@ -136,6 +136,7 @@ def _largest_difference(a, b) -> float:
             elif u != v and not isinstance(u, list):
                 return float("inf")
     return worst
+
 
 if __name__ == "__main__":
     main()

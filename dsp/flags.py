@@ -113,9 +113,9 @@ def _deg(x: float) -> str:
 #: A second lobe of the AoD fit within this many dB of the best raises ``grating-lobe`` [dB].
 GRATING_LOBE_DB = 3.0
 #: An estimate farther than this many resolution cells (range or velocity) from the detected return raises
-#: ``off-detection`` [cells]. Measured (docs/flags.md): estimates of the detected return lie within 0.32 cells of
-#: the detector's cell centre (1236 Table I runs and 168 hall captures, both estimators); the paper
-#: estimator's noise peaks 32-181 cells away.
+#: ``off-detection`` [cells]. Measured (docs/flags.md, ``benchmarks/off_detection.py``): estimates of the detected
+#: return lie within 0.32 cells of the detector's cell centre (1000 Table I runs at 0 and 10 dBm and 168 hall
+#: captures, both estimators); the paper estimator's noise peaks at least 32 cells away.
 OFF_DETECTION_CELLS = 1.0
 
 

@@ -5,11 +5,10 @@ radar does not move and the RIS's code does not touch it. Its power can therefor
 **complex mean of the M beams' cubes**, ``ȳ = (1/M) Σ_m y_m`` [counts], processed as one frame
 (its zero-Doppler range profile, ``dsp.delay_profile``: that row of ``dsp.delay_doppler_map``): the
 static echo keeps its amplitude, the receiver noise (independent from beam to beam) drops to σ²/M
-per sample, 10 log10 M ≈ 17.9 dB for
-61 beams, and every path via the RIS keeps only its mean response over the codebook
-``(1/M) Σ_m r_m`` (the RIS loop-back's peak falls by ≈ 23 dB in the default hall). So weaker static
-echoes (the floor, oblique triple bounces between the walls) rise above the comparison's
-thresholds and every static peak's power σ falls by √M.
+per sample, 10 log10 M ≈ 17.9 dB for 61 beams, and every path via the RIS keeps only its mean
+response over the codebook ``(1/M) Σ_m r_m`` (the RIS loop-back's peak falls by ≈ 23 dB in the
+default hall). So weaker static echoes (the floor, oblique triple bounces between the walls) rise
+above the comparison's thresholds and every static peak's power σ falls by √M.
 
 **Why the complex mean, not the power mean.** The power mean ``(1/M) Σ_m |Y_m|²`` also averages a
 peak's power fluctuation (to first order ``var = 2PN/M``, the same as below), but its noise floor
