@@ -111,12 +111,12 @@ def _print_summary(result) -> None:
           f"{result.new_runs} computed now in {result.wall_seconds:.1f} s -> {result.folder}/summary.json, runs.parquet, study.png")
     varied = list(s["study"]["vary"])
     head = "  ".join(f"{n:>14}" for n in varied)
-    print(f"  {head}  {'Pd':>5}  {'MAE d [mm]':>10}  {'MAE ang [deg]':>13}  {'MAE pos [mm]':>12}  "
+    print(f"  {head}  {'Pd':>5}  {'doubted':>7}  {'MAE d [mm]':>10}  {'MAE ang [deg]':>13}  {'MAE pos [mm]':>12}  "
           f"{'RMSE/CRB pos':>12}  {'s/run':>6}")
     for pt in s["points"]:
         vals = "  ".join(f"{str(pt['params'][n]):>14}" for n in varied)
         mae = pt["mae"]
-        print(f"  {vals}  {pt['detection_probability']:5.3f}  {1e3 * mae['distance']:10.3f}  "
+        print(f"  {vals}  {pt['detection_probability']:5.3f}  {pt['doubted']:7d}  {1e3 * mae['distance']:10.3f}  "
               f"{mae['angle'] * 57.29577951308232:13.4f}  {1e3 * mae['position']:12.3f}  "
               f"{pt['rmse_over_crb']['position']:12.2f}  {pt['seconds_per_run']:6.3f}")
     for msg in s.get("retried", []):

@@ -16,6 +16,12 @@ error and a finite, positive σ, the share whose |error| is within 1, 2 and 3 σ
 68.3 / 95.4 / 99.7 % (:data:`GAUSSIAN_COVERAGE`); the position's ‖e‖ ≤ k·PEB has between that
 (all of the error along one axis) and 1 − exp(−k²) = 63.2 / 98.2 / 99.99 % (a circular error in
 two axes) (``docs/studies.md``).
+
+Doubted runs: a detected run whose flags include one of a possible gross error
+(:data:`dsp.fusion.DOUBT_CODES`: ``off-detection``, ``aliased``, ``grating-lobe``, ...; the codes a
+fusion leaves out and the tracker skips) is counted in ``doubted``; ``mae_undoubted`` is the MAE over
+the other detected runs, with its bootstrap interval. The MAE itself stays over every detected run:
+a flag does not change a number, and what a user of the estimator would get includes its flagged runs.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
+
+from dsp.fusion import DOUBT_CODES
 
 from .spec import StudySpec
 
@@ -114,7 +122,9 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
         and ``points``: per point its parameters, detection probability (Wilson 95 % interval),
         MAE and RMSE of distance [m], angle [rad] and position [m] with bootstrap 95 % intervals,
         the CRB and the random-phase bound, their ratios, ``coverage`` of the stated 1σ (:func:`coverage`
-        per quantity), mean SNR [dB], flag counts and times [s].
+        per quantity), ``doubted`` (detected runs flagged with a possible gross error) and
+        ``mae_undoubted`` (the MAE over the others, with 95 % intervals), mean SNR [dB], flag counts
+        and times [s].
 
     Raises
     ------
@@ -140,6 +150,14 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             mae[name] = float(np.mean(np.abs(e))) if e.size else math.nan
             rmse[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
             mae_ci[name], rmse_ci[name] = _intervals(e, rng)
+        doubted = [bool(set((r.get("flags") or "").split(",")) & DOUBT_CODES) for r in det]
+        undoubted = [r for r, d in zip(det, doubted) if not d]
+        mae_undoubted, mae_undoubted_ci = {}, {}
+        for name, col in _QUANTITIES.items():  # after the intervals above: their resamples do not change
+            e = np.array([r[col] for r in undoubted], dtype=float)
+            e = e[np.isfinite(e)]
+            mae_undoubted[name] = float(np.mean(np.abs(e))) if e.size else math.nan
+            mae_undoubted_ci[name] = _intervals(e, rng)[0]
         bounds = {k: float(v) for k, v in info["crb"][p].items()}
         crb = {k: v for k, v in bounds.items() if not k.endswith("_random_phase")}
         random_phase = {k[: -len("_random_phase")]: v for k, v in bounds.items() if k.endswith("_random_phase")}
@@ -159,6 +177,9 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             "detection_probability_ci95": _wilson(len(det), len(rs)),
             "mae": mae, "mae_ci95": mae_ci,
             "rmse": rmse, "rmse_ci95": rmse_ci,
+            # the detected runs flagged with a possible gross error, and the MAE over the others
+            "doubted": int(sum(doubted)),
+            "mae_undoubted": mae_undoubted, "mae_undoubted_ci95": mae_undoubted_ci,
             "crb": crb,
             "rmse_over_crb": ratio,
             "bound_random_phase": random_phase,  # the per-beam phases random: dsp.sweep_crb(phases="random")

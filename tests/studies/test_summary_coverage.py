@@ -67,3 +67,28 @@ def test_summary_point_carries_the_coverage_of_its_detected_runs():
     assert cov["angle"]["share"] == [1 / 3, 1 / 3, 1.0]
     assert cov["position"]["share"] == [1 / 3, 1 / 3, 2 / 3]
     assert cov["position"]["ci95"][2] == pytest.approx(_wilson_by_hand(2, 3), abs=1e-12)
+
+
+def test_doubted_runs_are_counted_and_left_out_of_mae_undoubted_only():
+    # Five runs of one point: two detected runs carry a flag of a possible gross error (off-detection, grating-lobe:
+    # dsp.fusion.DOUBT_CODES), two carry none or only elevation-assumed, one is not detected.
+    spec = StudySpec(name="d", runs=5, seed=3, vary=(("tx_power_dbm", (0.0,)),))
+    rows = [
+        _row(0, 0, detected=True, d=4.2, az=0.5, pos=9.0),
+        _row(0, 1, detected=True, d=0.003, az=0.001, pos=0.02),
+        _row(0, 2, detected=True, d=-1.7, az=-0.9, pos=11.0),
+        _row(0, 3, detected=True, d=-0.001, az=0.002, pos=0.01),
+        _row(0, 4, detected=False),
+    ]
+    for r, flags in zip(rows, ("off-detection,grating-lobe,elevation-assumed", "elevation-assumed", "grating-lobe",
+                               "", "no-detection")):
+        r["flags"] = flags
+    (point,) = summarize(spec, rows, {"crb": {0: {}}, "prepare_seconds": {}})["points"]
+    assert point["detected"] == 4 and point["doubted"] == 2
+    # the MAE stays over every detected run; the undoubted one over runs 1 and 3 only
+    assert point["mae"]["distance"] == pytest.approx((4.2 + 0.003 + 1.7 + 0.001) / 4, rel=1e-12)
+    assert point["mae_undoubted"]["distance"] == pytest.approx((0.003 + 0.001) / 2, rel=1e-12)
+    assert point["mae_undoubted"]["position"] == pytest.approx((0.02 + 0.01) / 2, rel=1e-12)
+    lo, hi = point["mae_undoubted_ci95"]["distance"]
+    assert 0.001 <= lo <= point["mae_undoubted"]["distance"] <= hi <= 0.003  # resamples of {0.003, 0.001}
+    assert point["flags"] == {"elevation-assumed": 2, "grating-lobe": 2, "no-detection": 1, "off-detection": 1}
