@@ -120,14 +120,20 @@ class RisMeasurement:
         if np.isfinite(self.std_velocity):
             positive(self.std_velocity, f"RIS {self.fix.name}: std_velocity", "m/s")
 
+    def _radial(self, state: np.ndarray) -> tuple[float, np.ndarray, float]:
+        """v_r = v·u [m/s], u = (x − p)/d [3] and d [m] at ``state`` (v_r 0 and u 0 at the RIS)."""
+        rel = state[:3] - self.fix.pose.position
+        dist = float(np.linalg.norm(rel))
+        if not dist > 0:
+            return 0.0, np.zeros(3), 0.0
+        unit = rel / dist
+        return float(state[3:] @ unit), unit, dist
+
     def normalised_residuals(self, state: np.ndarray) -> np.ndarray:
         """(z − h(s)) / σ for every number the measurement has [unitless]."""
         r = self.fix.residuals(state[:3])
         if np.isfinite(self.std_velocity):
-            rel = state[:3] - self.fix.pose.position
-            dist = float(np.linalg.norm(rel))
-            v_r = float(state[3:] @ rel) / dist if dist > 0 else 0.0
-            r = np.append(r, (self.velocity - v_r) / self.std_velocity)
+            r = np.append(r, (self.velocity - self._radial(state)[0]) / self.std_velocity)
         return r
 
     def linearised(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -141,12 +147,9 @@ class RisMeasurement:
         jac = np.zeros((jac_x.shape[0], 6))
         jac[:, :3] = jac_x
         if np.isfinite(self.std_velocity):
-            rel = state[:3] - self.fix.pose.position
-            dist = float(np.linalg.norm(rel))
-            v_r = float(state[3:] @ rel) / dist if dist > 0 else 0.0
+            v_r, unit, dist = self._radial(state)
             row = np.zeros(6)
             if dist > 0:
-                unit = rel / dist
                 row[:3], row[3:] = -(state[3:] - v_r * unit) / dist, -unit
             r = np.append(r, (self.velocity - v_r) / self.std_velocity)
             jac = np.vstack([jac, row / self.std_velocity])
