@@ -3,6 +3,7 @@
 #
 # Stages, named as arguments (default: "grid bench fig6 outliers": the paper's grid search now runs on the GPU,
 # dsp/devicegrid.py, unmeasured there; then what the 2026-11-27 H200 session left):
+#   fasttests the GPU tests not marked slow (CuPy against NumPy: the grid search, the detector, the noise, B; ~60 s)
 #   tests     the GPU tests (tests/gpu, ~75 s)
 #   grid      bench_speedpath.py --device cuda: the paper DSP with the cube on the GPU against the host's screen and
 #             full grid on the same cubes, bin for bin, plus 160 random and 800 adversarial beams (~3 min: the host's
@@ -79,6 +80,11 @@ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | 
 python3 -c "import dsp; print(dsp.backend_for('cuda').summary()); print(dsp.backend_for('cpu').summary())" | tee -a "$OUT/stages.txt"
 
 # the GPU tests (CuPy against NumPy; the GPU noise law; rows independent of B; CPU vs GPU statistics)
+if stage fasttests; then
+  stamp "fast GPU tests"
+  deadline 150 python3 -m pytest -q -m "gpu and not slow" tests/gpu -p no:cacheprovider --durations=8 -rA 2>&1 \
+    | tee "$OUT/gpu_fasttests.txt" | tail -30
+fi
 if stage tests; then
   stamp "GPU tests"
   deadline 200 python3 -m pytest -q -m gpu tests/gpu -p no:cacheprovider --durations=6 -rA 2>&1 \
@@ -88,7 +94,7 @@ fi
 # the paper's grid search on the GPU (dsp/devicegrid.py) against the host's, on the same cubes, bin for bin
 if stage grid; then
   stamp "grid search on the GPU"
-  deadline 240 python3 benchmarks/bench_speedpath.py --device cuda --realizations 5 --full 1 --low-power 0,10 \
+  deadline 240 python3 benchmarks/bench_speedpath.py --device cuda --realizations 3 --full 1 --low-power 0,10 \
     --random-beams 160 --adversarial 5 --hard-shapes --no-synthesis 2>&1 | tee "$OUT/grid_cuda.txt"
 fi
 
@@ -139,3 +145,8 @@ if stage map05; then
   for f in map.json map.png; do cp "/tmp/map05/$f" "$OUT/map05_$f" 2>/dev/null; done
 fi
 stamp done
+# at most 8 files come back from a call: pack the rest (the studies' summaries and figures) into one archive
+if (( $(ls "$OUT" | wc -l) > 8 )); then
+  (cd "$OUT" && tar czf results.tar.gz --exclude stages.txt --exclude results.tar.gz --remove-files -- *) \
+    && echo "more than 8 files: packed into results.tar.gz" | tee -a "$OUT/stages.txt"
+fi
