@@ -118,8 +118,13 @@ def _cases(low_powers=()):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AliasWarning)
         for index in (0, 1):
-            hs = hall_scenario("paper_hall", radar_index=index)
-            yield f"paper_hall radar {index}", hs.base, hall_paths(hs).paths
+            try:
+                hs = hall_scenario("paper_hall", radar_index=index)
+                paths = hall_paths(hs).paths
+            except ImportError as exc:  # a machine without the tracer's packages (the GPU machine's image)
+                print(f"paper_hall cases skipped: {exc} (install the tracer, or carry its trace cache)")
+                return
+            yield f"paper_hall radar {index}", hs.base, paths
 
 
 def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=None, device=None) -> None:
