@@ -46,6 +46,12 @@ Estimator = Literal["paper", "refined"]
 #: hall's echoes barely move from frame to frame and the static template removes them.
 MOVING_CLUTTER_CYCLES = 1.0
 
+#: ... and only when that rate is significant: at least this many of its own 1σ (the estimator's velocity bound at
+#: the measured SNR). A static radar's rate is noise: at Table I's 0 dBm its σ is 1.4 cycles, so 55 % of static
+#: sweeps crossed one cycle and were searched (0.15 s each on one core, and a host copy of a device cube) with
+#: nothing found; three σ leaves 0.3 % of them.
+MOVING_CLUTTER_SIGMAS = 3.0
+
 #: The fastest motion across the RIS-radar line the ``pattern-mismatch`` test lets the AoD follow during a
 #: sweep [m/s] (walking pace: 1 m/s across a 13.4 m leg turns the AoD 2.6° over a 1.2 s sweep; the
 #: bound keeps a drift from mimicking a wrong pattern's width, which needs 8.7 m/s for a wrong mode
@@ -171,7 +177,7 @@ def self_localize(
     floor, moved = None, False
     if floor_height is not None:
         est, floor, moved = _first_arrival(inp, det, grid, est, estimator, floor_height, ue_height)
-    clutter = _moving_clutter(inp, det, est) if estimator == "refined" else None
+    clutter = _moving_clutter(inp, det, est, steps.bounds) if estimator == "refined" else None
     if clutter is not None and clutter.removed:  # the estimate again, on the cube without them
         inp = dataclasses.replace(inp, cube=clutter.cube)
         est = steps.estimate(inp, det, grid)
@@ -250,25 +256,39 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
     phase-blind estimator can reach: 1.09x / 1.34x the fixed-phase CRB in distance / AoD at 10 dB); a
     bias the estimate may carry (``extra_distance_std`` [m], the floor's ladder) added to the distance's
     in quadrature before the position's is propagated."""
-    arr = inp.cube
-    noise = det.noise_power
-    peak_snr = arr.shape[1] * arr.shape[2] * est.amplitude**2 / noise if noise > 0 else np.inf
-    rho = float(min(max(peak_snr, 1e-12), 1e300))
-    b = bounds(inp, est, aod, rho)
+    b, rho = _bounds(inp, est, det, bounds, aod)
     if extra_distance_std > 0:
         b = dataclasses.replace(b, distance=float(np.hypot(b.distance, extra_distance_std)))
     return sweep_uncertainty(inp.pose, aod, distance, b, peak_snr=rho, solved_height=solved_height)
 
 
-def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate) -> ClutterCancellation | None:
+def _bounds(inp: SweepInputs, est: SweepEstimate, det: Detection,
+            bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
+            aod: np.ndarray) -> tuple[EstimatorBounds, float]:
+    """The estimator's ``bounds`` at the measured peak SNR, and that SNR ρ [linear] (clipped to 1e-12…1e300)."""
+    arr = inp.cube
+    noise = det.noise_power
+    peak_snr = arr.shape[1] * arr.shape[2] * est.amplitude**2 / noise if noise > 0 else np.inf
+    rho = float(min(max(peak_snr, 1e-12), 1e300))
+    return bounds(inp, est, aod, rho), rho
+
+
+def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate,
+                    bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
+                    ) -> ClutterCancellation | None:
     """The hall echoes moving with the radar near the return, found and removed over the sweep
-    (:func:`dsp.cancel_moving_clutter`), when the return moves (:data:`MOVING_CLUTTER_CYCLES`); else None.
-    A device cube's search runs on one host copy of it."""
+    (:func:`dsp.cancel_moving_clutter`), when the return moves: its phase turns by at least
+    :data:`MOVING_CLUTTER_CYCLES` over the sweep and by :data:`MOVING_CLUTTER_SIGMAS` of its own 1σ (the
+    estimator's velocity ``bounds``); else None. A device cube's search runs on one host copy of it."""
     radar = inp.radar
     times = radar.beam_times(inp.cube.shape[0])
     span = float(times[-1] - times[0]) + radar.num_chirps * radar.chirp_interval
-    if not (radar.carrier_frequency * abs(est.delay_rate) * span >= MOVING_CLUTTER_CYCLES and det.noise_power > 0):
+    cycles = radar.carrier_frequency * abs(est.delay_rate) * span
+    if not (cycles >= MOVING_CLUTTER_CYCLES and det.noise_power > 0):
         return None
+    sigma_rate = 2.0 * _bounds(inp, est, det, bounds, est.aod)[0].velocity / SPEED_OF_LIGHT  # [s/s]
+    if not cycles >= MOVING_CLUTTER_SIGMAS * radar.carrier_frequency * sigma_rate * span:
+        return None  # the rate is the noise's (a NaN or infinite σ: no evidence of motion either)
     weights = np.abs(inp.pattern.amplitude(est.aod, inp.sweep.angles))
     return cancel_moving_clutter(backend_of(inp.cube).to_host(inp.cube), radar, delay=est.delay,
                                  delay_rate=est.delay_rate, reference_time=est.time, weights=weights,

@@ -43,15 +43,29 @@ def dirichlet(x: Any, n: int) -> np.ndarray:
         Phase step between neighbouring elements [rad].
     n : int
         Number of elements.
+
+    Notes
+    -----
+    Evaluated on x reduced to [−π, π] (x = 2πj + r, the kernel (−1)^{j(n−1)} times its value at r):
+    near a grating lobe (r → 0, j ≠ 0) both sines are then small numbers known to full relative
+    precision, where sin(x/2) of the unreduced x loses the digits of r to πj's (1.5 % of the value at
+    r = 1e-13 for n = 33). For |x| <= π nothing is reduced.
     """
     x = np.asarray(x, dtype=float)
-    half = 0.5 * x
+    j = np.rint(x * (0.5 / np.pi))
+    wrapped = j.any()
+    r = x - (2.0 * np.pi) * j if wrapped else x
+    half = 0.5 * r
     den = n * np.sin(half)
     small = np.abs(den) < 1e-12
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.sin(n * half) / np.where(small, 1.0, den)
-    # At x = 2πj the limit is cos(n x/2)/cos(x/2) = (-1)^{j(n-1)}.
-    return np.where(small, np.cos(n * half) / np.cos(half), out)
+    if small.any():  # r = 0 to within 1e-12 · 2/n: the limit, 1
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = np.where(small, 1.0, np.sin(n * half) / np.where(small, 1.0, den))
+    else:  # the common case (called hundreds of times per fit)
+        out = np.sin(n * half) / den
+    if wrapped and (n - 1) % 2:
+        out = np.where(np.fmod(j, 2.0) != 0, -out, out)
+    return out
 
 
 @dataclass(frozen=True)

@@ -184,6 +184,47 @@ def test_a_static_radar_is_left_to_the_static_template():
     assert abs(err_d) < 3.5 * loc.std.distance
 
 
+def _searches(monkeypatch):
+    """Count the canceller's runs inside ``dsp.self_localize``."""
+    calls = []
+    real = LOCALIZE.cancel_moving_clutter
+    monkeypatch.setattr(LOCALIZE, "cancel_moving_clutter", lambda *a, **k: calls.append(1) or real(*a, **k))
+    return calls
+
+
+def _sweep_cycles(loc):
+    """f_c |ν̂| T_sweep: the return's phase turns over the sweep [cycles]."""
+    times = RADAR.beam_times(61)
+    return RADAR.carrier_frequency * abs(loc.delay_rate) * (np.ptp(times) + RADAR.num_chirps * RADAR.chirp_interval)
+
+
+def test_a_static_radar_at_low_snr_is_not_searched_for_its_noisy_rate(monkeypatch):
+    # Regression: at Table I's 0 dBm a static radar's rate has a σ of 1.4 cycles over the sweep, so more than
+    # half of its sweeps crossed the one-cycle gate and ran the search (0.15 s each, nothing found). The gate
+    # also asks for 3σ of the rate's own bound.
+    radar = dataclasses.replace(RADAR, tx_power_dbm=0.0)
+    calls, crossed = _searches(monkeypatch), 0
+    for seed in range(6):
+        cap = simulate(paper_scenario(radar=radar), rng=np.random.default_rng(seed), seed=seed)
+        loc = locate(cap)
+        crossed += _sweep_cycles(loc) >= LOCALIZE.MOVING_CLUTTER_CYCLES
+        assert _sweep_cycles(loc) < LOCALIZE.MOVING_CLUTTER_SIGMAS * 2 * loc.std.velocity / RADAR.wavelength \
+            * (np.ptp(RADAR.beam_times(61)) + RADAR.num_chirps * RADAR.chirp_interval)  # the rate is the noise's
+    assert crossed >= 2, crossed  # the premise: the old gate would have searched these
+    assert not calls
+
+
+def test_a_slow_radar_at_low_snr_is_still_searched(monkeypatch):
+    # 5 cm/s toward the RIS at 0 dBm: 7.8 cycles over the sweep against a σ of 1.4: the rate is significant
+    radar = dataclasses.replace(RADAR, tx_power_dbm=0.0)
+    calls = _searches(monkeypatch)
+    sc = paper_scenario(radar=radar)
+    sc = dataclasses.replace(sc, ue_velocity=np.array([0.0, 0.05, 0.0]))
+    loc = locate(simulate(sc, rng=np.random.default_rng(3), seed=3))
+    assert _sweep_cycles(loc) > 5
+    assert len(calls) == 1
+
+
 def test_too_few_far_beams_or_no_noise_estimate_searches_nothing():
     rng = np.random.default_rng(0)
     cube = rng.standard_normal((12, RADAR.num_chirps, RADAR.num_samples)) + 0j
