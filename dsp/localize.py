@@ -305,7 +305,8 @@ def _pattern_check(inp: SweepInputs, f1: float, f2: float, weights: np.ndarray, 
     times = radar.beam_times(inp.cube.shape[0])
     values, noise_gain = beam_values(inp.cube, radar, f1, f2, weights, drift_rate=rate, beam_times=times)
     return pattern_fit(np.abs(values), inp.sweep, inp.pattern, noise_variance=noise_power * noise_gain,
-                       pfa=inp.pfa, beam_times=times, max_aod_rate=MAX_CROSS_SPEED / distance if distance > 0 else 0.0)
+                       pfa=inp.pfa, beam_times=times, max_aod_rate=MAX_CROSS_SPEED / distance if distance > 0 else 0.0,
+                       decide_only=True)
 
 
 def _first_arrival(inp: SweepInputs, det: Detection, grid: Any, est: SweepEstimate, estimator: str,

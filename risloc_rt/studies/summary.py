@@ -123,8 +123,8 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
         MAE and RMSE of distance [m], angle [rad] and position [m] with bootstrap 95 % intervals,
         the CRB and the random-phase bound, their ratios, ``coverage`` of the stated 1σ (:func:`coverage`
         per quantity), ``doubted`` (detected runs flagged with a possible gross error) and
-        ``mae_undoubted`` (the MAE over the others, with 95 % intervals), mean SNR [dB], flag counts
-        and times [s].
+        ``mae_undoubted``, ``rmse_undoubted`` (MAE and RMSE over the others, with 95 % intervals) and
+        ``rmse_undoubted_over_crb``, mean SNR [dB], flag counts and times [s].
 
     Raises
     ------
@@ -152,18 +152,19 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             mae_ci[name], rmse_ci[name] = _intervals(e, rng)
         doubted = [bool(set((r.get("flags") or "").split(",")) & DOUBT_CODES) for r in det]
         undoubted = [r for r, d in zip(det, doubted) if not d]
-        mae_undoubted, mae_undoubted_ci = {}, {}
+        mae_undoubted, mae_undoubted_ci, rmse_undoubted, rmse_undoubted_ci = {}, {}, {}, {}
         for name, col in _QUANTITIES.items():  # after the intervals above: their resamples do not change
             e = np.array([r[col] for r in undoubted], dtype=float)
             e = e[np.isfinite(e)]
             mae_undoubted[name] = float(np.mean(np.abs(e))) if e.size else math.nan
-            mae_undoubted_ci[name] = _intervals(e, rng)[0]
+            rmse_undoubted[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+            mae_undoubted_ci[name], rmse_undoubted_ci[name] = _intervals(e, rng)
         bounds = {k: float(v) for k, v in info["crb"][p].items()}
         crb = {k: v for k, v in bounds.items() if not k.endswith("_random_phase")}
         random_phase = {k[: -len("_random_phase")]: v for k, v in bounds.items() if k.endswith("_random_phase")}
 
-        def over(b: dict[str, float]) -> dict[str, float]:
-            return {k: (rmse[k] / b[k] if b.get(k, 0) > 0 and math.isfinite(rmse[k]) else math.nan) for k in _QUANTITIES}
+        def over(b: dict[str, float], of: dict[str, float] = rmse) -> dict[str, float]:
+            return {k: (of[k] / b[k] if b.get(k, 0) > 0 and math.isfinite(of[k]) else math.nan) for k in _QUANTITIES}
 
         ratio = over(crb)
         flags = Counter(code for r in rs for code in (r.get("flags") or "").split(",") if code)
@@ -180,6 +181,8 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             # the detected runs flagged with a possible gross error, and the MAE over the others
             "doubted": int(sum(doubted)),
             "mae_undoubted": mae_undoubted, "mae_undoubted_ci95": mae_undoubted_ci,
+            "rmse_undoubted": rmse_undoubted, "rmse_undoubted_ci95": rmse_undoubted_ci,
+            "rmse_undoubted_over_crb": over(crb, rmse_undoubted),
             "crb": crb,
             "rmse_over_crb": ratio,
             "bound_random_phase": random_phase,  # the per-beam phases random: dsp.sweep_crb(phases="random")

@@ -154,3 +154,31 @@ def test_a_radar_walking_across_the_beam_is_not_a_wrong_pattern():
     assert drifting.static_statistic == pytest.approx(static.statistic)
     # the fitted drift is the motion's: |du/dt| = v cos(az)/d, az = 0
     assert abs(drifting.aod_rate) == pytest.approx(1.0 / 13.38, rel=0.3)
+    # the static fit fails, so decide_only (self_localize's) tries the drifting fit too: the same result
+    assert pattern_fit(np.abs(values), cap.sweep, RELAY, noise_variance=s2, beam_times=radar.beam_times(61),
+                       max_aod_rate=2.0 / loc.distance, decide_only=True) == drifting
+
+
+def test_decide_only_skips_the_drifting_fit_only_where_it_cannot_change_the_decision():
+    # relay magnitudes (Rice, written out here) under the right and a wrong model, the AoD free to drift: with
+    # decide_only the decision and the widening are those of the whole fit; where the static fit passes the
+    # drifting one is not tried (aod_rate 0, T the static one), where it fails the whole fit is made
+    rng = np.random.default_rng(12)
+    times = np.arange(SWEEP.num_beams) * 20e-3
+    skipped = made = 0
+    for pattern in (RELAY, REFLECTIVE):
+        for _ in range(20):
+            r = rice_magnitudes(rng, RELAY, np.deg2rad(rng.uniform(-30, 30)), 10 ** rng.uniform(1.5, 3))
+            full = pattern_fit(r, SWEEP, pattern, noise_variance=1.0, beam_times=times, max_aod_rate=0.15)
+            quick = pattern_fit(r, SWEEP, pattern, noise_variance=1.0, beam_times=times, max_aod_rate=0.15,
+                                decide_only=True)
+            assert (quick.mismatch, quick.excess, quick.threshold) == (full.mismatch, full.excess, full.threshold)
+            if quick.static_statistic <= quick.threshold:
+                assert quick.aod_rate == 0.0 and quick.statistic == quick.static_statistic
+                skipped += 1
+            else:
+                assert quick == full
+                made += 1
+    assert skipped >= 10 and made >= 10, (skipped, made)  # both branches, and the wrong model mostly caught
+    with pytest.raises(TypeError, match="decide_only"):
+        pattern_fit(r, SWEEP, RELAY, noise_variance=1.0, decide_only="yes")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 import pytest
 
 from risloc_rt.studies import StudySpec
@@ -83,7 +85,7 @@ def test_doubted_runs_are_counted_and_left_out_of_mae_undoubted_only():
     for r, flags in zip(rows, ("off-detection,grating-lobe,elevation-assumed", "elevation-assumed", "grating-lobe",
                                "", "no-detection")):
         r["flags"] = flags
-    (point,) = summarize(spec, rows, {"crb": {0: {}}, "prepare_seconds": {}})["points"]
+    (point,) = summarize(spec, rows, {"crb": {0: {"distance": 0.0005}}, "prepare_seconds": {}})["points"]
     assert point["detected"] == 4 and point["doubted"] == 2
     # the MAE stays over every detected run; the undoubted one over runs 1 and 3 only
     assert point["mae"]["distance"] == pytest.approx((4.2 + 0.003 + 1.7 + 0.001) / 4, rel=1e-12)
@@ -91,4 +93,11 @@ def test_doubted_runs_are_counted_and_left_out_of_mae_undoubted_only():
     assert point["mae_undoubted"]["position"] == pytest.approx((0.02 + 0.01) / 2, rel=1e-12)
     lo, hi = point["mae_undoubted_ci95"]["distance"]
     assert 0.001 <= lo <= point["mae_undoubted"]["distance"] <= hi <= 0.003  # resamples of {0.003, 0.001}
+    # and the RMSE and its ratio to the bound likewise: the RMSE over every detected run is the noise peaks'
+    rms = np.sqrt((0.003**2 + 0.001**2) / 2)
+    assert point["rmse_undoubted"]["distance"] == pytest.approx(rms, rel=1e-12)
+    assert point["rmse"]["distance"] == pytest.approx(np.sqrt((4.2**2 + 0.003**2 + 1.7**2 + 0.001**2) / 4), rel=1e-12)
+    assert point["rmse_undoubted_over_crb"]["distance"] == pytest.approx(rms / 0.0005, rel=1e-12)
+    lo, hi = point["rmse_undoubted_ci95"]["position"]
+    assert 0.01 <= lo <= point["rmse_undoubted"]["position"] <= hi <= 0.02
     assert point["flags"] == {"elevation-assumed": 2, "grating-lobe": 2, "no-detection": 1, "off-detection": 1}
