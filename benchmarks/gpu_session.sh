@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Issue 21's GPU checks in one call, for a session that is lent a GPU machine by the device tool.
 #
-# Stages, named as arguments (default: "grid bench fig6 outliers": the paper's grid search now runs on the GPU,
-# dsp/devicegrid.py, unmeasured there; then what the 2026-11-27 H200 session left):
+# Stages, named as arguments (default: "grid bench fig6": measured on an H200 on 2026-11-28 (docs/benchmarks.md,
+# "Devices and batches"); since then the moving-clutter gate and pattern_fit(decide_only) took host work out of
+# every static run (CPU-measured; the GPU rows not yet), and the grid stage's per-cube table was never taken there):
 #   fasttests the GPU tests not marked slow (CuPy against NumPy: the grid search, the detector, the noise, B; ~60 s)
 #   tests     the GPU tests (tests/gpu, ~75 s)
 #   grid      bench_speedpath.py --device cuda: the paper DSP with the cube on the GPU against the host's screen and
@@ -11,8 +12,8 @@
 #   bench     bench_device.py on the GPU at B = 1, 8, 64 and on the same machine's CPU (~60 s)
 #   profile   cProfile of refined and paper runs on the GPU: where a run's time goes (~40 s)
 #   fig6 fig6r fig8 fig7   the paper's figures with their files' 1000 runs per point, 14 host workers
-#             (measured on an H200: 198, 52, 132 s; fig7 not yet, expect 5-8 min)
-#   outliers  4000 paper runs at 0 dBm: the gross-outlier rate, GPU against CPU (~2-3 min)
+#             (on an H200, 2026-11-28, the grid on the GPU: 89, 56, 88, 108 s with their start)
+#   outliers  4000 paper runs at 0 dBm: the gross-outlier rate on the GPU (~1 min; settled 2026-11-28: as the CPU's)
 #   map05     the default hall's 0.5 m floor map, MAP_RUNS (default 100) runs per cell, its 984 cells' traces from a
 #             carried cache (the device image has no ray tracer; a cache hit imports nothing of it): issue 21's
 #             "<= 10 min" goal (100 runs per cell is ~98k runs: at the 7.6 ms per run Fig. 6 took with 14 workers,
@@ -41,7 +42,7 @@
 #
 # then call the device tool's run with carry [".whl"], timeout_s 600 and the command
 #
-#   BUDGET=540 bash benchmarks/gpu_session.sh grid bench fig6 outliers
+#   BUDGET=540 bash benchmarks/gpu_session.sh grid bench fig6
 #
 # and record what comes back in docs/benchmarks.md ("Devices and batches"), docs/studies.md (Fig. 6
 # regenerated on a GPU) and the issue's note, with the device the reply names.
@@ -53,8 +54,8 @@ python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upg
   && export PYTHONPATH="/tmp/site:$PWD" || { echo "gpu_session.sh: carry .whl (see the header)"; exit 2; }
 cp -r .whl/*.dist-info /tmp/site/ 2>/dev/null  # the tracer's versions for the trace cache's key (map05)
 export PYTHONUNBUFFERED=1
-# the stages to run (arguments; default: the GPU grid search, the bench and Fig. 6 again, then the outliers)
-STAGES=${*:-grid bench fig6 outliers}
+# the stages to run (arguments; default: the GPU grid search, the bench and Fig. 6 again)
+STAGES=${*:-grid bench fig6}
 # one budget for the whole call (BUDGET seconds, default 570): each stage runs under its own cap and never past it
 BUDGET=${BUDGET:-570}
 t0=$(date +%s)
