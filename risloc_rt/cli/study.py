@@ -75,16 +75,18 @@ def _sweep(args: argparse.Namespace) -> int:
         return result
     if not args.quiet:
         _print_summary(result)
-        _print_devices(result.summary.get("devices"))
+        _print_devices(result.summary.get("devices"), result.new_runs)
     return 0
 
 
-def _print_devices(devices) -> None:
-    """One ``device: ...`` line per distinct DSP device and trace variant that ran this sitting's runs."""
+def _print_devices(devices, new_runs: int) -> None:
+    """One ``device: ...`` line per distinct DSP device and trace variant that ran the runs (every sitting's),
+    after a line saying so when this sitting computed none."""
     from ..io.report import format_environment
 
-    if not devices:
-        print("device: no runs computed now (every run was already in the log)")
+    if not new_runs:
+        print("device: no runs computed now (every run was already in the log)"
+              + ("; they were computed by:" if devices else ""))
     for env in devices or ():
         print(format_environment(env))
 
@@ -141,7 +143,7 @@ def _map(args: argparse.Namespace) -> int:
         return result
     if not args.quiet:
         print(result.describe())
-        _print_devices(result.devices)
+        _print_devices(result.devices, result.new_runs)
     return 0
 
 

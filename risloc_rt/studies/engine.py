@@ -556,7 +556,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "warnings": {point: [...]},
         "retried": [messages], "wall_seconds": s, "new_runs": n, "devices": [...]}`` (bounds in m,
         rad, m/s; times in s; ``devices``: the distinct :func:`risloc_rt.io.report.run_environment` of
-        the batches run).
+        this sitting's batches, each also recorded in the log's folder, :meth:`RunLog.record_device`).
 
     Raises
     ------
@@ -592,13 +592,14 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
                dynamic_ncols=True, file=sys.stderr)
 
     def take(result: dict[str, Any], batch: Batch) -> None:
+        if result.get("device") is not None and result["device"] not in info["devices"]:
+            info["devices"].append(result["device"])
+            log.record_device(result["device"])  # in the folder before its rows: no row without its device
         log.append(result["rows"])
         info["crb"][batch.point] = result["crb"]
         info["prepare_seconds"][batch.point] = result["prepare_seconds"]
         info["warnings"][batch.point] = result.get("warnings", [])
         info["new_runs"] += len(result["rows"])
-        if result.get("device") is not None and result["device"] not in info["devices"]:
-            info["devices"].append(result["device"])
         bar.update(len(result["rows"]))
 
     def say(msg: str) -> None:

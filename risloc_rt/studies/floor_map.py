@@ -64,7 +64,7 @@ from .figures import plot_map
 from .floor_cells import (COVERED_PD, HEIGHT_STD, cell_run_position, coverage, folded_return, fuse_at_height,
                           multi_ris_peb, usable_run)
 from .kernel import PreparedPoint, point_bound
-from .store import RunLog, StudyFolderError, check_stream, keep_log, study_device
+from .store import RunLog, StudyFolderError, check_stream, keep_log, manifest_devices, study_device
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "grid_budget", "prepare_cell",
            "multi_ris_peb", "fuse_at_height", "HEIGHT_STD", "cell_run_position", "folded_return", "coverage", "MAX_GRID_POINTS",
@@ -426,8 +426,13 @@ class MapResult:
     wall_seconds : float
         Wall-clock time of the runs [s].
     devices : list of dict
-        What ran this sitting's runs (``map.json``'s ``devices``: :func:`risloc_rt.io.report.run_environment`
-        of each distinct device); empty when every run was already in the log.
+        What ran the map's runs, every sitting's (``map.json``'s ``devices``: :func:`risloc_rt.io.report.run_environment`
+        of each distinct device, as the folder's manifest records them); empty only for a log written
+        before they were recorded.
+    coverage : dict
+        The floor's coverage (:func:`coverage`).
+    new_runs : int
+        Runs computed in this sitting (0: every run was already in the log).
     """
 
     cells: list[dict[str, Any]]
@@ -436,6 +441,7 @@ class MapResult:
     wall_seconds: float
     devices: list[dict[str, Any]] = field(default_factory=list)
     coverage: dict[str, Any] = field(default_factory=dict)
+    new_runs: int = 0
 
     def describe(self) -> str:
         """One line for the terminal.
@@ -513,11 +519,13 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     folder = Path(out)
     device, stream = study_device(device, local=dask is None)  # one line before any folder is made
     manifest = folder / "map-study.json"
+    devices: list[dict[str, Any]] = []  # what ran the runs in the log, when it is this map's
     if manifest.exists():
         old_manifest = json.loads(manifest.read_text())
         old = old_manifest.get("key")
         if old == settings.key:
             check_stream(folder, old_manifest, stream, folder / "runs.jsonl")
+            devices = manifest_devices(old_manifest)
         else:
             if not force:
                 raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
@@ -542,8 +550,8 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     check_rows_memory(plan.name, len(pairs), settings.runs)  # a --runs beyond memory: nothing made yet
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
-                                             "noise_stream": stream}).encode(), sync=True)
-    log = RunLog(folder / "runs.jsonl").open()
+                                             "noise_stream": stream, "devices": devices}).encode(), sync=True)
+    log = RunLog(folder / "runs.jsonl", manifest=manifest, devices=devices).open()
     start = time.perf_counter()
     try:
         saved = _saved_points(folder / "points.json", settings, spec, pairs)
@@ -574,13 +582,13 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     # moved in together (risloc_rt._outputs); the folder is the map's (its manifest was checked)
     with output_folder(folder, force=True, flag="--out") as stage:
         atomic_write_bytes(stage / "map.json", json.dumps({
-            "settings": asdict(settings), "devices": info["devices"], "ris": list(grid.names),
+            "settings": asdict(settings), "devices": log.devices, "ris": list(grid.names),
             "coverage": {**cover, "unseen": [[float(v) for v in ue] for ue in unseen]},
             "cells": out_cells}, indent=1).encode() + b"\n")
         atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())
         plot_map(spec, out_cells, settings, stage / "map.png", unseen=unseen, coverage=cover)
     return MapResult(cells=out_cells, folder=folder, figure=folder / "map.png", wall_seconds=wall,
-                     devices=info["devices"], coverage=cover)
+                     devices=log.devices, coverage=cover, new_runs=int(info.get("new_runs", 0)))
 
 
 def _saved_points(path: Path, settings: MapSettings, spec: Any, pairs: tuple[tuple[int, int], ...]) -> list | None:

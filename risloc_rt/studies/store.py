@@ -25,8 +25,8 @@ from typing import Any, Callable, Iterable
 from .._files import atomic_write_bytes
 from .spec import StudySpec
 
-__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "open_study_folder", "study_device",
-           "write_parquet", "read_runs_table"]
+__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "manifest_devices",
+           "open_study_folder", "study_device", "write_parquet", "read_runs_table"]
 
 MANIFEST = "study.json"
 LOG = "runs.jsonl"
@@ -83,6 +83,24 @@ def _clean(value: Any) -> Any:
     return value
 
 
+def manifest_devices(manifest: Any) -> list[dict[str, Any]]:
+    """What ran a study folder's runs, as its manifest records it (every sitting's, first seen first).
+
+    Parameters
+    ----------
+    manifest : dict
+        The parsed manifest (``study.json``, a map's ``map-study.json``).
+
+    Returns
+    -------
+    list of dict
+        Its ``devices`` (:func:`risloc_rt.io.report.run_environment` objects); [] when absent (a folder
+        written before they were recorded) or malformed.
+    """
+    devices = manifest.get("devices") if isinstance(manifest, dict) else None
+    return [d for d in devices if isinstance(d, dict)] if isinstance(devices, list) else []
+
+
 class RunLog:
     """The append-only JSON-lines log of finished runs.
 
@@ -90,16 +108,25 @@ class RunLog:
     ----------
     path : Path
         ``runs.jsonl``.
+    manifest : Path, optional
+        The folder's manifest, where :meth:`record_device` keeps what ran the runs (None: kept in memory only).
+    devices : list of dict, optional
+        What ran the runs already in the log (the manifest's, :func:`manifest_devices`).
 
     Attributes
     ----------
     rows : dict of (int, int) to dict
         The runs read or appended, by (point, run); the first row of a pair wins.
+    devices : list of dict
+        What ran them, every sitting's (:func:`risloc_rt.io.report.run_environment` objects).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, manifest: Path | None = None,
+                 devices: list[dict[str, Any]] | None = None) -> None:
         self.path = path
         self.rows: dict[tuple[int, int], dict[str, Any]] = {}
+        self.manifest = manifest
+        self.devices: list[dict[str, Any]] = list(devices or [])
         self._fh: Any = None
 
     def open(self) -> "RunLog":
@@ -171,6 +198,28 @@ class RunLog:
         os.fsync(self._fh.fileno())
         for r in rows:
             self.rows.setdefault((int(r["point"]), int(r["run"])), r)
+
+    def record_device(self, device: dict[str, Any]) -> None:
+        """Record that ``device`` ran runs of this study, before its first rows are appended.
+
+        A new device is written to the manifest (atomically, synced), so every row in the log has its
+        device recorded, whichever sitting ran it: a study continued later, or rerun with nothing left
+        to run, still names it in its summary (before, only the last sitting's batches were named, and
+        a finished study's rerun named none).
+
+        Parameters
+        ----------
+        device : dict
+            :func:`risloc_rt.io.report.run_environment` of the process that ran the runs.
+        """
+        if device in self.devices:
+            return
+        self.devices.append(device)
+        if self.manifest is None:
+            return
+        data = json.loads(self.manifest.read_text())
+        data["devices"] = self.devices
+        atomic_write_bytes(self.manifest, json.dumps(data, indent=1, sort_keys=True).encode() + b"\n", sync=True)
 
     def close(self) -> None:
         """Close the file (the rows read stay available)."""
@@ -279,6 +328,7 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     manifest = out / MANIFEST
     if out.exists() and not out.is_dir():
         raise StudyFolderError(f"--out {str(out)!r} is a file, not a folder; choose a new folder")
+    devices: list[dict[str, Any]] = []  # what ran the runs in the log, when it is this study's
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text())
@@ -287,6 +337,7 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
             old_key = "unreadable"
         if old_key == spec.key:
             check_stream(out, old, stream, out / LOG)
+            devices = manifest_devices(old)
         if old_key != spec.key:
             if not force:
                 raise StudyFolderError(
@@ -304,9 +355,9 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     from .. import __version__
 
     atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__,
-                                             "noise_stream": stream},
+                                             "noise_stream": stream, "devices": devices},
                                             indent=1, sort_keys=True).encode() + b"\n", sync=True)
-    return RunLog(out / LOG).open()
+    return RunLog(out / LOG, manifest=manifest, devices=devices).open()
 
 
 def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str, Any]], *,

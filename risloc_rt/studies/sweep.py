@@ -116,7 +116,7 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     summary = summarize(spec, rows, info)
     summary["wall_seconds"] = info["wall_seconds"]
     summary["workers"] = "dask" if dask is not None else workers
-    summary["devices"] = info["devices"]  # what ran this sitting's batches: DSP device and library, trace variant
+    summary["devices"] = log.devices  # what ran the runs, every sitting's: DSP device and library, trace variant
     from ..io.report import json_safe
 
     # the derived files are moved in together (risloc_rt._outputs): an interrupt leaves the old set or

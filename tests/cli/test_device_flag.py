@@ -301,9 +301,11 @@ def test_study_sweep_gives_the_same_runs_with_device_cpu_and_prints_the_device(t
     _check_cpu_device(summary["devices"][0])
     for text in (out_default, out_cpu):
         assert _device_lines(text) == [format_environment(summary["devices"][0])]
-    # continued with nothing left to run: it says so
+    # continued with nothing left to run: it says so, and still names what computed the runs (the folder's record)
     assert main([*argv, str(tmp_path / "cpu"), "--device", "cpu"]) == 0
-    assert _device_lines(capsys.readouterr().out) == ["device: no runs computed now (every run was already in the log)"]
+    assert _device_lines(capsys.readouterr().out) == [
+        "device: no runs computed now (every run was already in the log); they were computed by:",
+        format_environment(summary["devices"][0])]
 
 
 @pytest.mark.slow

@@ -29,6 +29,39 @@ def test_a_study_records_its_stream_and_its_devices(small_spec, tmp_path):
     assert on_disk["devices"] == res.summary["devices"]
 
 
+def test_a_rerun_with_nothing_left_to_run_still_names_what_ran_the_runs(small_spec, tmp_path):
+    # Regression (found by the Ctrl-C benchmark, tests/fuzz/test_interrupt_moments.py): a finished study's rerun,
+    # or one resumed after a stop between its last rows and its summary, ran no batch and wrote "devices": [],
+    # and a figure without the DSP's device, although every row had been run on the CPU
+    spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
+    first = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    assert len(first.summary["devices"]) == 1
+    assert json.loads((tmp_path / "s" / "study.json").read_text())["devices"] == first.summary["devices"]
+    (tmp_path / "s" / "summary.json").unlink()  # as a stop right after the last rows leaves it
+    again = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    assert again.new_runs == 0
+    assert again.summary["devices"] == first.summary["devices"]
+
+
+def test_a_study_continued_on_another_device_names_both_in_order(small_spec, tmp_path, monkeypatch):
+    # the second sitting's batches ran elsewhere (a stand-in environment: another BLAS, the same noise stream);
+    # the summary lists every sitting's device, first seen first, and the manifest keeps them for the next one
+    import risloc_rt.io.report as report
+
+    spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
+    first = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    real = report.run_environment
+    other = lambda backend: {**real(backend), "dsp": {**real(backend)["dsp"], "detail": "BLAS stand-in"}}  # noqa: E731
+    monkeypatch.setattr(report, "run_environment", other)
+    more = spec.__class__(**{**spec.__dict__, "runs": 3})
+    second = run_study(more, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    assert second.new_runs == 1
+    assert second.summary["devices"] == [first.summary["devices"][0], other(dsp.backend_for("cpu"))]
+    monkeypatch.setattr(report, "run_environment", real)
+    third = run_study(more, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    assert third.new_runs == 0 and third.summary["devices"] == second.summary["devices"]
+
+
 def test_continuing_a_folder_whose_runs_came_from_another_stream_is_refused(small_spec, tmp_path):
     spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
     run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")

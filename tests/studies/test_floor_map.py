@@ -48,6 +48,9 @@ def test_a_tiny_map_detects_everywhere_and_meets_its_bound(tiny_hall, tmp_path):
     again = run_map(MapSettings(scene=str(tiny_hall), spacing=3.0, runs=1, depth=1, samples=10_000), tmp_path / "m",
                     quiet=True)
     assert again.cells == res.cells  # resumed from the log: nothing recomputed differently
+    # and it still names what ran the runs (regression: a rerun with nothing left to run named no device)
+    assert len(res.devices) == 1 and again.devices == res.devices
+    assert json.loads((tmp_path / "m" / "map.json").read_text())["devices"] == res.devices
 
 
 @pytest.mark.slow
