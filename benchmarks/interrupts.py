@@ -16,7 +16,7 @@ group gets SIGINT at that moment, as a terminal's Ctrl-C does. Each moment check
   process of the group is left running;
 * **resume equal**: the same command run again, uninterrupted, gives the reference (run rows as
   a set; JSON, Parquet and ``.npz`` contents equal; time fields such as ``seconds`` and
-  ``created`` ignored; everything else bit for bit).
+  ``created``, and a sitting's ``devices``, ignored; everything else bit for bit).
 
 Moments whose process had already finished are counted as ``finished``; a SIGINT that lands in
 CPython's own start-up, before any line of risloc runs (``docs/robustness.md``, "Limit"), kills the
@@ -60,8 +60,10 @@ SMALL_SWEEP = ["--set", "num_chirps=32", "--set", "num_samples=64", "--set", "n_
 
 
 def _is_time_key(key: str) -> bool:
-    """Fields that carry wall-clock time (``seconds``, ``wall_seconds``, ``seconds_per_run``, ``created``, ``timing``)."""
-    return key in ("created", "timing") or key.endswith("seconds") or key.startswith("seconds")
+    """Fields that carry wall-clock time (``seconds``, ``wall_seconds``, ``seconds_per_run``, ``created``, ``timing``)
+    or a sitting's provenance (``devices``: what ran the runs, whose trace variant is null when the traces came from
+    the cache, so a second sitting names another; ``tests/studies/test_device_stream.py`` holds what they must say)."""
+    return key in ("created", "timing", "devices") or key.endswith("seconds") or key.startswith("seconds")
 
 
 def strip_time(obj: Any) -> Any:

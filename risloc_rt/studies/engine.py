@@ -556,7 +556,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         ``{"crb": {point: {...}}, "prepare_seconds": {point: s}, "warnings": {point: [...]},
         "retried": [messages], "wall_seconds": s, "new_runs": n, "devices": [...]}`` (bounds in m,
         rad, m/s; times in s; ``devices``: the distinct :func:`risloc_rt.io.report.run_environment` of
-        this sitting's batches, each also recorded in the log's folder, :meth:`RunLog.record_device`).
+        this sitting's batches, each also recorded beside the log, :meth:`RunLog.record_device`).
 
     Raises
     ------

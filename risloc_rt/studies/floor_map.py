@@ -64,7 +64,7 @@ from .figures import plot_map
 from .floor_cells import (COVERED_PD, HEIGHT_STD, cell_run_position, coverage, folded_return, fuse_at_height,
                           multi_ris_peb, usable_run)
 from .kernel import PreparedPoint, point_bound
-from .store import RunLog, StudyFolderError, check_stream, keep_log, manifest_devices, study_device
+from .store import RunLog, StudyFolderError, check_stream, devices_path, keep_log, study_device
 
 __all__ = ["MapSettings", "MapResult", "run_map", "grid_cells", "floor_grid", "grid_budget", "prepare_cell",
            "multi_ris_peb", "fuse_at_height", "HEIGHT_STD", "cell_run_position", "folded_return", "coverage", "MAX_GRID_POINTS",
@@ -427,8 +427,8 @@ class MapResult:
         Wall-clock time of the runs [s].
     devices : list of dict
         What ran the map's runs, every sitting's (``map.json``'s ``devices``: :func:`risloc_rt.io.report.run_environment`
-        of each distinct device, as the folder's manifest records them); empty only for a log written
-        before they were recorded.
+        of each distinct device, as the folder's ``devices-<key>.json`` records them); empty only for a
+        log written before they were recorded.
     coverage : dict
         The floor's coverage (:func:`coverage`).
     new_runs : int
@@ -519,13 +519,11 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     folder = Path(out)
     device, stream = study_device(device, local=dask is None)  # one line before any folder is made
     manifest = folder / "map-study.json"
-    devices: list[dict[str, Any]] = []  # what ran the runs in the log, when it is this map's
     if manifest.exists():
         old_manifest = json.loads(manifest.read_text())
         old = old_manifest.get("key")
         if old == settings.key:
             check_stream(folder, old_manifest, stream, folder / "runs.jsonl")
-            devices = manifest_devices(old_manifest)
         else:
             if not force:
                 raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
@@ -550,8 +548,8 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     check_rows_memory(plan.name, len(pairs), settings.runs)  # a --runs beyond memory: nothing made yet
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
-                                             "noise_stream": stream, "devices": devices}).encode(), sync=True)
-    log = RunLog(folder / "runs.jsonl", manifest=manifest, devices=devices).open()
+                                             "noise_stream": stream}).encode(), sync=True)
+    log = RunLog(folder / "runs.jsonl", devices_file=devices_path(folder, settings.key)).open()
     start = time.perf_counter()
     try:
         saved = _saved_points(folder / "points.json", settings, spec, pairs)

@@ -25,8 +25,8 @@ from typing import Any, Callable, Iterable
 from .._files import atomic_write_bytes
 from .spec import StudySpec
 
-__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "manifest_devices",
-           "open_study_folder", "study_device", "write_parquet", "read_runs_table"]
+__all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "devices_path",
+           "read_devices", "open_study_folder", "study_device", "write_parquet", "read_runs_table"]
 
 MANIFEST = "study.json"
 LOG = "runs.jsonl"
@@ -83,21 +83,43 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def manifest_devices(manifest: Any) -> list[dict[str, Any]]:
-    """What ran a study folder's runs, as its manifest records it (every sitting's, first seen first).
+def devices_path(folder: Path, key: str) -> Path:
+    """Where a study folder records what ran the runs of the study ``key``: ``devices-<key>.json``.
+
+    One file per study key, like a kept log (``runs-<key>.jsonl``): a study forced into the folder of
+    another leaves that study's record as it was.
 
     Parameters
     ----------
-    manifest : dict
-        The parsed manifest (``study.json``, a map's ``map-study.json``).
+    folder : Path
+        The study (or map) folder.
+    key : str
+        The study's key.
+
+    Returns
+    -------
+    Path
+    """
+    return Path(folder) / f"devices-{key}.json"
+
+
+def read_devices(path: Path) -> list[dict[str, Any]]:
+    """The devices a record (:func:`devices_path`) lists, first seen first; [] when it is absent or unreadable.
+
+    Parameters
+    ----------
+    path : Path
+        ``devices-<key>.json``.
 
     Returns
     -------
     list of dict
-        Its ``devices`` (:func:`risloc_rt.io.report.run_environment` objects); [] when absent (a folder
-        written before they were recorded) or malformed.
+        :func:`risloc_rt.io.report.run_environment` objects.
     """
-    devices = manifest.get("devices") if isinstance(manifest, dict) else None
+    try:
+        devices = json.loads(Path(path).read_text()).get("devices")
+    except (OSError, ValueError, AttributeError):
+        return []
     return [d for d in devices if isinstance(d, dict)] if isinstance(devices, list) else []
 
 
@@ -108,10 +130,9 @@ class RunLog:
     ----------
     path : Path
         ``runs.jsonl``.
-    manifest : Path, optional
-        The folder's manifest, where :meth:`record_device` keeps what ran the runs (None: kept in memory only).
-    devices : list of dict, optional
-        What ran the runs already in the log (the manifest's, :func:`manifest_devices`).
+    devices_file : Path, optional
+        Where :meth:`record_device` keeps what ran the runs (:func:`devices_path`); read by :meth:`open`.
+        None: kept in memory only.
 
     Attributes
     ----------
@@ -121,12 +142,11 @@ class RunLog:
         What ran them, every sitting's (:func:`risloc_rt.io.report.run_environment` objects).
     """
 
-    def __init__(self, path: Path, *, manifest: Path | None = None,
-                 devices: list[dict[str, Any]] | None = None) -> None:
+    def __init__(self, path: Path, *, devices_file: Path | None = None) -> None:
         self.path = path
         self.rows: dict[tuple[int, int], dict[str, Any]] = {}
-        self.manifest = manifest
-        self.devices: list[dict[str, Any]] = list(devices or [])
+        self.devices_file = devices_file
+        self.devices: list[dict[str, Any]] = []
         self._fh: Any = None
 
     def open(self) -> "RunLog":
@@ -168,6 +188,8 @@ class RunLog:
                     fh.truncate(len(data) - len(torn))
                     os.fsync(fh.fileno())
         self._fh = open(self.path, "ab")
+        if self.devices_file is not None:
+            self.devices = read_devices(self.devices_file)
         return self
 
     def done(self) -> set[tuple[int, int]]:
@@ -202,10 +224,11 @@ class RunLog:
     def record_device(self, device: dict[str, Any]) -> None:
         """Record that ``device`` ran runs of this study, before its first rows are appended.
 
-        A new device is written to the manifest (atomically, synced), so every row in the log has its
-        device recorded, whichever sitting ran it: a study continued later, or rerun with nothing left
-        to run, still names it in its summary (before, only the last sitting's batches were named, and
-        a finished study's rerun named none).
+        A new device is written to the folder's record (``devices_file``, atomically, synced), so every
+        row in the log has its device recorded, whichever sitting ran it: a study continued later, or
+        rerun with nothing left to run, still names it in its summary (before, only the last sitting's
+        batches were named, and a finished study's rerun named none). The record is absent until the
+        first batch: a stopped study's folder is then always a state of the finished one.
 
         Parameters
         ----------
@@ -215,11 +238,9 @@ class RunLog:
         if device in self.devices:
             return
         self.devices.append(device)
-        if self.manifest is None:
-            return
-        data = json.loads(self.manifest.read_text())
-        data["devices"] = self.devices
-        atomic_write_bytes(self.manifest, json.dumps(data, indent=1, sort_keys=True).encode() + b"\n", sync=True)
+        if self.devices_file is not None:
+            atomic_write_bytes(self.devices_file, json.dumps({"devices": self.devices}, indent=1,
+                                                             sort_keys=True).encode() + b"\n", sync=True)
 
     def close(self) -> None:
         """Close the file (the rows read stay available)."""
@@ -328,7 +349,6 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     manifest = out / MANIFEST
     if out.exists() and not out.is_dir():
         raise StudyFolderError(f"--out {str(out)!r} is a file, not a folder; choose a new folder")
-    devices: list[dict[str, Any]] = []  # what ran the runs in the log, when it is this study's
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text())
@@ -337,7 +357,6 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
             old_key = "unreadable"
         if old_key == spec.key:
             check_stream(out, old, stream, out / LOG)
-            devices = manifest_devices(old)
         if old_key != spec.key:
             if not force:
                 raise StudyFolderError(
@@ -355,9 +374,9 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     from .. import __version__
 
     atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__,
-                                             "noise_stream": stream, "devices": devices},
+                                             "noise_stream": stream},
                                             indent=1, sort_keys=True).encode() + b"\n", sync=True)
-    return RunLog(out / LOG, manifest=manifest, devices=devices).open()
+    return RunLog(out / LOG, devices_file=devices_path(out, spec.key)).open()
 
 
 def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str, Any]], *,

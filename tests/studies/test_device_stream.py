@@ -36,7 +36,8 @@ def test_a_rerun_with_nothing_left_to_run_still_names_what_ran_the_runs(small_sp
     spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
     first = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
     assert len(first.summary["devices"]) == 1
-    assert json.loads((tmp_path / "s" / "study.json").read_text())["devices"] == first.summary["devices"]
+    record = tmp_path / "s" / f"devices-{spec.key}.json"
+    assert json.loads(record.read_text())["devices"] == first.summary["devices"]
     (tmp_path / "s" / "summary.json").unlink()  # as a stop right after the last rows leaves it
     again = run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
     assert again.new_runs == 0
