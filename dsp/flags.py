@@ -259,8 +259,7 @@ def _not_the_detected_return(c: FlagContext) -> str | None:
     gap = (c.delay - det.delay) * SPEED_OF_LIGHT / 2.0  # [m]
     velocity_gap = (c.delay_rate - det.delay_rate) * SPEED_OF_LIGHT / 2.0  # [m/s]
     # a moving return drifts across the sweep: the detector's cell is where the whole sweep's statistic peaks
-    times = radar.beam_times(c.sweep.num_beams)
-    drift = abs(det.delay_rate) * SPEED_OF_LIGHT / 2.0 * (float(times[-1] - times[0]) + radar.frame_duration)
+    drift = abs(det.delay_rate) * SPEED_OF_LIGHT / 2.0 * radar.sweep_duration(c.sweep.num_beams)
     allowed = OFF_DETECTION_CELLS * radar.range_resolution + drift
     rungs = [0.0] if c.floor is None else [k * c.floor.spacing for k in RUNGS]  # the floor's legs of the return
     off_range = min(abs(gap - r) for r in rungs) > allowed

@@ -52,6 +52,9 @@ MOVING_CLUTTER_CYCLES = 1.0
 #: nothing found; three σ leaves 0.3 % of them.
 MOVING_CLUTTER_SIGMAS = 3.0
 
+#: An estimator's 1σ at the measured SNR (the ``bounds`` of :data:`dsp.estimators.ESTIMATORS`).
+_Bounds = Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds]
+
 #: The fastest motion across the RIS-radar line the ``pattern-mismatch`` test lets the AoD follow during a
 #: sweep [m/s] (walking pace: 1 m/s across a 13.4 m leg turns the AoD 2.6° over a 1.2 s sweep; the
 #: bound keeps a drift from mimicking a wrong pattern's width, which needs 8.7 m/s for a wrong mode
@@ -249,7 +252,7 @@ def _checked(cube: Any, *, sweep: BeamSweep, radar: RadarConfig, processing: Pro
 
 
 def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
-                 bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
+                 bounds: _Bounds,
                  aod: np.ndarray, distance: float, solved_height: float | None, *,
                  extra_distance_std: float = 0.0) -> Uncertainty:
     """1σ from the CRB at the measured SNR, by the estimator's ``bounds``, per-beam phases random (what a
@@ -263,7 +266,7 @@ def _uncertainty(inp: SweepInputs, est: SweepEstimate, det: Detection,
 
 
 def _bounds(inp: SweepInputs, est: SweepEstimate, det: Detection,
-            bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
+            bounds: _Bounds,
             aod: np.ndarray) -> tuple[EstimatorBounds, float]:
     """The estimator's ``bounds`` at the measured peak SNR, and that SNR ρ [linear] (clipped to 1e-12…1e300)."""
     arr = inp.cube
@@ -274,15 +277,14 @@ def _bounds(inp: SweepInputs, est: SweepEstimate, det: Detection,
 
 
 def _moving_clutter(inp: SweepInputs, det: Detection, est: SweepEstimate,
-                    bounds: Callable[[SweepInputs, SweepEstimate, np.ndarray, float], EstimatorBounds],
+                    bounds: _Bounds,
                     ) -> ClutterCancellation | None:
     """The hall echoes moving with the radar near the return, found and removed over the sweep
     (:func:`dsp.cancel_moving_clutter`), when the return moves: its phase turns by at least
     :data:`MOVING_CLUTTER_CYCLES` over the sweep and by :data:`MOVING_CLUTTER_SIGMAS` of its own 1σ (the
     estimator's velocity ``bounds``); else None. A device cube's search runs on one host copy of it."""
     radar = inp.radar
-    times = radar.beam_times(inp.cube.shape[0])
-    span = float(times[-1] - times[0]) + radar.num_chirps * radar.chirp_interval
+    span = radar.sweep_duration(inp.cube.shape[0])
     cycles = radar.carrier_frequency * abs(est.delay_rate) * span
     if not (cycles >= MOVING_CLUTTER_CYCLES and det.noise_power > 0):
         return None

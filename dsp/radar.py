@@ -192,6 +192,11 @@ class RadarConfig:
         """Start-to-start time of consecutive sweep beams, ``frames_per_beam · frame_interval`` [s]."""
         return self.frames_per_beam * self.frame_interval
 
+    def sweep_duration(self, num_beams: int) -> float:
+        """From the first chirp of the first beam's frame to the last chirp of the last beam's first frame
+        (the frames :meth:`beam_times` dates) [s]: ``(M − 1) · beam_interval + frame_duration``."""
+        return (positive_int(num_beams, "num_beams") - 1) * self.beam_interval + self.frame_duration
+
     def beam_times(self, num_beams: int) -> np.ndarray:
         """Centre time of each beam's (first) frame, from the start of the sweep [M] [s].
 

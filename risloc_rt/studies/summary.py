@@ -19,9 +19,10 @@ two axes) (``docs/studies.md``).
 
 Doubted runs: a detected run whose flags include one of a possible gross error
 (:data:`dsp.fusion.DOUBT_CODES`: ``off-detection``, ``aliased``, ``grating-lobe``, ...; the codes a
-fusion leaves out and the tracker skips) is counted in ``doubted``; ``mae_undoubted`` is the MAE over
-the other detected runs, with its bootstrap interval. The MAE itself stays over every detected run:
-a flag does not change a number, and what a user of the estimator would get includes its flagged runs.
+fusion leaves out and the tracker skips) is counted in ``doubted``; ``mae_undoubted``, ``rmse_undoubted``
+(with their bootstrap intervals) and ``rmse_undoubted_over_crb`` are taken over the other detected runs.
+The MAE and RMSE themselves stay over every detected run: a flag does not change a number, and what a
+user of the estimator would get includes its flagged runs.
 """
 
 from __future__ import annotations
@@ -103,6 +104,19 @@ def coverage(errors: Any, sigmas: Any) -> dict[str, Any]:
             "ci95": [_wilson(c, n) for c in counts]}
 
 
+def _errors(rows: list[dict[str, Any]], rng: np.random.Generator) -> tuple[dict, dict, dict, dict]:
+    """MAE, RMSE and their 95 % intervals of each quantity over ``rows`` (non-finite errors left out;
+    NaN without any): four dicts keyed like :data:`_QUANTITIES`, in its units."""
+    mae, rmse, mae_ci, rmse_ci = {}, {}, {}, {}
+    for name, col in _QUANTITIES.items():
+        e = np.array([r[col] for r in rows], dtype=float)
+        e = e[np.isfinite(e)]
+        mae[name] = float(np.mean(np.abs(e))) if e.size else math.nan
+        rmse[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+        mae_ci[name], rmse_ci[name] = _intervals(e, rng)
+    return mae, rmse, mae_ci, rmse_ci
+
+
 def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any]) -> dict[str, Any]:
     """The ``summary.json`` object: ``{"study": ..., "points": [...]}`` (module docstring).
 
@@ -143,22 +157,11 @@ def summarize(spec: StudySpec, rows: list[dict[str, Any]], info: dict[str, Any])
             raise RuntimeError(f"point {p} has {len(rs)} of {spec.runs} runs in the log; rerun the study to finish it")
         det = [r for r in rs if r["detected"]]
         rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(p, 2**32 - 1)))
-        mae, rmse, mae_ci, rmse_ci = {}, {}, {}, {}
-        for name, col in _QUANTITIES.items():
-            e = np.array([r[col] for r in det], dtype=float)
-            e = e[np.isfinite(e)]
-            mae[name] = float(np.mean(np.abs(e))) if e.size else math.nan
-            rmse[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
-            mae_ci[name], rmse_ci[name] = _intervals(e, rng)
+        mae, rmse, mae_ci, rmse_ci = _errors(det, rng)
         doubted = [bool(set((r.get("flags") or "").split(",")) & DOUBT_CODES) for r in det]
-        undoubted = [r for r, d in zip(det, doubted) if not d]
-        mae_undoubted, mae_undoubted_ci, rmse_undoubted, rmse_undoubted_ci = {}, {}, {}, {}
-        for name, col in _QUANTITIES.items():  # after the intervals above: their resamples do not change
-            e = np.array([r[col] for r in undoubted], dtype=float)
-            e = e[np.isfinite(e)]
-            mae_undoubted[name] = float(np.mean(np.abs(e))) if e.size else math.nan
-            rmse_undoubted[name] = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
-            mae_undoubted_ci[name], rmse_undoubted_ci[name] = _intervals(e, rng)
+        # after the intervals above (the same generator): their resamples do not change
+        mae_undoubted, rmse_undoubted, mae_undoubted_ci, rmse_undoubted_ci = _errors(
+            [r for r, d in zip(det, doubted) if not d], rng)
         bounds = {k: float(v) for k, v in info["crb"][p].items()}
         crb = {k: v for k, v in bounds.items() if not k.endswith("_random_phase")}
         random_phase = {k[: -len("_random_phase")]: v for k, v in bounds.items() if k.endswith("_random_phase")}

@@ -261,6 +261,9 @@ def test_radar_timing_defaults_and_old_files():
     assert t.velocity_resolution == pytest.approx(t.wavelength / (2 * 128 * 60e-6))
     assert t.beam_interval == pytest.approx(20e-3)
     assert t.beam_times(3) == pytest.approx(np.array([0.0, 20e-3, 40e-3]) + 128 * 60e-6 / 2)
+    # first chirp of beam 0 to the end of beam 2's first frame: two beam intervals and one frame
+    assert t.sweep_duration(3) == pytest.approx(40e-3 + 128 * 60e-6)
+    assert r.sweep_duration(61) == pytest.approx(61 * 128 * 50e-6)  # frames back to back
     assert dsp.RadarConfig.from_dict(t.to_dict(), require_all=True) == t
     with pytest.raises(ValueError, match="chirp_period"):
         dsp.RadarConfig(chirp_period=40e-6)
