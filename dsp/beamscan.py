@@ -40,6 +40,11 @@ class BeamScan:
         P_ave,m: mean of |z_m(τ, ν_m)|² over the delay bins with |τ - τ_m| <= Δ [W].
     delay_bin, doppler_bin : int arrays [M]
         Grid indices p (0…N_DFT-1) and q (FFT order, 0…K_DFT-1) of the maximum.
+    bounded : bool array [M] or None
+        None for a full scan. From ``scan_beams(..., best_only=True)``: True for the beams that
+        were not searched because they cannot be the strongest; their ``peak_power`` and
+        ``average_power`` hold a proven upper bound of both (below the best beam's P_ave), their
+        delay and delay rate NaN and their bins -1.
     """
 
     angles: np.ndarray
@@ -49,6 +54,7 @@ class BeamScan:
     average_power: np.ndarray
     delay_bin: np.ndarray
     doppler_bin: np.ndarray
+    bounded: np.ndarray | None = None
 
     @property
     def num_beams(self) -> int:
@@ -76,6 +82,8 @@ def scan_beams(
     sweep: BeamSweep,
     radar: RadarConfig,
     processing: ProcessingConfig,
+    *,
+    best_only: bool = False,
 ) -> BeamScan:
     """Find each beam's delay-Doppler peak and its average power P_ave.
 
@@ -89,6 +97,13 @@ def scan_beams(
         The M beam steering angles, in the order of the cube's first axis.
     radar : RadarConfig
     processing : ProcessingConfig
+    best_only : bool, default False
+        Only what :func:`dsp.localize` reads: the best beam, its peak and P_ave exactly as the full
+        scan gives them. On the host's screened search, beams whose proven bound
+        (:func:`dsp.gridscreen.grid_bound`) stays below a P_ave already found are not searched
+        (``BeamScan.bounded``): most noise-only beams of a detected sweep, 0.2 s of a Table I
+        cube's 0.3 s search on one core. On a device and with ``doppler_search="full"`` every
+        beam is searched (``bounded`` all False).
 
     Returns
     -------
@@ -115,6 +130,8 @@ def scan_beams(
                      fix="lower processing.n_dft/k_dft or raise $RISLOC_MEMORY_LIMIT")
     if not isinstance(sweep, BeamSweep):
         raise TypeError(f"sweep must be a BeamSweep, got {type(sweep).__name__}")
+    if not isinstance(best_only, bool):
+        raise TypeError(f"best_only={best_only!r} must be True or False")
     if sweep.num_beams != arr.shape[0]:
         raise ValueError(
             f"cube has {arr.shape[0]} beams (frames) but the sweep has {sweep.num_beams} angles; "
@@ -141,10 +158,13 @@ def scan_beams(
         if on_device:
             q_best, p_best, peak, average = device_scan(arr, processing, first, (w_k, w_n), delays, backend_of(arr))
         else:
-            q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns)
-        return BeamScan(angles=sweep.angles, delay=delays[p_best], delay_rate=rates[q_best],
+            q_best, p_best, peak, average = screened_scan(arr, processing, first, (w_k, w_n), average_columns,
+                                                          best_only=best_only)
+        bounded = p_best < 0
+        return BeamScan(angles=sweep.angles, delay=np.where(bounded, np.nan, delays[p_best]),
+                        delay_rate=np.where(bounded, np.nan, rates[q_best]),
                         peak_power=peak / gain**2, average_power=average / gain**2,
-                        delay_bin=p_best, doppler_bin=q_best)
+                        delay_bin=p_best, doppler_bin=q_best, bounded=bounded if best_only else None)
 
     spectrum, gain = windowed_range_spectrum(arr, radar, processing)  # [M, K, N_DFT]
     m = arr.shape[0]
@@ -177,4 +197,5 @@ def scan_beams(
         average_power=average,
         delay_bin=p_best,
         doppler_bin=q_best,
+        bounded=np.zeros(m, dtype=bool) if best_only else None,
     )

@@ -105,7 +105,7 @@ import scipy.fft
 from .processing import ProcessingConfig, window_vector
 from .threads import thread_count
 
-__all__ = ["SCREEN_HEADROOM_DB", "WHOLE_GRID_MIN", "WHOLE_GRID_SHARE", "screened_scan", "scalloping_loss_db",
+__all__ = ["SCREEN_HEADROOM_DB", "WHOLE_GRID_MIN", "WHOLE_GRID_SHARE", "grid_bound", "screened_scan", "scalloping_loss_db",
            "whole_grid_bins"]
 
 #: Allowance (dB) beyond the window's single-tone scalloping loss for returns that interfere
@@ -123,6 +123,9 @@ _U32 = 2.0**-24
 
 #: Native samples whose bound is refined to predict a noise-only beam (routing only).
 _ROUTE_SAMPLES = 32
+
+#: ``best_only``: beams the dense search would take, searched (or bounded) this many at a time.
+_DEFERRED_ROUND = 2
 
 #: A beam goes to the dense search when more than this fraction of its columns stays above the
 #: screen's bound (evaluating them one by one would cost more than the dense search).
@@ -226,7 +229,7 @@ def _fine_maximum(columns: np.ndarray, rows: np.ndarray, cols: np.ndarray, k_coa
 
 def screened_scan(
     cube: np.ndarray, processing: ProcessingConfig, first: int, window_kn: tuple[np.ndarray, np.ndarray],
-    average_columns: Callable[[int], np.ndarray], workers: int | None = None,
+    average_columns: Callable[[int], np.ndarray], workers: int | None = None, best_only: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Grid maxima and P_ave of every beam of ``cube [M, K, N]``.
 
@@ -244,15 +247,23 @@ def screened_scan(
     workers : int, optional
         Threads over chunks of beams (default: up to 2, the CPU count); the result does not
         depend on it.
+    best_only : bool, default False
+        Search exactly only the beams that can have the largest P_ave (module notes, "Best beam
+        only"): a beam the dense search would take whose proven bound :func:`grid_bound` is below
+        a P_ave already found is not searched. The best beam (argmax of ``average``, the first on
+        a tie) and its numbers are those of the full result.
 
     Returns
     -------
     q, p : int arrays [M]
-        Doppler bin (FFT order) and delay bin of each beam's grid maximum.
+        Doppler bin (FFT order) and delay bin of each beam's grid maximum; -1 for a beam
+        ``best_only`` did not search.
     power : float array [M]
-        Unnormalised |z(q, p)|² (divide by the coherent gain²) [W·gain²].
+        Unnormalised |z(q, p)|² (divide by the coherent gain²) [W·gain²]; for a beam not searched,
+        the upper bound of its grid maximum.
     average : float array [M]
-        Unnormalised mean of |z(q, p')|² over the P_ave bins p' [W·gain²].
+        Unnormalised mean of |z(q, p')|² over the P_ave bins p' [W·gain²]; for a beam not
+        searched, the same upper bound (its P_ave cannot exceed it).
     """
     m, k, n = cube.shape
     n_dft = processing.n_dft
@@ -274,6 +285,8 @@ def screened_scan(
     average = np.empty(m)
     step = max(1, _SCREEN_CHUNK // (8 * k * n_c))
     plan = _DensePlan.get(k, n, n_dft, processing.k_dft)
+    # best_only: (beam, windowed complex64 beam, ‖x‖_F, lower bound of |z|, predicted level |z|²)
+    deferred: list[tuple[int, np.ndarray, float, float, float]] = []
 
     def chunk(i: int) -> None:
         block = cube[i:i + step].astype(np.complex64)
@@ -308,6 +321,12 @@ def screened_scan(
                 above = np.flatnonzero(fine >= value)
                 dense = above.size > n_dft * _DENSE_FRACTION
                 lower = np.sqrt(value)
+            if dense and best_only:  # searched after the others, if its bound can reach their P_ave
+                # the largest refined native |z|² (<= the native grid's maximum): it orders the deferred
+                # beams and predicts whether their bound can exclude them (work only, never a result)
+                level = float(bound[c][refined[c]].max()) / doppler_margin if refined[c].any() else 0.0
+                deferred.append((j, block[c], float(norms[c]), lower, level))
+                continue
             if dense:
                 if work is None:
                     try:
@@ -336,7 +355,86 @@ def screened_scan(
         with ThreadPoolExecutor(max_workers=workers) as pool:
             for _ in pool.map(chunk, starts):
                 pass
+    if deferred:
+        # The likeliest first, in rounds of _DEFERRED_ROUND beams (searched on the threads): a round's
+        # searches raise the P_ave that the next round's bounds must stay below. The rounds do not
+        # depend on ``workers``, so neither does the result.
+        searched = np.ones(m, dtype=bool)
+        searched[[item[0] for item in deferred]] = False
+        best = float(average[searched].max()) if searched.any() else -np.inf
+        factor = _bound_factor(k, n, plan.length)
+        order = sorted(deferred, key=lambda item: (-item[4], item[0]))
+
+        def search(item: tuple[int, np.ndarray, float, float, float]) -> None:
+            j, x32, _, lower, _ = item
+            try:
+                work = plan.spare.get_nowait()
+            except Empty:
+                work = _DenseWork(plan)
+            y = cube[j]
+            q_best[j], p_best[j], power[j], krow = _dense_beam(y, x32, plan, work, first, w_k, w_n, lower)
+            average[j] = _row_values(y, krow, average_columns(int(p_best[j])), n_dft, w_k, w_n).mean()
+            plan.spare.put(work)
+
+        pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+        try:
+            for r0 in range(0, len(order), _DEFERRED_ROUND):
+                todo = []
+                for item in order[r0:r0 + _DEFERRED_ROUND]:
+                    j, x32, norm, _, level = item
+                    # the bound is >= factor × the native grid's maximum: computed only where it can exclude
+                    if factor * level < best:
+                        limit = grid_bound(x32, norm, plan.length)
+                        if limit * (1.0 + 1e-9) < best:  # P_ave_j <= max |z_j|² <= limit < best
+                            q_best[j], p_best[j], power[j], average[j] = -1, -1, limit, limit
+                            continue
+                    todo.append(item)
+                if pool is not None and len(todo) > 1:
+                    list(pool.map(search, todo))
+                else:
+                    for item in todo:
+                        search(item)
+                if todo:
+                    best = max(best, float(average[[item[0] for item in todo]].max()))
+        finally:
+            if pool is not None:
+                pool.shutdown()
     return q_best, p_best, power, average
+
+
+def grid_bound(x32: np.ndarray, norm: float, doppler_length: int) -> float:
+    """An upper bound of max |z(ν, f)|² over every Doppler ν and delay f of one windowed beam [W·gain²].
+
+    ``x32 [K, N]`` is the windowed beam in complex64 (within 3u of w_K·w_N·y) and ``norm`` its
+    Frobenius norm ‖x‖_F (float64). The half-bin grid — ``L >= 2K`` Doppler bins
+    (``doppler_length``) by ``L_f = next_fast_len(2N)`` delay bins, one complex64 2-D transform —
+    bounds the continuous maximum by Szegő's inequality (module notes, step c) once per axis:
+    ``max |z| <= (max_grid |z| + e) / (cos α_f cos α_ν)``, α_f = π(N-1)/(2 L_f) and
+    α_ν = π(K-1)/(2L) (each <= π/4: a factor of at most 2 in power, 3.9 for Table I), with
+    ``e = 50 u log₂(L L_f) √(L L_f) ‖x‖_F + 4u √(KN) ‖x‖_F``: 50 times the complex64 FFT's normwise
+    error for c = 1 (as the screen's slack) plus the cast and window (u = 2⁻²⁴).
+    """
+    k, n = x32.shape
+    length, length_f = int(doppler_length), _bound_delay_length(n)
+    rows = scipy.fft.fft(x32, n=length_f, axis=1, workers=1)  # [K, L_f]
+    padded = np.zeros((length, length_f), dtype=np.complex64)
+    padded[:k] = rows
+    z = scipy.fft.fft(padded, axis=0, workers=1, overwrite_x=True)  # [L, L_f]; |z| as the + sign's, mirrored
+    peak = float(np.sqrt(float((z.real**2 + z.imag**2).max())))
+    cells = float(length) * float(length_f)
+    slack = (50.0 * _U32 * np.log2(cells) * np.sqrt(cells) + 4.0 * _U32 * np.sqrt(k * n)) * norm
+    return float((peak * (1.0 + 1e-6) + slack) ** 2 * _bound_factor(k, n, length))
+
+
+def _bound_delay_length(n: int) -> int:
+    """L_f of :func:`grid_bound`: the delay bins of its half-bin grid (>= 2N)."""
+    return scipy.fft.next_fast_len(2 * n)
+
+
+def _bound_factor(k: int, n: int, length: int) -> float:
+    """1/(cos α_f cos α_ν)² of :func:`grid_bound` (>= 1, <= 4): its maximum over its grid's maximum, in power."""
+    c = np.cos(np.pi * (n - 1) / (2.0 * _bound_delay_length(n))) * np.cos(np.pi * (k - 1) / (2.0 * length))
+    return float(1.0 / c**2)
 
 
 def _refine_many(spec: np.ndarray, value: np.ndarray, done: np.ndarray, beams: np.ndarray, samples: np.ndarray,

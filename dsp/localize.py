@@ -114,7 +114,9 @@ def self_localize(
         estimator does not need it (reports plot its P_ave profile). ``False`` skips it with the
         refined estimator — every number of the result is the same, ``scan`` is None; a Monte
         Carlo study saves the search's cost (0.1-2 s per Table I cube, most at low SNR, where
-        no beam's grid maximum can be screened). The paper's estimator always runs it.
+        no beam's grid maximum can be screened). The paper's estimator then searches only the
+        beams that can be the best (:func:`dsp.scan_beams` ``best_only``: the same estimate and
+        flags, ``scan`` None).
     backend : dsp.xp.ArrayBackend, optional
         Where the whole-cube work runs (``dsp.backend_for("cuda")`` for a GPU): the detector
         (:func:`dsp.detect_batch`) and every read of the cube by the estimators and the flags
@@ -169,9 +171,12 @@ def self_localize(
                            min_range=processing.min_range, max_candidates=5, pattern=inp.pattern, sweep=sweep,
                            oversample=2)[0]
     # the paper's grid search runs where the cube is (dsp.devicegrid on a device): M results come back
-    grid = scan_beams(inp.cube, sweep, radar, processing) if scan or steps.needs_scan else None
+    # scan=False: only the beams that can be the best are searched (the result keeps no scan)
+    grid = scan_beams(inp.cube, sweep, radar, processing, best_only=not scan) if scan or steps.needs_scan else None
     if not det.detected:
         loc = no_position(grid, det)
+        if not scan:
+            loc = dataclasses.replace(loc, scan=None)
         if impulses is not None and impulses.count:
             loc = dataclasses.replace(loc, flags=loc.flags + (Flag("impulsive-samples", impulses.describe()),))
         return loc
@@ -212,7 +217,7 @@ def self_localize(
     return Localization(
         beam_index=est.beam_index, aod=aod, delay=float(est.delay), distance=float(distance),
         delay_rate=float(est.delay_rate), velocity=float(velocity), direction=direction, position=position,
-        scan=grid, detection=det, std=std, flags=sweep_flags(context), estimator=estimator,
+        scan=grid if scan else None, detection=det, std=std, flags=sweep_flags(context), estimator=estimator,
         reference_time=float(t_ref),
         alternatives=_alternatives(inp, est, aod, distance, position, ue_height if height_solved else None),
     )
