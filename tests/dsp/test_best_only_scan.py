@@ -1,0 +1,197 @@
+"""``scan_beams(best_only=True)``: the paper's best beam without searching the beams that cannot win.
+
+Oracles: Szegő's extremal function (two chirps and two samples, first and last: the closed form
+``|z| = 4|cos(π(K-1)(ν-ν₀))|·|cos(π(N-1)(f-f₀))|`` gives its maximum 4 and every grid value), the
+float64 transform on grids finer than the bound's own (a lower estimate of the continuous
+maximum), and the full scan (``best_only=False``), whose best beam and numbers the reduced scan
+must give bit for bit. A beam is left out only when its bound is below a P_ave already found.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.fft
+
+import dsp
+from dsp import gridscreen
+from risloc_rt.model.beat import add_noise
+from risloc_rt.model.scenario import paper_scenario
+from risloc_rt.model.simulate import simulate
+
+FIELDS = ("delay", "delay_rate", "peak_power", "average_power", "delay_bin", "doppler_bin")
+
+
+def _bound(x: np.ndarray, length: int) -> float:
+    """grid_bound of the windowed beam ``x`` (given in float64: cast to complex64 as the scan does)."""
+    x32 = x.astype(np.complex64)
+    return gridscreen.grid_bound(x32, float(np.linalg.norm(x32.astype(np.complex128))), length)
+
+
+def _slack(x: np.ndarray, length: int) -> float:
+    """grid_bound's stated float32 allowance on |z| (its docstring): 50 u log₂(L L_f) √(L L_f) ‖x‖_F + 4u √(KN) ‖x‖_F."""
+    k, n = x.shape
+    u, cells = 2.0**-24, length * scipy.fft.next_fast_len(2 * n)
+    return (50 * u * np.log2(cells) * np.sqrt(cells) + 4 * u * np.sqrt(k * n)) * float(np.linalg.norm(x))
+
+
+def _fine_max(x: np.ndarray, over: int) -> float:
+    """max |z|² on a float64 grid ``over`` times finer than the native one per axis (<= the continuous max)."""
+    k, n = x.shape
+    z = scipy.fft.fft2(x, s=(over * k, over * n))
+    return float((z.real**2 + z.imag**2).max())
+
+
+def test_szegos_extremal_function_attains_the_bound_on_both_axes():
+    # K = 17, L = 64: the maxima of |cos(16π(ν-ν₀))| repeat every 1/16 = 4/64 cycles, so with ν₀
+    # midway between two of the 64 Doppler bins every repeat is too: the grid's largest |z| is
+    # 4·cos(π/8), exactly the cos α_ν the bound divides by. N = 3 does the same on the delay axis
+    # (L_f = 6, repeats every 1/2 = 3/6, α_f = π/6). The bound must then be the maximum, 16,
+    # up to its float32 slack; a smaller factor would put it below the maximum.
+    k, n, length = 17, 3, 64
+    assert gridscreen.scipy.fft.next_fast_len(2 * n) == 6
+    nu0, f0 = 9.5 / length, 2.5 / 6
+    x = np.zeros((k, n), complex)
+    for kk in (0, k - 1):
+        for nn in (0, n - 1):
+            x[kk, nn] = np.exp(2j * np.pi * (nu0 * kk + f0 * nn))
+    bound = _bound(x, length)
+    assert bound >= 16.0
+    # and no more than the slack (divided by cos α_f cos α_ν, as the grid value it is added to) above it:
+    # 16.0101 for this 4-sample beam; the float32 grid value may exceed float64's by u, hence 2e-6
+    assert bound <= (4.0 * (1 + 2e-6) + _slack(x, length) / (np.cos(np.pi / 8) * np.cos(np.pi / 6))) ** 2
+    # the half-bin grid alone misses the maximum by the factor the bound restores (Table I: at most 4)
+    z = scipy.fft.fft2(x, s=(length, 6))
+    grid_max = float((np.abs(z) ** 2).max())
+    assert grid_max == pytest.approx(16.0 * (np.cos(np.pi / 8) * np.cos(np.pi / 6)) ** 2, rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["one tone off both grids", "three tones", "noise", "tone in noise", "impulse"])
+def test_the_bound_is_above_the_finest_grid_and_within_6_db_of_it(kind):
+    # A Table I-like beam shape at reduced size (K = 32 chirps, N = 100 samples), Hann-windowed as the
+    # scan windows it. The bound must cover a float64 grid 8 times finer than native on each axis
+    # (the paper's N_DFT × K_DFT grid is 2 × 37 times finer: its maximum lies below the continuous one
+    # too) and exceed it by at most the factor 1/(cos α_f cos α_ν)² <= 4 (6 dB) plus the slack.
+    k, n = 32, 100
+    length = 64
+    rng = np.random.default_rng(abs(hash(kind)) % 2**32)
+    kk, nn = np.arange(k)[:, None], np.arange(n)[None, :]
+    x = np.zeros((k, n), complex)
+    if kind == "one tone off both grids":
+        x = np.exp(2j * np.pi * (0.25 / length * 2 + 0.3141 * kk + 0.2718 * nn + 0.13 / (2 * n) * nn))
+    elif kind == "three tones":
+        for _ in range(3):
+            x = x + rng.normal() * np.exp(2j * np.pi * (rng.random() * kk + rng.random() * nn + rng.random()))
+    elif kind == "noise":
+        x = rng.normal(size=(k, n)) + 1j * rng.normal(size=(k, n))
+    elif kind == "tone in noise":
+        x = 0.2 * np.exp(2j * np.pi * (0.41 * kk + 0.77 * nn)) + 0.1 * (rng.normal(size=(k, n)) + 1j * rng.normal(size=(k, n)))
+    else:  # one glitched sample: flat in both axes
+        x[7, 42] = 3.0 - 4.0j
+    x = x * np.outer(np.hanning(k + 1)[:-1], np.hanning(n + 1)[:-1]) if kind != "impulse" else x
+    bound = _bound(x, length)
+    fine = _fine_max(x, 8)
+    factor = gridscreen._bound_factor(k, n, length)
+    assert factor <= 4.0
+    assert bound >= fine
+    # the float32 grid value may exceed float64's by u: 2e-6 instead of the bound's own 1e-6
+    assert bound <= factor * (np.sqrt(fine) * (1 + 2e-6) + _slack(x, length)) ** 2
+
+
+def _scans(cube, sweep, radar, processing):
+    with dsp.limit_threads(1):
+        return (dsp.scan_beams(cube, sweep, radar, processing),
+                dsp.scan_beams(cube, sweep, radar, processing, best_only=True))
+
+
+def _assert_same_best(full, best):
+    m = full.best_beam
+    assert best.best_beam == m
+    for name in FIELDS:
+        assert getattr(best, name)[m] == getattr(full, name)[m], name
+    kept = ~best.bounded
+    for name in FIELDS:  # every searched beam is the full scan's, bit for bit
+        np.testing.assert_array_equal(getattr(best, name)[kept], getattr(full, name)[kept])
+    b = best.bounded
+    # the bounded beams: above their true numbers, below the best beam's P_ave, no cell
+    assert np.all(best.peak_power[b] >= full.peak_power[b])
+    assert np.all(best.average_power[b] >= full.average_power[b])
+    assert np.all(best.average_power[b] < full.average_power[m])
+    assert np.all(np.isnan(best.delay[b])) and np.all(best.delay_bin[b] == -1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tx_power_dbm, least_bounded", [(-30.0, 0), (0.0, 0), (5.0, 20), (10.0, 45)])
+def test_table_i_best_beam_is_the_full_scans_and_the_noise_beams_are_left_out(tx_power_dbm, least_bounded):
+    # Table I (61 beams, 128 chirps, 600 samples, the paper's grid), the fast noise stream. At 5 and
+    # 10 dBm the noise-only beams' bounds (6 dB above their maxima at most) fall below the RIS beam's
+    # P_ave: measured 31-49 of 55 left out at 5 dBm and 54 at 10 dBm (three seeds); at 0 dBm the
+    # best P_ave is within 2 dB of their maxima and at -30 dBm no beam has a return: all searched.
+    sc = paper_scenario(radar=dsp.RadarConfig(tx_power_dbm=tx_power_dbm))
+    cap = simulate(sc, rng=np.random.default_rng(11), noise_stream="fast")
+    full, best = _scans(cap.cube, cap.sweep, cap.radar, cap.processing)
+    _assert_same_best(full, best)
+    assert full.bounded is None
+    assert int(best.bounded.sum()) >= least_bounded
+    if least_bounded == 0:
+        assert not best.bounded.any()
+
+
+def test_threads_do_not_change_the_reduced_scan(make_radar, make_processing, tone):
+    # Four beams with a return and eight noise-only ones: the rounds of the deferred beams are fixed,
+    # so 1 and 3 threads give the same beams left out and the same numbers.
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    rng = np.random.default_rng(5)
+    cube = np.zeros((12, 16, 64), complex)
+    cube[:4] = 3.0 * tone(radar, 1e-8, 2e-9)
+    cube = add_noise(cube, 1.0, rng)
+    windows = (np.hanning(17)[:-1], np.hanning(65)[:-1])
+    runs = [gridscreen.screened_scan(cube, processing, 0, windows, lambda p: np.array([p]), workers=w, best_only=True)
+            for w in (1, 3)]
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(a, b)
+    assert np.count_nonzero(runs[0][1] < 0) >= 1  # some beam was left out
+    full = gridscreen.screened_scan(cube, processing, 0, windows, lambda p: np.array([p]), workers=1)
+    assert int(np.argmax(runs[0][3])) == int(np.argmax(full[3]))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("estimator", ["paper", "refined"])
+def test_self_localize_without_a_scan_gives_the_same_estimate(estimator):
+    # The studies' call (scan=False): the paper's estimator reads only the best beam, so its position,
+    # σ and flags are those of the full scan; the result keeps no scan.
+    sc = paper_scenario(radar=dsp.RadarConfig(tx_power_dbm=10.0))
+    cap = simulate(sc, rng=np.random.default_rng(3), noise_stream="fast")
+    kw = dict(sweep=cap.sweep, radar=cap.radar, processing=cap.processing, pose=cap.ris.pose,
+              loopback_delay=cap.ris.loopback_delay, estimator=estimator, pattern=cap.ris.beam_pattern())
+    with_scan = dsp.self_localize(cap.cube, **kw)
+    without = dsp.self_localize(cap.cube, scan=False, **kw)
+    assert with_scan.scan is not None and without.scan is None
+    np.testing.assert_array_equal(without.position, with_scan.position)
+    assert without.beam_index == with_scan.beam_index
+    assert without.flag_codes == with_scan.flag_codes
+    assert without.std == with_scan.std
+
+
+def test_a_device_cube_and_the_full_search_search_every_beam(make_radar, make_processing, tone):
+    # best_only is the host screen's: on a device (array_api_strict here) and with doppler_search="full"
+    # every beam is searched, and the scan says so (bounded all False).
+    radar = make_radar(num_samples=32, num_chirps=8)
+    sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-3.0, 3.0, 1.5]))
+    rng = np.random.default_rng(2)
+    cube = add_noise(np.zeros((5, 8, 32), complex) + tone(radar, 1e-8, 0.0), 0.1, rng)
+    for processing in (make_processing(radar, n_dft=63, k_dft=31, doppler_search="full"),):
+        scan = dsp.scan_beams(cube, sweep, radar, processing, best_only=True)
+        assert scan.bounded is not None and not scan.bounded.any()
+    strict = dsp.strict_backend("CPU_DEVICE")
+    scan = dsp.scan_beams(strict.asarray(cube), sweep, radar, make_processing(radar, n_dft=63, k_dft=31),
+                          best_only=True)
+    assert not scan.bounded.any()
+
+
+def test_best_only_must_be_a_bool(make_radar, make_processing):
+    radar = make_radar(num_samples=32, num_chirps=8)
+    sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-3.0, 3.0, 1.5]))
+    with pytest.raises(TypeError, match="best_only"):
+        dsp.scan_beams(np.ones((5, 8, 32), complex), sweep, radar, make_processing(radar), best_only="yes")
