@@ -7,7 +7,10 @@ the screened ``"zoom"`` search, on the same cube. It prints the median time of e
 and whether the best beam, every beam's grid peak (delay and Doppler bins) and the estimate are
 identical, plus the largest relative difference of the peak and P_ave values. Times are wall
 clock and CPU (process) seconds per cube; a closing line gives the paper DSP's speed against the
-straight paper method (the full grid) next to its exactness, all from the same run.
+straight paper method (the full grid) next to its exactness, all from the same run. The "best-only"
+columns time the same method with ``scan_beams(best_only=True)`` (only the beams that can be the
+best searched: a study's paper run), how many beams it left out and whether its best beam and
+position are the whole scan's; a second closing line gives its ratio to the full grid.
 
 ``--device cuda`` (or ``strict``, ``numpy``) also runs the paper DSP with the cube on that device: the
 grid search where the cube lives (``dsp/devicegrid.py``), timed per cube with the cube already there
@@ -53,8 +56,9 @@ from risloc_rt.model.scenario import PAPER_CASES, paper_scenario
 from risloc_rt.model.simulate import simulate
 
 
-def _paper_path(cube, capture, search, screen=None):
-    """``dsp.localize(dsp.scan_beams(...))`` with ``search``; ``screen``: another screened_scan to use.
+def _paper_path(cube, capture, search, screen=None, best_only=False):
+    """``dsp.localize(dsp.scan_beams(...))`` with ``search``; ``screen``: another screened_scan to use;
+    ``best_only``: only the beams that can be the best searched (what a study's paper run does).
 
     Returns (localization, wall seconds, CPU seconds).
     """
@@ -63,7 +67,8 @@ def _paper_path(cube, capture, search, screen=None):
         dsp.beamscan.screened_scan = screen
     try:
         t0, c0 = time.perf_counter(), time.process_time()
-        scan = dsp.scan_beams(cube, capture.sweep, capture.radar, replace(capture.processing, doppler_search=search))
+        scan = dsp.scan_beams(cube, capture.sweep, capture.radar, replace(capture.processing, doppler_search=search),
+                              **({"best_only": True} if best_only else {}))
         loc = dsp.localize(scan, radar=capture.radar, pose=capture.ris.pose, loopback_delay=capture.ris.loopback_delay)
         return loc, time.perf_counter() - t0, time.process_time() - c0
     finally:
@@ -131,15 +136,18 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
     """Screened zoom vs the full grid per case; with ``baseline`` (a screened_scan) also the older screen;
     with ``device`` (an ArrayBackend) also the device's grid search on the same cubes."""
     print(f"{'case':<24} {'n':>3} {'zoom [s]':>9} {'cpu [s]':>8} {'full [s]':>9} {'full/zoom':>9} {'same beam':>9} "
-          f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13}"
+          f"{'same bins':>9} {'same estimate':>13} {'max rel. diff':>13} {'best-only [s]':>13} {'cpu [s]':>8} "
+          f"{'full/best':>9} {'left out':>8} {'same estimate':>13}"
           + (f" {'baseline [s]':>12} {'cpu [s]':>8} {'base/zoom':>9} {'base bins':>9}" if baseline else "")
           + (f" {'device [s]':>10} {'full/dev':>8} {'dev bins':>8} {'dev diff':>8}" if device else ""))
     cases = list(_cases(low_powers))
     ratios, exact, worst = [], [0, 0], 0.0
+    best_ratios, best_exact = [], [0, 0]
     dev_ratios, dev_exact = [], [0, 0]
     for (name, scenario, paths), ss in zip(cases, np.random.SeedSequence(seed).spawn(len(cases))):
         t_zoom, c_zoom, t_full, t_base, c_base, beam, bins, est, diff, base_bins = [], [], [], [], [], 0, 0, 0, 0.0, 0
         t_dev, dev_bins, dev_diff = [], 0, 0.0
+        t_best, c_best, left_out, best_same = [], [], [], 0
         for r, child in enumerate(ss.spawn(realizations)):
             cap = simulate(scenario, rng=np.random.default_rng(child), paths=paths)
             if baseline is not None:  # alternating with the current screen, on the same cube
@@ -149,6 +157,11 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
             zoom, t, c = _paper_path(cap.cube, cap, "zoom")
             t_zoom.append(t)
             c_zoom.append(c)
+            reduced, t, c = _paper_path(cap.cube, cap, "zoom", best_only=True)
+            t_best.append(t)
+            c_best.append(c)
+            left_out.append(int(reduced.scan.bounded.sum()))
+            best_same += bool(reduced.beam_index == zoom.beam_index and np.array_equal(reduced.position, zoom.position))
             if baseline is not None:
                 base_bins += _same(old, zoom)[1]
             if device is not None:  # the cube copied to the device first (a study's cube is there already)
@@ -168,6 +181,11 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
         worst = max(worst, diff)
         line = (f"{name:<24} {len(t_zoom):>3} {mz:>9.3f} {np.median(c_zoom):>8.3f} {mf:>9.2f} {mf / mz:>9.0f} "
                 f"{beam:>6}/{full:<2} {bins:>6}/{full:<2} {est:>10}/{full:<2} {diff:>13.1e}")
+        mb = float(np.median(t_best))
+        best_ratios.append((name, mb, float(np.median(c_best)), mf / mb))
+        best_exact = [best_exact[0] + best_same, best_exact[1] + realizations]
+        line += (f" {mb:>13.3f} {np.median(c_best):>8.3f} {mf / mb:>9.0f} {int(np.median(left_out)):>5}/{zoom.scan.num_beams:<2}"
+                 f" {best_same:>10}/{realizations:<2}")
         if baseline is not None:
             line += (f" {np.median(t_base):>12.3f} {np.median(c_base):>8.3f} {np.median(t_base) / mz:>9.2f} "
                      f"{base_bins:>6}/{realizations:<2}")
@@ -182,6 +200,11 @@ def bench_dsp(realizations: int, full: int, seed: int, low_powers=(), baseline=N
           f"{max(r[3] for r in ratios):.0f}x faster, slowest case {slowest[0]} {slowest[1]:.3f} s per cube "
           f"(cpu {slowest[2]:.3f} s) [goal >= 170x, <= 0.07 s]; exact: same bins in {exact[0]}/{exact[1]} cubes, "
           f"max rel. diff of peak and P_ave {worst:.1e}")
+    slowest = max(best_ratios, key=lambda r: r[1])
+    print(f"the same with only the beams that can be the best searched (scan_beams(best_only=True), a study's paper run): "
+          f"{min(r[3] for r in best_ratios):.0f}-{max(r[3] for r in best_ratios):.0f}x faster, slowest case {slowest[0]} "
+          f"{slowest[1]:.3f} s per cube (cpu {slowest[2]:.3f} s); the same best beam and position as the whole scan in "
+          f"{best_exact[0]}/{best_exact[1]} cubes")
     if device is not None:
         slowest = max(dev_ratios, key=lambda r: r[1])
         print(f"paper DSP on {device.summary()}: {min(r[2] for r in dev_ratios):.0f}-{max(r[2] for r in dev_ratios):.0f}x "

@@ -49,7 +49,7 @@ def test_szegos_extremal_function_attains_the_bound_on_both_axes():
     # (L_f = 6, repeats every 1/2 = 3/6, α_f = π/6). The bound must then be the maximum, 16,
     # up to its float32 slack; a smaller factor would put it below the maximum.
     k, n, length = 17, 3, 64
-    assert gridscreen.scipy.fft.next_fast_len(2 * n) == 6
+    assert scipy.fft.next_fast_len(2 * n) == 6
     nu0, f0 = 9.5 / length, 2.5 / 6
     x = np.zeros((k, n), complex)
     for kk in (0, k - 1):

@@ -82,11 +82,14 @@ def test_refined_without_the_grid_search_gives_the_same_numbers(noisy):
     _same(full, lean)
 
 
-def test_the_paper_estimator_always_runs_the_grid_search(noisy):
+def test_the_paper_estimator_without_a_scan_gives_the_same_numbers(noisy):
+    # scan=False: the paper's estimator searches only the beams that can be the best
+    # (scan_beams(best_only=True)) and keeps no scan; every number is the full scan's.
     scenario, cube = noisy
     loc = _localize(scenario, cube, estimator="paper", scan=False)
-    assert loc.scan is not None
-    _same(loc, _localize(scenario, cube, estimator="paper"))
+    full = _localize(scenario, cube, estimator="paper")
+    assert loc.scan is None and full.scan is not None
+    _same(loc, full)
 
 
 def test_no_detection_without_a_scan_names_the_detectors_beam(make_scenario):
