@@ -102,13 +102,17 @@ cos α_f cos α_ν, Szegő's inequality of step c applied once per axis: at the 
 (ν*, f*), |z(ν*, f_j)| >= M cos α_f at the nearest delay bin f_j (α_f = π(N-1)/(2 L_f)), and on that
 delay |z| reaches at least cos α_ν of its own maximum (>= that value) at its nearest Doppler bin.
 Both angles are <= π/4, so the bound exceeds M² by at most 4× (Szegő's extremal function attains
-it); it is computed only when 4× the beam's refined native value (<= its half-bin maximum) could
-be below the best P_ave, so a beam it cannot exclude costs nothing more. The left-out beams report
-the bound as their peak and P_ave, bins -1 (:attr:`dsp.BeamScan.bounded`). The searched beams and
-the best one are bit for bit the full scan's; which beams are left out depends on the data only
-(the rounds do not depend on the threads). Table I, one core: at 5 dBm 31–49 of the 55 noise-only
-beams left out, at 10 dBm 54 of 54 (0.30 → 0.18 s per cube); at 0 dBm the best P_ave is within
-2 dB of the noise-only beams' maxima and at 20 dBm none is noise-only: no change.
+it). Given the P_ave to stay below, the few delay bins (<= 16) whose Doppler bound could reach it
+are refined 4× on both axes (float64, one matrix product and a 4L-point Doppler transform): a
+maximum near them is then bounded within 1.2× (Table I), the rest stays below by the coarse bound.
+The bound is computed only when 3× the beam's largest refined native value is below the best
+P_ave (a prediction: work only), so a beam it is unlikely to exclude costs nothing more. The
+left-out beams report the bound as their peak and P_ave, bins -1 (:attr:`dsp.BeamScan.bounded`).
+The searched beams and the best one are bit for bit the full scan's; which beams are left out
+depends on the data only (the rounds do not depend on the threads). Table I (UE at 10.3°), one
+core, 8 seeds: at 5 dBm 55 of the 55 noise-only beams left out on average (0.31 → 0.18 s per
+cube), at 10 dBm 54 (0.29 → 0.16 s); at 0 dBm the best P_ave is within 1–3 dB of the noise-only
+beams' maxima (none left out, the same time) and at 20 dBm no beam is noise only.
 """
 
 from __future__ import annotations
@@ -145,6 +149,13 @@ _ROUTE_SAMPLES = 32
 
 #: ``best_only``: beams the dense search would take, searched (or bounded) this many at a time.
 _DEFERRED_ROUND = 2
+#: ``best_only``: the bound is computed for a beam only when this many times its largest refined
+#: native |z|² is below the best P_ave (a prediction: it decides work, never a result).
+_BOUND_PREDICT = 3.0
+
+#: :func:`grid_bound` with a level: at most this many delay bins are refined, each this many times
+#: finer (on both axes: 1.2× the maximum in power for Table I instead of 3.9).
+_BOUND_COLUMNS, _BOUND_REFINE = 16, 4
 
 #: A beam goes to the dense search when more than this fraction of its columns stays above the
 #: screen's bound (evaluating them one by one would cost more than the dense search).
@@ -381,7 +392,6 @@ def screened_scan(
         searched = np.ones(m, dtype=bool)
         searched[[item[0] for item in deferred]] = False
         best = float(average[searched].max()) if searched.any() else -np.inf
-        factor = _bound_factor(k, n, plan.length)
         order = sorted(deferred, key=lambda item: (-item[4], item[0]))
 
         def search(item: tuple[int, np.ndarray, float, float, float]) -> None:
@@ -401,9 +411,9 @@ def screened_scan(
                 todo = []
                 for item in order[r0:r0 + _DEFERRED_ROUND]:
                     j, x32, norm, _, level = item
-                    # the bound is >= factor × the native grid's maximum: computed only where it can exclude
-                    if factor * level < best:
-                        limit = grid_bound(x32, norm, plan.length)
+                    # the bound exceeds the native grid's maximum, by ~1.2-3.9x: computed where it may exclude
+                    if _BOUND_PREDICT * level < best:
+                        limit = grid_bound(x32, norm, plan.length, level=best)
                         if limit * (1.0 + 1e-9) < best:  # P_ave_j <= max |z_j|² <= limit < best
                             q_best[j], p_best[j], power[j], average[j] = -1, -1, limit, limit
                             continue
@@ -421,17 +431,29 @@ def screened_scan(
     return q_best, p_best, power, average
 
 
-def grid_bound(x32: np.ndarray, norm: float, doppler_length: int) -> float:
+def grid_bound(x32: np.ndarray, norm: float, doppler_length: int, level: float | None = None) -> float:
     """An upper bound of max |z(ν, f)|² over every Doppler ν and delay f of one windowed beam [W·gain²].
 
     ``x32 [K, N]`` is the windowed beam in complex64 (within 3u of w_K·w_N·y) and ``norm`` its
     Frobenius norm ‖x‖_F (float64). The half-bin grid — ``L >= 2K`` Doppler bins
     (``doppler_length``) by ``L_f = next_fast_len(2N)`` delay bins, one complex64 2-D transform —
-    bounds the continuous maximum by Szegő's inequality (module notes, step c) once per axis:
-    ``max |z| <= (max_grid |z| + e) / (cos α_f cos α_ν)``, α_f = π(N-1)/(2 L_f) and
-    α_ν = π(K-1)/(2L) (each <= π/4: a factor of at most 2 in power, 3.9 for Table I), with
-    ``e = 50 u log₂(L L_f) √(L L_f) ‖x‖_F + 4u √(KN) ‖x‖_F``: 50 times the complex64 FFT's normwise
-    error for c = 1 (as the screen's slack) plus the cast and window (u = 2⁻²⁴).
+    bounds the continuous maximum by Szegő's inequality (module notes, step c) once per axis. Per
+    delay bin f_j, ``U_j = (max_q |z(ν_q, f_j)| + e)/cos α_ν`` bounds max_ν |z(ν, f_j)| (α_ν =
+    π(K-1)/(2L)), and at the maximum (ν*, f*) the delay bin f_j nearest f* has
+    ``|z(ν*, f_j)| >= M cos α_f`` (α_f = π(N-1)/(2 L_f)): ``M <= max_j U_j / cos α_f`` (each angle
+    <= π/4: at most 4× in power, 3.9 for Table I). ``e = 50 u log₂(L L_f) √(L L_f) ‖x‖_F +
+    4u √(KN) ‖x‖_F``: 50 times the complex64 FFT's normwise error for c = 1 (as the screen's slack)
+    plus the cast and window (u = 2⁻²⁴).
+
+    With ``level`` (a |z|² the caller wants the bound below), the delay bins that could hold a
+    maximum at or above it (``U_j >= √level cos α_f``), if at most ``_BOUND_COLUMNS``, are refined:
+    the delays within half a bin of each, at ``_BOUND_REFINE`` times the spacing, in float64 by a
+    matrix product, each with an ``_BOUND_REFINE``·L-point Doppler transform. A maximum whose
+    nearest delay bin is one of them lies within 1/(2·_BOUND_REFINE·L_f) of a refined delay, so
+    ``M <= max (U'/cos(α_f/r))`` over those (U' with α_ν/r), r = ``_BOUND_REFINE``: 1.2× in power
+    instead of 3.9 for Table I; elsewhere the coarse bound stays below √level. Their slack is
+    ``(4u + 1e-12) √(KN) ‖x‖_F`` (the cast and window; float64 products). The bound returned is the
+    larger of the two parts.
     """
     k, n = x32.shape
     length, length_f = int(doppler_length), _bound_delay_length(n)
@@ -439,10 +461,27 @@ def grid_bound(x32: np.ndarray, norm: float, doppler_length: int) -> float:
     padded = np.zeros((length, length_f), dtype=np.complex64)
     padded[:k] = rows
     z = scipy.fft.fft(padded, axis=0, workers=1, overwrite_x=True)  # [L, L_f]; |z| as the + sign's, mirrored
-    peak = float(np.sqrt(float((z.real**2 + z.imag**2).max())))
+    columns = np.sqrt((z.real**2 + z.imag**2).max(axis=0).astype(np.float64))  # max_q |z(ν_q, f_j)| [L_f]
     cells = float(length) * float(length_f)
     slack = (50.0 * _U32 * np.log2(cells) * np.sqrt(cells) + 4.0 * _U32 * np.sqrt(k * n)) * norm
-    return float((peak * (1.0 + 1e-6) + slack) ** 2 * _bound_factor(k, n, length))
+    alpha_f, alpha_nu = _bound_angles(k, n, length)
+    upper = (columns * (1.0 + 1e-6) + slack) / (np.cos(alpha_nu) * np.cos(alpha_f))  # M if f* is nearest f_j
+    if level is None or not level > 0:
+        return float(upper.max() ** 2)
+    cand = np.flatnonzero(upper >= np.sqrt(level) * (1.0 - 1e-9))
+    if cand.size == 0 or cand.size > _BOUND_COLUMNS:
+        return float(upper.max() ** 2)
+    r = _BOUND_REFINE
+    fine = np.unique((r * cand[:, None] + np.arange(-(r // 2), r // 2 + 1)[None, :]) % (r * length_f))
+    phase = (np.arange(n)[:, None] * fine[None, :]) % (r * length_f)  # integer-reduced: exact phases
+    kernel = np.exp(-2j * np.pi * phase / (r * length_f))  # e^{-j2π f n}, f = fine/(r L_f) [N, F]
+    values = scipy.fft.fft(x32.astype(np.complex128) @ kernel, n=r * length, axis=0, workers=1)  # [rL, F]
+    fine_max = float(np.sqrt((values.real**2 + values.imag**2).max()))
+    # float64 sums of the complex64 beam: the cast and window as above, the products and FFT ~1e-12
+    slack_fine = (4.0 * _U32 + 1e-12) * np.sqrt(k * n) * norm
+    refined = (fine_max + slack_fine) / (np.cos(alpha_nu / r) * np.cos(alpha_f / r))
+    outside = np.delete(upper, cand)
+    return float(max(refined, float(outside.max()) if outside.size else 0.0) ** 2)
 
 
 def _bound_delay_length(n: int) -> int:
@@ -450,10 +489,15 @@ def _bound_delay_length(n: int) -> int:
     return scipy.fft.next_fast_len(2 * n)
 
 
+def _bound_angles(k: int, n: int, length: int) -> tuple[float, float]:
+    """(α_f, α_ν) of :func:`grid_bound` [rad]: σ times half a bin of its grid, per axis."""
+    return np.pi * (n - 1) / (2.0 * _bound_delay_length(n)), np.pi * (k - 1) / (2.0 * length)
+
+
 def _bound_factor(k: int, n: int, length: int) -> float:
     """1/(cos α_f cos α_ν)² of :func:`grid_bound` (>= 1, <= 4): its maximum over its grid's maximum, in power."""
-    c = np.cos(np.pi * (n - 1) / (2.0 * _bound_delay_length(n))) * np.cos(np.pi * (k - 1) / (2.0 * length))
-    return float(1.0 / c**2)
+    alpha_f, alpha_nu = _bound_angles(k, n, length)
+    return float(1.0 / (np.cos(alpha_f) * np.cos(alpha_nu)) ** 2)
 
 
 def _refine_many(spec: np.ndarray, value: np.ndarray, done: np.ndarray, beams: np.ndarray, samples: np.ndarray,
