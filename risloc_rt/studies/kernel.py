@@ -325,7 +325,7 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
             loc = dsp.self_localize(cubes[i, ...], sweep=prep.sweep, radar=prep.radar, processing=prep.processing,
                                     pose=prep.pose, loopback_delay=prep.loopback_delay, estimator=p["estimator"],
                                     pattern=prep.pattern, pfa=p["pfa"], detection=dets[i], floor_height=prep.floor_height,
-                                    scan=False)  # the refined estimator's numbers do not use the grid
+                                    scan=False)  # no per-beam profile: the paper estimator searches only its best beams
             rows.append(_row(prep, truths[i], loc, point=point, run=r,
                              seconds=shared_seconds + time.perf_counter() - t))
     return rows
