@@ -2,9 +2,9 @@
 
 Oracles: Szegő's extremal function (two chirps and two samples, first and last: the closed form
 ``|z| = 4|cos(π(K-1)(ν-ν₀))|·|cos(π(N-1)(f-f₀))|`` gives its maximum 4 and every grid value), the
-float64 transform on grids finer than the bound's own (a lower estimate of the continuous
-maximum), and the full scan (``best_only=False``), whose best beam and numbers the reduced scan
-must give bit for bit. A beam is left out only when its bound is below a P_ave already found.
+continuous maximum (a float64 grid 8× finer than native, polished by Nelder-Mead on the exact DTFT),
+and the full scan (``best_only=False``), whose best beam and numbers the reduced scan must give bit
+for bit. A beam is left out only when its bound is below a P_ave already found.
 """
 
 from __future__ import annotations
