@@ -94,7 +94,7 @@ e. *Precision.* Elementwise, with u = 2⁻²⁴ and ‖x‖₁ = Σ|x| over the 
 **Best beam only** (``best_only=True``: :func:`dsp.localize` reads only the beam of largest P_ave).
 The beams the dense search would take wait until the others are done; then, likeliest first (by
 their largest refined native value) and two at a time, each is either searched as above or left
-out when :func:`grid_bound` — an upper bound of its |z|² at every delay and Doppler — is below the
+out when :func:`dsp.gridbound.grid_bound` — an upper bound of its |z|² at every delay and Doppler — is below the
 largest P_ave found so far: its own P_ave, a mean of grid values |z|², cannot reach it. The bound
 is the half-bin grid's maximum (L >= 2K Doppler by L_f >= 2N delay bins, one complex64 2-D
 transform, 1.6 ms for a Table I beam against ~4–7 ms for its dense search) divided by
@@ -125,10 +125,11 @@ from typing import Callable
 import numpy as np
 import scipy.fft
 
+from .gridbound import grid_bound
 from .processing import ProcessingConfig, window_vector
 from .threads import thread_count
 
-__all__ = ["SCREEN_HEADROOM_DB", "WHOLE_GRID_MIN", "WHOLE_GRID_SHARE", "grid_bound", "screened_scan", "scalloping_loss_db",
+__all__ = ["SCREEN_HEADROOM_DB", "WHOLE_GRID_MIN", "WHOLE_GRID_SHARE", "screened_scan", "scalloping_loss_db",
            "whole_grid_bins"]
 
 #: Allowance (dB) beyond the window's single-tone scalloping loss for returns that interfere
@@ -152,10 +153,6 @@ _DEFERRED_ROUND = 2
 #: ``best_only``: the bound is computed for a beam only when this many times its largest refined
 #: native |z|² is below the best P_ave (a prediction: it decides work, never a result).
 _BOUND_PREDICT = 3.0
-
-#: :func:`grid_bound` with a level: at most this many delay bins are refined, each this many times
-#: finer (on both axes: 1.2× the maximum in power for Table I instead of 3.9).
-_BOUND_COLUMNS, _BOUND_REFINE = 16, 4
 
 #: A beam goes to the dense search when more than this fraction of its columns stays above the
 #: screen's bound (evaluating them one by one would cost more than the dense search).
@@ -279,7 +276,7 @@ def screened_scan(
         depend on it.
     best_only : bool, default False
         Search exactly only the beams that can have the largest P_ave (module notes, "Best beam
-        only"): a beam the dense search would take whose proven bound :func:`grid_bound` is below
+        only"): a beam the dense search would take whose proven bound :func:`dsp.gridbound.grid_bound` is below
         a P_ave already found is not searched. The best beam (argmax of ``average``, the first on
         a tie) and its numbers are those of the full result.
 
@@ -318,6 +315,17 @@ def screened_scan(
     # best_only: (beam, windowed complex64 beam, ‖x‖_F, lower bound of |z|, predicted level |z|²)
     deferred: list[tuple[int, np.ndarray, float, float, float]] = []
 
+    def dense_search(j: int, x32: np.ndarray, lower: float) -> tuple[int, int, float, np.ndarray]:
+        """:func:`_dense_beam` of beam j on a workspace of the plan's (kept for the next scan)."""
+        try:
+            work = plan.spare.get_nowait()
+        except Empty:
+            work = _DenseWork(plan)
+        try:
+            return _dense_beam(cube[j], x32, plan, work, first, w_k, w_n, lower)
+        finally:
+            plan.spare.put(work)
+
     def chunk(i: int) -> None:
         block = cube[i:i + step].astype(np.complex64)
         block *= w32
@@ -331,7 +339,6 @@ def screened_scan(
         top = first_native + np.argsort(u[:, first_native:], axis=1)[:, -8:]  # [c, 8]
         _refine_many(spec, bound, refined, np.arange(u.shape[0]), top, slack, doppler_margin)
         noise_only = _noise_only(spec, bound, refined, top, slack, doppler_margin, delay_margin, first_native)
-        work = None
         for c in range(u.shape[0]):
             j = i + c
             y = cube[j]
@@ -358,12 +365,7 @@ def screened_scan(
                 deferred.append((j, block[c], float(norms[c]), lower, level))
                 continue
             if dense:
-                if work is None:
-                    try:
-                        work = plan.spare.get_nowait()
-                    except Empty:
-                        work = _DenseWork(plan)
-                q, p, value, krow = _dense_beam(y, block[c], plan, work, first, w_k, w_n, lower)
+                q, p, value, krow = dense_search(j, block[c], lower)
             else:
                 p = int(cols[pi])
                 extra = np.setdiff1d(above, cols, assume_unique=True)
@@ -374,8 +376,6 @@ def screened_scan(
                         q, p, value, krow = q2, p2, value2, krow2
             q_best[j], p_best[j], power[j] = q, p, value
             average[j] = _row_values(y, krow, average_columns(p), n_dft, w_k, w_n).mean()
-        if work is not None:
-            plan.spare.put(work)
 
     starts = range(0, m, step)
     if workers <= 1 or len(starts) < 2:
@@ -396,14 +396,8 @@ def screened_scan(
 
         def search(item: tuple[int, np.ndarray, float, float, float]) -> None:
             j, x32, _, lower, _ = item
-            try:
-                work = plan.spare.get_nowait()
-            except Empty:
-                work = _DenseWork(plan)
-            y = cube[j]
-            q_best[j], p_best[j], power[j], krow = _dense_beam(y, x32, plan, work, first, w_k, w_n, lower)
-            average[j] = _row_values(y, krow, average_columns(int(p_best[j])), n_dft, w_k, w_n).mean()
-            plan.spare.put(work)
+            q_best[j], p_best[j], power[j], krow = dense_search(j, x32, lower)
+            average[j] = _row_values(cube[j], krow, average_columns(int(p_best[j])), n_dft, w_k, w_n).mean()
 
         pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
         try:
@@ -429,75 +423,6 @@ def screened_scan(
             if pool is not None:
                 pool.shutdown()
     return q_best, p_best, power, average
-
-
-def grid_bound(x32: np.ndarray, norm: float, doppler_length: int, level: float | None = None) -> float:
-    """An upper bound of max |z(ν, f)|² over every Doppler ν and delay f of one windowed beam [W·gain²].
-
-    ``x32 [K, N]`` is the windowed beam in complex64 (within 3u of w_K·w_N·y) and ``norm`` its
-    Frobenius norm ‖x‖_F (float64). The half-bin grid — ``L >= 2K`` Doppler bins
-    (``doppler_length``) by ``L_f = next_fast_len(2N)`` delay bins, one complex64 2-D transform —
-    bounds the continuous maximum by Szegő's inequality (module notes, step c) once per axis. Per
-    delay bin f_j, ``U_j = (max_q |z(ν_q, f_j)| + e)/cos α_ν`` bounds max_ν |z(ν, f_j)| (α_ν =
-    π(K-1)/(2L)), and at the maximum (ν*, f*) the delay bin f_j nearest f* has
-    ``|z(ν*, f_j)| >= M cos α_f`` (α_f = π(N-1)/(2 L_f)): ``M <= max_j U_j / cos α_f`` (each angle
-    <= π/4: at most 4× in power, 3.9 for Table I). ``e = 50 u log₂(L L_f) √(L L_f) ‖x‖_F +
-    4u √(KN) ‖x‖_F``: 50 times the complex64 FFT's normwise error for c = 1 (as the screen's slack)
-    plus the cast and window (u = 2⁻²⁴).
-
-    With ``level`` (a |z|² the caller wants the bound below), the delay bins that could hold a
-    maximum at or above it (``U_j >= √level cos α_f``), if at most ``_BOUND_COLUMNS``, are refined:
-    the delays within half a bin of each, at ``_BOUND_REFINE`` times the spacing, in float64 by a
-    matrix product, each with an ``_BOUND_REFINE``·L-point Doppler transform. A maximum whose
-    nearest delay bin is one of them lies within 1/(2·_BOUND_REFINE·L_f) of a refined delay, so
-    ``M <= max (U'/cos(α_f/r))`` over those (U' with α_ν/r), r = ``_BOUND_REFINE``: 1.2× in power
-    instead of 3.9 for Table I; elsewhere the coarse bound stays below √level. Their slack is
-    ``(4u + 1e-12) √(KN) ‖x‖_F`` (the cast and window; float64 products). The bound returned is the
-    larger of the two parts.
-    """
-    k, n = x32.shape
-    length, length_f = int(doppler_length), _bound_delay_length(n)
-    rows = scipy.fft.fft(x32, n=length_f, axis=1, workers=1)  # [K, L_f]
-    padded = np.zeros((length, length_f), dtype=np.complex64)
-    padded[:k] = rows
-    z = scipy.fft.fft(padded, axis=0, workers=1, overwrite_x=True)  # [L, L_f]; |z| as the + sign's, mirrored
-    columns = np.sqrt((z.real**2 + z.imag**2).max(axis=0).astype(np.float64))  # max_q |z(ν_q, f_j)| [L_f]
-    cells = float(length) * float(length_f)
-    slack = (50.0 * _U32 * np.log2(cells) * np.sqrt(cells) + 4.0 * _U32 * np.sqrt(k * n)) * norm
-    alpha_f, alpha_nu = _bound_angles(k, n, length)
-    upper = (columns * (1.0 + 1e-6) + slack) / (np.cos(alpha_nu) * np.cos(alpha_f))  # M if f* is nearest f_j
-    if level is None or not level > 0:
-        return float(upper.max() ** 2)
-    cand = np.flatnonzero(upper >= np.sqrt(level) * (1.0 - 1e-9))
-    if cand.size == 0 or cand.size > _BOUND_COLUMNS:
-        return float(upper.max() ** 2)
-    r = _BOUND_REFINE
-    fine = np.unique((r * cand[:, None] + np.arange(-(r // 2), r // 2 + 1)[None, :]) % (r * length_f))
-    phase = (np.arange(n)[:, None] * fine[None, :]) % (r * length_f)  # integer-reduced: exact phases
-    kernel = np.exp(-2j * np.pi * phase / (r * length_f))  # e^{-j2π f n}, f = fine/(r L_f) [N, F]
-    values = scipy.fft.fft(x32.astype(np.complex128) @ kernel, n=r * length, axis=0, workers=1)  # [rL, F]
-    fine_max = float(np.sqrt((values.real**2 + values.imag**2).max()))
-    # float64 sums of the complex64 beam: the cast and window as above, the products and FFT ~1e-12
-    slack_fine = (4.0 * _U32 + 1e-12) * np.sqrt(k * n) * norm
-    refined = (fine_max + slack_fine) / (np.cos(alpha_nu / r) * np.cos(alpha_f / r))
-    outside = np.delete(upper, cand)
-    return float(max(refined, float(outside.max()) if outside.size else 0.0) ** 2)
-
-
-def _bound_delay_length(n: int) -> int:
-    """L_f of :func:`grid_bound`: the delay bins of its half-bin grid (>= 2N)."""
-    return scipy.fft.next_fast_len(2 * n)
-
-
-def _bound_angles(k: int, n: int, length: int) -> tuple[float, float]:
-    """(α_f, α_ν) of :func:`grid_bound` [rad]: σ times half a bin of its grid, per axis."""
-    return np.pi * (n - 1) / (2.0 * _bound_delay_length(n)), np.pi * (k - 1) / (2.0 * length)
-
-
-def _bound_factor(k: int, n: int, length: int) -> float:
-    """1/(cos α_f cos α_ν)² of :func:`grid_bound` (>= 1, <= 4): its maximum over its grid's maximum, in power."""
-    alpha_f, alpha_nu = _bound_angles(k, n, length)
-    return float(1.0 / (np.cos(alpha_f) * np.cos(alpha_nu)) ** 2)
 
 
 def _refine_many(spec: np.ndarray, value: np.ndarray, done: np.ndarray, beams: np.ndarray, samples: np.ndarray,

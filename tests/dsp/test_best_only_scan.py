@@ -15,7 +15,7 @@ import scipy.fft
 import scipy.optimize
 
 import dsp
-from dsp import gridscreen
+from dsp import gridbound, gridscreen
 from risloc_rt.model.beat import add_noise
 from risloc_rt.model.scenario import paper_scenario
 from risloc_rt.model.simulate import simulate
@@ -26,7 +26,7 @@ FIELDS = ("delay", "delay_rate", "peak_power", "average_power", "delay_bin", "do
 def _bound(x: np.ndarray, length: int) -> float:
     """grid_bound of the windowed beam ``x`` (given in float64: cast to complex64 as the scan does)."""
     x32 = x.astype(np.complex64)
-    return gridscreen.grid_bound(x32, float(np.linalg.norm(x32.astype(np.complex128))), length)
+    return gridbound.grid_bound(x32, float(np.linalg.norm(x32.astype(np.complex128))), length)
 
 
 def _slack(x: np.ndarray, length: int) -> float:
@@ -102,7 +102,9 @@ def test_the_bound_is_above_the_maximum_and_within_6_db_of_it(kind):
     x = x * np.outer(np.hanning(k + 1)[:-1], np.hanning(n + 1)[:-1]) if kind != "impulse" else x
     bound = _bound(x, length)
     fine = _fine_max(x, 8)
-    factor = gridscreen._bound_factor(k, n, length)
+    # 1/(cos α_f cos α_ν)², α_f = π(N-1)/(2 L_f), α_ν = π(K-1)/(2L): the bound's factor, written out
+    factor = 1.0 / (np.cos(np.pi * (n - 1) / (2 * scipy.fft.next_fast_len(2 * n)))
+                    * np.cos(np.pi * (k - 1) / (2 * length))) ** 2
     assert factor <= 4.0
     assert bound >= fine
     # the float32 grid value may exceed float64's by u: 2e-6 instead of the bound's own 1e-6
@@ -131,7 +133,7 @@ def test_a_level_refines_the_delays_near_the_maximum_and_still_bounds_it(kind, a
     x = x * np.outer(np.hanning(k + 1)[:-1], np.hanning(n + 1)[:-1])
     fine = _fine_max(x, 8)
     level = above * fine
-    refined = gridscreen.grid_bound(x.astype(np.complex64), float(np.linalg.norm(x.astype(np.complex64))), length,
+    refined = gridbound.grid_bound(x.astype(np.complex64), float(np.linalg.norm(x.astype(np.complex64))), length,
                                     level=level)
     assert fine <= refined < level < _bound(x, length)
 
@@ -219,9 +221,9 @@ def test_a_device_cube_and_the_full_search_search_every_beam(make_radar, make_pr
     sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-3.0, 3.0, 1.5]))
     rng = np.random.default_rng(2)
     cube = add_noise(np.zeros((5, 8, 32), complex) + tone(radar, 1e-8, 0.0), 0.1, rng)
-    for processing in (make_processing(radar, n_dft=63, k_dft=31, doppler_search="full"),):
-        scan = dsp.scan_beams(cube, sweep, radar, processing, best_only=True)
-        assert scan.bounded is not None and not scan.bounded.any()
+    scan = dsp.scan_beams(cube, sweep, radar, make_processing(radar, n_dft=63, k_dft=31, doppler_search="full"),
+                          best_only=True)
+    assert scan.bounded is not None and not scan.bounded.any()
     strict = dsp.strict_backend("CPU_DEVICE")
     scan = dsp.scan_beams(strict.asarray(cube), sweep, radar, make_processing(radar, n_dft=63, k_dft=31),
                           best_only=True)
