@@ -138,6 +138,62 @@ def test_a_level_refines_the_delays_near_the_maximum_and_still_bounds_it(kind, a
     assert fine <= refined < level < _bound(x, length)
 
 
+
+def _typical(x32: np.ndarray) -> float:
+    """grid_bound's estimate of a noise beam's Σ_k |a_k| in one delay bin: √(π/4) Σ_k ‖x_k‖ (its docstring)."""
+    return float(np.sqrt(np.pi / 4.0) * np.linalg.norm(x32.astype(np.complex128), axis=1).sum())
+
+
+def test_the_chirp_sum_closes_the_delays_of_a_doppler_tone_and_attains_the_bound_on_the_delay_axis():
+    # A tone in Doppler (every chirp, the same phase step) on Szegő's delay-axis extremal function (samples
+    # 0 and N-1, N = 3, f₀ midway between two of the L_f = 6 delay bins): |a_k(f)| = 2|cos(2π(f-f₀))| in
+    # every chirp, so Σ_k |a_k(f)| = max_ν |z(ν, f)| exactly and the maximum 2K lies between delay bins by
+    # α_f = π/6. With a level 1 % above the maximum the chirp sum alone closes every delay bin, and the
+    # bound is the maximum up to the sum's float32 slack; without the 1/cos α_f it would be 25 % below it.
+    # The Doppler grid's bound (refined 4x) would be 3 % above it, above the level.
+    k, n, length = 17, 3, 64
+    nu0, f0 = 0.2, 2.5 / 6
+    kk, nn = np.arange(k)[:, None], np.arange(n)[None, :]
+    x = np.zeros((k, n), complex)
+    x[:, [0, n - 1]] = np.exp(2j * np.pi * (nu0 * kk + f0 * nn[:, [0, n - 1]]))
+    x32 = x.astype(np.complex64)
+    norm = float(np.linalg.norm(x32.astype(np.complex128)))
+    peak = (2.0 * k) ** 2
+    assert _fine_max(x, 8) == pytest.approx(peak, rel=1e-9)
+    level = 1.01 * peak
+    alpha_f = np.pi / 6
+    assert _typical(x32) < np.sqrt(level) * np.cos(alpha_f)  # the sum is taken (grid_bound's test, written out)
+    bound = gridbound.grid_bound(x32, norm, length, level=level)
+    u = 2.0**-24
+    l1_slack = (50 * u * np.log2(6) * np.sqrt(6 * k) + 4 * u * np.sqrt(k * n)) * norm
+    # the grid's largest sum is 2K cos α_f (float32: up to u more), divided by cos α_f
+    assert peak <= bound <= (2.0 * k * (1 + 2e-6) + l1_slack / np.cos(alpha_f)) ** 2
+    assert bound < level
+    # the Doppler grid's own bound, for comparison: above the level
+    assert gridbound.grid_bound(x32, norm, length) > level
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_where_the_chirp_sum_closes_delays_the_bound_still_covers_the_maximum(seed):
+    # A strong tone (random delay and Doppler) in weak noise, K = 32, N = 100, Hann-windowed; the level
+    # 1.3-2x the continuous maximum: the chirp sum is taken (its typical value is below the level) and
+    # closes the noise's delay bins, the Doppler grid is computed for the rest. The bound must cover
+    # the continuous maximum and come back below the level.
+    k, n, length = 32, 100, 64
+    rng = np.random.default_rng(100 + seed)
+    kk, nn = np.arange(k)[:, None], np.arange(n)[None, :]
+    x = np.exp(2j * np.pi * (rng.random() * kk + rng.random() * nn)) \
+        + 0.05 * (rng.normal(size=(k, n)) + 1j * rng.normal(size=(k, n)))
+    x = x * np.outer(np.hanning(k + 1)[:-1], np.hanning(n + 1)[:-1])
+    x32 = x.astype(np.complex64)
+    norm = float(np.linalg.norm(x32.astype(np.complex128)))
+    fine = _fine_max(x, 8)
+    level = (1.3 + 0.7 * rng.random()) * fine
+    assert _typical(x32) < np.sqrt(level) * np.cos(np.pi * (n - 1) / (2 * scipy.fft.next_fast_len(2 * n)))
+    bound = gridbound.grid_bound(x32, norm, length, level=level)
+    assert fine <= bound < level
+
+
 def _scans(cube, sweep, radar, processing):
     with dsp.limit_threads(1):
         return (dsp.scan_beams(cube, sweep, radar, processing),
