@@ -11,7 +11,7 @@ runs it (``dsp.scan_beams(best_only=True)``: only the beams that can be the best
 estimator only, the refined study runs skip it) and the rest (the grid estimate or refinement, σ,
 flags). ``--naive`` adds ``simulate`` + ``process_capture`` per run (the way without the study
 path). "vs goal" is against issue 21's CPU goal, 0.25 core-s per Table I run (the floor of an
-exact run as measured on 2026-11-25; the studies issue before it asked for 0.1).
+exact run measured in docs/benchmarks.md; the studies issue before it asked for 0.1).
 """
 
 from __future__ import annotations
