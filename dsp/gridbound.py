@@ -64,13 +64,14 @@ def grid_bound(x32: np.ndarray, norm: float, doppler_length: int, level: float |
     length, length_f = int(doppler_length), _delay_length(n)
     rows = scipy.fft.fft(x32, n=length_f, axis=1, workers=1)  # [K, L_f]: a_k(f_j)
     alpha_f, alpha_nu = _angles(k, n, length)
-    # Σ_k |a_k(f_j)| >= |z(ν, f_j)| for every ν (the triangle inequality); its float32 allowance: the
-    # row transforms' normwise error summed over the K rows, and the cast and window
     wanted = level is not None and level > 0
     # Noise's Σ_k |a_k| is ≈ √(π/4) Σ_k ‖x_k‖ in a typical delay bin (Rayleigh |a_k| of mean square ‖x_k‖²):
     # where that reaches √level the sum would leave most bins open and is not computed (work only)
-    typical = np.sqrt(np.pi / 4.0) * float(np.sqrt((x32.real**2 + x32.imag**2).sum(axis=1, dtype=np.float64)).sum())
+    typical = np.sqrt(np.pi / 4.0) * float(np.sqrt((x32.real**2 + x32.imag**2).sum(axis=1, dtype=np.float64)).sum()) \
+        if wanted else np.inf
     if wanted and typical < np.sqrt(level) * np.cos(alpha_f):
+        # Σ_k |a_k(f_j)| >= |z(ν, f_j)| for every ν (the triangle inequality); its float32 allowance: the
+        # row transforms' normwise error summed over the K rows, and the cast and window
         l1_slack = (50.0 * _U32 * np.log2(length_f) * np.sqrt(length_f * k) + 4.0 * _U32 * np.sqrt(k * n)) * norm
         upper = (np.abs(rows).sum(axis=0, dtype=np.float64) * (1.0 + 1e-6) + l1_slack) / np.cos(alpha_f)
         open_ = np.flatnonzero(upper >= np.sqrt(level) * (1.0 - 1e-9))
