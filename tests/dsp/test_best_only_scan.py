@@ -233,6 +233,42 @@ def test_table_i_best_beam_is_the_full_scans_and_the_noise_beams_are_left_out(tx
         assert not best.bounded.any()
 
 
+
+def test_random_sweeps_give_the_full_scans_best_beam_bit_for_bit(make_radar, make_processing, tone, monkeypatch):
+    # 40 random 12-beam sweeps on a small radar (K = 16, N = 64): 1-4 beams with a tone of random delay,
+    # Doppler and amplitude (0.1-10 times the noise's rms per sample: -20 to 20 dB per sample, 1024
+    # samples) in unit noise, the others noise only. Whatever the bounds leave out, the best beam and
+    # every searched beam must be the full scan's, bit for bit. The bounds taken are recorded: measured,
+    # 370 of the 480 beams left out, every bound through the chirp sum (its condition written out as
+    # grid_bound's docstring states it; the Doppler grid's part is Table I's test above at 5 dBm).
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=127, k_dft=67)
+    sweep = dsp.BeamSweep.azimuth_grid(*np.deg2rad([-8.25, 8.25, 1.5]))
+    assert sweep.num_beams == 12
+    taken = []
+
+    def recording(x32, norm, length, level=None):
+        alpha_f = np.pi * (x32.shape[1] - 1) / (2 * scipy.fft.next_fast_len(2 * x32.shape[1]))
+        taken.append(_typical(x32) < np.sqrt(level) * np.cos(alpha_f))
+        return gridbound.grid_bound(x32, norm, length, level=level)
+
+    monkeypatch.setattr(gridscreen, "grid_bound", recording)
+    max_delay = 1.0 / (radar.slope * radar.sample_period)
+    max_rate = 1.0 / (2.0 * radar.carrier_frequency * radar.chirp_interval)
+    left_out = 0
+    for seed in range(40):
+        rng = np.random.default_rng(1000 + seed)
+        cube = np.zeros((12, 16, 64), complex)
+        for m in rng.choice(12, size=int(rng.integers(1, 5)), replace=False):
+            amp = 10.0 ** rng.uniform(-1.0, 1.0)
+            cube[m] = amp * tone(radar, rng.uniform(0.1, 0.9) * max_delay, rng.uniform(-0.4, 0.4) * max_rate)
+        cube = add_noise(cube, 1.0, rng)
+        full, best = _scans(cube, sweep, radar, processing)
+        _assert_same_best(full, best)
+        left_out += int(best.bounded.sum())
+    assert left_out >= 200 and sum(taken) >= 200, (left_out, sum(taken), len(taken))
+
+
 def test_threads_do_not_change_the_reduced_scan(make_radar, make_processing, tone):
     # Four beams with a return and eight noise-only ones: the rounds of the deferred beams are fixed,
     # so 1 and 3 threads give the same beams left out and the same numbers.
