@@ -138,7 +138,6 @@ def test_a_level_refines_the_delays_near_the_maximum_and_still_bounds_it(kind, a
     assert fine <= refined < level < _bound(x, length)
 
 
-
 def _typical(x32: np.ndarray) -> float:
     """grid_bound's estimate of a noise beam's Σ_k |a_k| in one delay bin: √(π/4) Σ_k ‖x_k‖ (its docstring)."""
     return float(np.sqrt(np.pi / 4.0) * np.linalg.norm(x32.astype(np.complex128), axis=1).sum())
@@ -231,7 +230,6 @@ def test_table_i_best_beam_is_the_full_scans_and_the_noise_beams_are_left_out(tx
     assert int(best.bounded.sum()) >= least_bounded
     if least_bounded == 0:
         assert not best.bounded.any()
-
 
 
 def test_random_sweeps_give_the_full_scans_best_beam_bit_for_bit(make_radar, make_processing, tone, monkeypatch):
