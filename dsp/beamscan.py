@@ -101,9 +101,9 @@ def scan_beams(
         Only what :func:`dsp.localize` reads: the best beam, its peak and P_ave exactly as the full
         scan gives them. On the host's screened search, beams whose proven bound
         (:func:`dsp.gridbound.grid_bound`) stays below a P_ave already found are not searched
-        (``BeamScan.bounded``): at Table I's 5–10 dBm 54–55 of 61 beams, 0.26 → 0.13–0.15 s per
-        cube on one core; at 0 dBm (the best within 1–3 dB of the noise beams) and at 20 dBm (no
-        noise-only beam) none. On a device and with ``doppler_search="full"`` every beam is
+        (``BeamScan.bounded``): at Table I's 5–10 dBm 54–55 of 61 beams, 0.25 → 0.15 s per cube
+        at 5 dBm and 0.23 → 0.09 s at 10 dBm on one core (docs/benchmarks.md, 2026-11-28); at
+        0 dBm (the best within 1–3 dB of the noise beams) and at 20 dBm (no noise-only beam) none. On a device and with ``doppler_search="full"`` every beam is
         searched (``bounded`` all False).
 
     Returns

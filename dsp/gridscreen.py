@@ -111,9 +111,9 @@ P_ave (a prediction: work only), so a beam it is unlikely to exclude costs nothi
 left-out beams report the bound as their peak and P_ave, bins -1 (:attr:`dsp.BeamScan.bounded`).
 The searched beams and the best one are bit for bit the full scan's; which beams are left out
 depends on the data only (the rounds do not depend on the threads). Table I (UE at 10.3°), one
-core, 8 seeds: at 5 dBm 55 of the 55 noise-only beams left out on average (0.31 → 0.18 s per
-cube), at 10 dBm 54 (0.29 → 0.16 s); at 0 dBm the best P_ave is within 1–3 dB of the noise-only
-beams' maxima (none left out, the same time) and at 20 dBm no beam is noise only.
+core: at 5 dBm 55 of the 55 noise-only beams left out (0.25 → 0.15 s per cube), at 10 dBm 54
+(0.23 → 0.09 s; docs/benchmarks.md, 2026-11-28); at 0 dBm the best P_ave is within 1–3 dB of
+the noise-only beams' maxima (none left out, the same time) and at 20 dBm no beam is noise only.
 """
 
 from __future__ import annotations
