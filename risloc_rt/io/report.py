@@ -251,7 +251,8 @@ def _estimate_dict(loc: Localization, budget: list[dict[str, Any]] | None = None
 
 
 def case_dict(case: CaseResult) -> dict[str, Any]:
-    """The JSON object of one case (see ``docs/formats.md``)."""
+    """The JSON object of one case (see ``docs/formats.md``; ``"sweep"`` is null for a localization made without the
+    per-beam scan, ``dsp.self_localize(scan=False)``)."""
     scan = case.localization.scan
     return {
         "name": case.name,
@@ -262,7 +263,7 @@ def case_dict(case: CaseResult) -> dict[str, Any]:
         "flags": [f.to_dict() for f in case.localization.flags],
         "truth": None if case.truth is None else case.truth.to_dict(),
         "error": case.errors,
-        "sweep": {
+        "sweep": None if scan is None else {
             "angles": scan.angles.tolist(),
             "average_power": scan.average_power.tolist(),
             "peak_delay": scan.delay.tolist(),
@@ -417,7 +418,7 @@ def format_case(case: CaseResult) -> str:
                  pm(fmt3(loc.position), std and std.peb, significant),
                  f"{err['position']:.4f} m" if err else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {loc.scan.num_beams})"
+    head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {case.capture.sweep.num_beams})"
     lines = [head] + ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     det = loc.detection
     if det is not None:
