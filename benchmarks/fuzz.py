@@ -673,7 +673,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['wrong']:>12} {r['hang']:>6} {mem:>12} {rss:>9} {r['seconds']:>9.1f}", flush=True)
         bad += [f"  {name}: {s}" for s in r["samples"]]
         if r["peak_rss"] > allowed:
-            bad.append(f"  {name}: peak RSS {rss} above the limit + 200 MB")
+            bad.append(f"  {name}: peak RSS {rss} above the limit + 200 MB; the largest rise: {r['peak_input']}")
             total["wrong"] += 1
     print(f"{'total':<20} {total['examples']:>7} {total['error']:>12} {total['correct']:>8} {total['traceback']:>10} "
           f"{total['wrong']:>12} {total['hang']:>6}")

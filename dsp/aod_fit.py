@@ -23,6 +23,7 @@ weigh as if they were signal. For large x it tends to the profiled likelihood.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -145,6 +146,26 @@ def _objective(amp: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.where(den > 0, num * num / np.where(den > 0, den, 1.0), 0.0)
 
 
+#: Grid cells (direction x beam) the AoD search evaluates per pass. Its grid steps by a null width / 8, so its points
+#: grow with the RIS's rows: a capture declaring 52 171 x 2 elements took 1.1 GiB in one pass (61 beams, 3 · 10⁵
+#: directions), past a 512 MiB memory limit; in passes of 2¹⁸ cells (2 MiB per float64 array) the working set stays
+#: bounded at any size, and the paper's 16-row grid (≈ 100 directions) is one pass.
+GRID_CELLS_PER_PASS = 2**18
+
+
+def _over_grid(pattern: BeamPattern, u: np.ndarray, beams: np.ndarray, w: float,
+               *functions: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
+    """Each of ``functions`` of the amplitudes A_m(u_i, w) [I, M], at every u_i of ``u`` [I], in passes of
+    :data:`GRID_CELLS_PER_PASS` cells (each function reduces along the beams only: a point's value is its own)."""
+    step = max(1, GRID_CELLS_PER_PASS // max(1, beams.shape[0]))
+    out = [np.empty(u.size) for _ in functions]
+    for i in range(0, u.size, step):
+        amp = pattern.amplitude_u(u[i:i + step], beams, w=w)
+        for values, function in zip(out, functions):
+            values[i:i + step] = function(amp)
+    return out
+
+
 def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevation: float | None = None,
             noise_variance: float | None = None) -> AodFit:
     """Fit the RIS beam pattern to per-beam magnitudes (maximum likelihood, phases unknown).
@@ -186,9 +207,11 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
     hi = min(cos_el, u_beams.max() + pattern.null_width)
     du = pattern.null_width / 8.0
     grid = np.linspace(lo, hi, max(3, int(np.ceil((hi - lo) / du)) + 1))
-    amp_grid = pattern.amplitude_u(grid, beams, w=w)
-    g = _objective(amp_grid, r)  # profiled: the candidates' levels
-    obj = g if s2 is None else objective(amp_grid)
+    if s2 is None:
+        g, = _over_grid(pattern, grid, beams, w, lambda amp: _objective(amp, r))  # profiled: the candidates' levels
+        obj = g
+    else:
+        g, obj = _over_grid(pattern, grid, beams, w, lambda amp: _objective(amp, r), objective)
     i = int(np.argmax(obj))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     res = scipy.optimize.minimize_scalar(
@@ -210,7 +233,7 @@ def fit_aod(magnitudes: Any, sweep: BeamSweep, pattern: BeamPattern, *, elevatio
         def amp_uw(uu: float, ww: float) -> np.ndarray:
             return pattern.amplitude_u(np.array([uu]), beams, w=ww)
 
-        g2 = np.array([objective(pattern.amplitude_u(grid, beams, w=ww)) for ww in wg])  # [W, U]
+        g2 = np.array([_over_grid(pattern, grid, beams, ww, objective)[0] for ww in wg])  # [W, U]
         iw, iu = np.unravel_index(int(np.argmax(g2)), g2.shape)
         x0 = np.array([grid[iu], wg[iw]])
         simplex = x0 + np.array([[0.0, 0.0], [du, 0.0], [0.0, w_null / 8]])
