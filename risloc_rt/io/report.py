@@ -418,7 +418,8 @@ def format_case(case: CaseResult) -> str:
                  pm(fmt3(loc.position), std and std.peb, significant),
                  f"{err['position']:.4f} m" if err else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {case.capture.sweep.num_beams})"
+    beams = loc.scan.num_beams if loc.scan is not None else case.capture.sweep.num_beams  # scan=False: no scan
+    head = f"== {case.name} ({loc.estimator} estimator, best beam {loc.beam_index} of {beams})"
     lines = [head] + ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     det = loc.detection
     if det is not None:
