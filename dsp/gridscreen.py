@@ -49,7 +49,9 @@ a. *Fine range transform (complex64).* ``a_k(p) = Σ_n x[k, n] e^{+j2π p n / N_
    ``a[b, k, a] = Σ_d e^{j2π b d / N_DFT} e^{j2π d a / P₁} v[b, k, d]`` (P₁ + ⌈N/P₁⌉ products
    per output instead of N). Rows b and P₂ - b of the first are conjugate, so it is two real
    products (cos and sin rows, on the interleaved real and imaginary parts): half the work of
-   the FFT at this prime-factor length (109), with an elementwise error bound.
+   the FFT at this prime-factor length (109), with an elementwise error bound. P₁ is the divisor
+   with the fewest products among those whose tables fit :data:`DENSE_PLAN_BYTES`; a prime N_DFT
+   too large for its N_DFT² table gets P₁ = 1, a plain DFT matrix (N products per output).
 b. *Doppler plane (complex64).* ``c(r, p) = Σ_k a_k(p) e^{j2π r k / L}`` at L = 2^⌈log₂ 2K⌉
    points (256) by a power-of-two FFT (radix-4/2 Cooley–Tukey), and |c|.
 c. *Szegő's bound.* In column p, ``g(ν) = Σ_k a_k(p) e^{j2π ν k}`` (ν in cycles per chirp) times
@@ -505,6 +507,31 @@ def _gamma(n: int) -> float:
     return n * _U32 / (1.0 - n * _U32)
 
 
+#: Bytes the dense plan's two tables may take while they are built (with their float64 and complex128
+#: temporaries, :func:`_plan_bytes`). The split with the fewest products per output is taken among the divisors
+#: of N_DFT within it: a prime N_DFT's own split P₁ = N_DFT builds an N_DFT² stage-2 table (a capture declaring
+#: N_DFT = 13 763 took 7.2 GB, benchmarks/fuzz.py, 2026-11-28), and P₁ = 1 (a plain N_DFT x N DFT matrix in
+#: stage 1) is taken there. Table I's split (11 · 109) needs 0.3 MiB.
+DENSE_PLAN_BYTES = 64 * 2**20
+
+
+def _plan_bytes(n: int, n_dft: int, p1: int) -> int:
+    """Peak bytes of building :class:`_DensePlan`'s tables for the split N_DFT = P₁·P₂ of N samples."""
+    p2, blocks = n_dft // p1, -(-n // p1)
+    stage1 = (p2 // 2 + 1) * blocks * (8 + 8 + 8 + 4)  # int64 phase index, float64 cos and sin, the float32 table
+    stage2 = p2 * p1 * p1 * (16 + 8) + 16 * (p1 * p1 + p2 * p1)  # complex128 product, complex64 table; two factors
+    return stage1 + stage2
+
+
+def _dense_split(n: int, n_dft: int) -> int:
+    """P₁: the divisor of N_DFT with the fewest products per output, P₁ + ⌈N/P₁⌉, among those (other than 1
+    where one is) whose tables fit :data:`DENSE_PLAN_BYTES`; the smallest tables' when none fits."""
+    divisors = [d for d in range(1, n_dft + 1) if n_dft % d == 0]
+    fits = [d for d in divisors if _plan_bytes(n, n_dft, d) <= DENSE_PLAN_BYTES]
+    pool = [d for d in fits if d > 1] or fits or [min(divisors, key=lambda d: _plan_bytes(n, n_dft, d))]
+    return min(pool, key=lambda d: d + -(-n // d))
+
+
 class _DensePlan:
     """The dense search's constants for one (K, N, N_DFT, K_DFT): tables and error bounds.
 
@@ -535,9 +562,7 @@ class _DensePlan:
     _cache: dict[tuple[int, int, int, int], _DensePlan] = {}
 
     def __init__(self, k: int, n: int, n_dft: int, k_dft: int) -> None:
-        # P₁: the divisor of N_DFT with the fewest products per output, P₁ + ⌈N/P₁⌉.
-        divisors = [d for d in range(2, n_dft + 1) if n_dft % d == 0]
-        p1 = min(divisors, key=lambda d: d + -(-n // d))
+        p1 = _dense_split(n, n_dft)  # the fewest products per output within the table budget
         p2, blocks = n_dft // p1, -(-n // p1)
         self.k, self.n, self.n_dft, self.k_dft = k, n, n_dft, k_dft
         self.p1, self.p2, self.blocks = p1, p2, blocks

@@ -257,3 +257,48 @@ def test_gated_columns_never_win_at_any_scale(make_radar, make_processing, scale
     fq, fp, fvalue = _full_grid(y, w_k, w_n, 2, 4, first=first)
     assert fp == first and (q, p) == (fq, fp)
     assert value == pytest.approx(fvalue, rel=1e-12)
+
+
+@pytest.mark.parametrize("n_dft", [127, 150])
+def test_the_plain_dft_split_gives_the_full_grid_answer(make_radar, make_processing, monkeypatch, n_dft):
+    # P₁ = 1, P₂ = N_DFT: stage 1 is the whole N_DFT x N DFT matrix and stage 2 a unit twiddle (the split a
+    # prime N_DFT gets when its own, P₁ = N_DFT, would not fit DENSE_PLAN_BYTES). Its cell is the full grid's.
+    monkeypatch.setattr(gridscreen, "_dense_split", lambda n, n_dft: 1)
+    radar = make_radar(num_samples=64, num_chirps=16)
+    processing = make_processing(radar, n_dft=n_dft, k_dft=67, window="hann")
+    w_k, w_n, _ = dft_windows(radar, processing)
+    rng = np.random.default_rng(n_dft)
+    kk, nn = np.arange(16)[:, None], np.arange(64)[None, :]
+    for trial in range(12):
+        y = add_noise(np.zeros((16, 64), complex), 1.0, rng)
+        if trial % 2:
+            f2, f1 = rng.uniform(0, 1, 2)
+            y += 10 ** (-rng.uniform(0, 15) / 20) * np.exp(2j * np.pi * (kk * f2 + nn * f1))
+        first = 0 if trial % 3 else int(rng.integers(1, 60))
+        q, p, value, plan, _ = _dense(y, processing, w_k, w_n, first)
+        assert (plan.p1, plan.p2) == (1, n_dft)
+        fq, fp, fvalue = _full_grid(y, w_k, w_n, n_dft, processing.k_dft, first)
+        assert (q, p) == (fq, fp)
+        assert value == pytest.approx(fvalue, rel=1e-12)
+
+
+def test_a_prime_dft_length_builds_its_plan_within_the_table_budget(make_radar, make_processing):
+    """Regression (benchmarks/fuzz.py, declared sizes, seed 2611): a capture declaring N_DFT = 13 763 (prime) on
+    K = 8, N = 32. The split P₁ = N_DFT built a 13 763² stage-2 table and its complex128 factors: 7.2 GB, past
+    the 512 MiB limit the fuzzer sets. P₁ = 1 now; the noise beam's cell is still the full grid's."""
+    import tracemalloc
+
+    radar = make_radar(num_samples=32, num_chirps=8)
+    processing = make_processing(radar, n_dft=13_763, k_dft=38, window="hann")
+    w_k, w_n, _ = dft_windows(radar, processing)
+    y = add_noise(np.zeros((8, 32), complex), 1.0, np.random.default_rng(4))
+    tracemalloc.start()
+    try:
+        q, p, value, plan, _ = _dense(y, processing, w_k, w_n)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert plan.p1 == 1 and peak < gridscreen.DENSE_PLAN_BYTES + 32 * 2**20, f"{peak / 2**20:.0f} MiB"
+    fq, fp, fvalue = _full_grid(y, w_k, w_n, 13_763, 38)
+    assert (q, p) == (fq, fp)
+    assert value == pytest.approx(fvalue, rel=1e-12)
