@@ -511,7 +511,7 @@ def _gamma(n: int) -> float:
 #: temporaries, :func:`_plan_bytes`). The split with the fewest products per output is taken among the divisors
 #: of N_DFT within it: a prime N_DFT's own split P₁ = N_DFT builds an N_DFT² stage-2 table (a capture declaring
 #: N_DFT = 13 763 took 7.2 GB, benchmarks/fuzz.py, 2026-11-28), and P₁ = 1 (a plain N_DFT x N DFT matrix in
-#: stage 1) is taken there. Table I's split (11 · 109) needs 0.3 MiB.
+#: stage 1) is taken there. Table I's split (11 · 109) needs 0.4 MiB.
 DENSE_PLAN_BYTES = 64 * 2**20
 
 
