@@ -122,20 +122,27 @@ def test_noise_only_beams_give_the_full_grid_answer(make_radar, make_processing,
     # without min_range: the dense search's cell is the full grid's, its value equal to 1e-12.
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=n_dft, k_dft=67, window=window)
+    for plan in _noise_beams_match_the_full_grid(radar, processing, np.random.default_rng(sum(map(ord, window))), 25):
+        assert plan.p1 * plan.p2 == n_dft
+
+
+def _noise_beams_match_the_full_grid(radar, processing, rng, trials):
+    """``trials`` beams of noise, every other one with a return below the noise per sample, a third of them with
+    min_range: each dense search's cell is the float64 full grid's, its value equal to 1e-12. Yields each plan."""
+    k, n = radar.num_chirps, radar.num_samples
     w_k, w_n, _ = dft_windows(radar, processing)
-    rng = np.random.default_rng(sum(map(ord, window)))
-    kk, nn = np.arange(16)[:, None], np.arange(64)[None, :]
-    for trial in range(25):
-        y = add_noise(np.zeros((16, 64), complex), 1.0, rng)
+    kk, nn = np.arange(k)[:, None], np.arange(n)[None, :]
+    for trial in range(trials):
+        y = add_noise(np.zeros((k, n), complex), 1.0, rng)
         if trial % 2:
             f2, f1 = rng.uniform(0, 1, 2)
             y += 10 ** (-rng.uniform(0, 15) / 20) * np.exp(2j * np.pi * (kk * f2 + nn * f1))
-        first = 0 if trial % 3 else int(rng.integers(1, 60))
+        first = 0 if trial % 3 else int(rng.integers(1, n - 4))
         q, p, value, plan, _ = _dense(y, processing, w_k, w_n, first)
-        assert plan.p1 * plan.p2 == n_dft
         fq, fp, fvalue = _full_grid(y, w_k, w_n, processing.n_dft, processing.k_dft, first)
         assert (q, p) == (fq, fp)
         assert value == pytest.approx(fvalue, rel=1e-12)
+        yield plan
 
 
 def test_table1_noise_only_beams_and_the_error_bounds(make_radar, make_processing):
@@ -266,20 +273,8 @@ def test_the_plain_dft_split_gives_the_full_grid_answer(make_radar, make_process
     monkeypatch.setattr(gridscreen, "_dense_split", lambda n, n_dft: 1)
     radar = make_radar(num_samples=64, num_chirps=16)
     processing = make_processing(radar, n_dft=n_dft, k_dft=67, window="hann")
-    w_k, w_n, _ = dft_windows(radar, processing)
-    rng = np.random.default_rng(n_dft)
-    kk, nn = np.arange(16)[:, None], np.arange(64)[None, :]
-    for trial in range(12):
-        y = add_noise(np.zeros((16, 64), complex), 1.0, rng)
-        if trial % 2:
-            f2, f1 = rng.uniform(0, 1, 2)
-            y += 10 ** (-rng.uniform(0, 15) / 20) * np.exp(2j * np.pi * (kk * f2 + nn * f1))
-        first = 0 if trial % 3 else int(rng.integers(1, 60))
-        q, p, value, plan, _ = _dense(y, processing, w_k, w_n, first)
+    for plan in _noise_beams_match_the_full_grid(radar, processing, np.random.default_rng(n_dft), 12):
         assert (plan.p1, plan.p2) == (1, n_dft)
-        fq, fp, fvalue = _full_grid(y, w_k, w_n, n_dft, processing.k_dft, first)
-        assert (q, p) == (fq, fp)
-        assert value == pytest.approx(fvalue, rel=1e-12)
 
 
 def test_a_prime_dft_length_builds_its_plan_within_the_table_budget(make_radar, make_processing):
