@@ -8,7 +8,6 @@ import math
 import numpy as np
 
 import dsp
-
 from risloc_rt.io.report import json_safe, write_result
 
 
