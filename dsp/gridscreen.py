@@ -128,6 +128,7 @@ from typing import Callable
 import numpy as np
 import scipy.fft
 
+from .budget import check_memory
 from .gridbound import grid_bound
 from .processing import ProcessingConfig, window_vector
 from .threads import thread_count
@@ -525,7 +526,8 @@ def _plan_bytes(n: int, n_dft: int, p1: int) -> int:
 
 def _dense_split(n: int, n_dft: int) -> int:
     """P₁: the divisor of N_DFT with the fewest products per output, P₁ + ⌈N/P₁⌉, among those (other than 1
-    where one is) whose tables fit :data:`DENSE_PLAN_BYTES`; the smallest tables' when none fits."""
+    where one is) whose tables fit :data:`DENSE_PLAN_BYTES`; the smallest tables' when none fits (the plan
+    then checks them against the memory limit)."""
     divisors = [d for d in range(1, n_dft + 1) if n_dft % d == 0]
     fits = [d for d in divisors if _plan_bytes(n, n_dft, d) <= DENSE_PLAN_BYTES]
     pool = [d for d in fits if d > 1] or fits or [min(divisors, key=lambda d: _plan_bytes(n, n_dft, d))]
@@ -563,6 +565,9 @@ class _DensePlan:
 
     def __init__(self, k: int, n: int, n_dft: int, k_dft: int) -> None:
         p1 = _dense_split(n, n_dft)  # the fewest products per output within the table budget
+        check_memory(_plan_bytes(n, n_dft, p1), f"processing.n_dft={n_dft} (the grid search's DFT tables for "
+                     f"N = {n} samples, split {p1} x {n_dft // p1})",
+                     fix="choose an N_DFT with small prime factors (the paper's 1199 = 11 x 109), or raise the limit")
         p2, blocks = n_dft // p1, -(-n // p1)
         self.k, self.n, self.n_dft, self.k_dft = k, n, n_dft, k_dft
         self.p1, self.p2, self.blocks = p1, p2, blocks

@@ -297,3 +297,23 @@ def test_a_prime_dft_length_builds_its_plan_within_the_table_budget(make_radar, 
     fq, fp, fvalue = _full_grid(y, w_k, w_n, 13_763, 38)
     assert (q, p) == (fq, fp)
     assert value == pytest.approx(fvalue, rel=1e-12)
+
+
+def test_a_prime_dft_length_whose_smallest_tables_exceed_the_limit_is_one_line(monkeypatch):
+    # N_DFT = 100 003 (prime) on N = 600 samples: no split fits DENSE_PLAN_BYTES, and the smallest (P₁ = 1, an
+    # N_DFT x N matrix: 805 MiB while it is built) exceeds a 512 MiB limit. A BudgetError naming n_dft, before any
+    # table is allocated.
+    import tracemalloc
+
+    from dsp.budget import BudgetError, MEMORY_LIMIT_ENV
+
+    monkeypatch.setenv(MEMORY_LIMIT_ENV, "512M")
+    tracemalloc.start()
+    try:
+        with pytest.raises(BudgetError, match=r"processing\.n_dft=100003 .* needs about") as err:
+            gridscreen._DensePlan(2, 600, 100_003, 8)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert "\n" not in str(err.value) and peak < 2**20
+    assert gridscreen._plan_bytes(600, 100_003, 1) > 512 * 2**20 > gridscreen.DENSE_PLAN_BYTES
