@@ -31,7 +31,7 @@ from typing import Any, Callable, Iterator, Protocol
 
 from .._workers import init_worker
 from .kernel import PreparedPoint, run_once, run_runs
-from .store import RunLog
+from .store import HOST_STREAM, RunLog, host_noise
 
 __all__ = ["ONE_THREAD_ENV", "StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing",
            "check_preparer", "check_rows_memory", "run_batch", "execute", "default_workers", "choose_workers", "connect_dask",
@@ -449,7 +449,7 @@ def one_thread() -> Iterator[None]:
 
 
 def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int, stop: int,
-              study_seed: int, device: str = "cpu", share: int = 1) -> dict[str, Any]:
+              study_seed: int, device: str = "cpu", share: int = 1, stream: str = HOST_STREAM) -> dict[str, Any]:
     """Run one batch (in a worker): the point prepared by ``prepare``, then runs ``start`` … ``stop - 1``.
 
     Always on one thread — the DSP's (``dsp.limit_threads``) and BLAS's (threadpoolctl) — in a
@@ -475,6 +475,9 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
     share : int
         Worker processes sharing this machine's GPU (the local pool's size): each sizes its batches
         from its share of the GPU's free memory.
+    stream : str
+        The study folder's noise stream (:data:`risloc_rt.studies.store.HOST_STREAMS`, ``"cuda"``): which
+        host stream the runs draw (:func:`risloc_rt.studies.store.host_noise`).
 
     Returns
     -------
@@ -500,7 +503,7 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         prep = _prepared(prepare, params)
         buffer = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else None
         rows = run_runs(prep, study_seed=study_seed, point=point, runs=range(start, stop), backend=backend,
-                        buffer=buffer, share=share)
+                        buffer=buffer, share=share, noise_stream=host_noise(stream))
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
             "warnings": list(prep.params.get("warnings", ())), "device": run_environment(backend)}
 
@@ -532,7 +535,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
     spec : StudyPlan
         The study: a :class:`~risloc_rt.studies.spec.StudySpec`, or a floor map's cells.
     log : RunLog
-        The open run log; its finished runs are skipped.
+        The open run log; its finished runs are skipped, and its ``noise_stream`` is the one the runs draw.
     prepare : Preparer
         The point preparer, a module-level function (:func:`check_preparer`).
     workers : int
@@ -583,6 +586,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
         check_budget(spec, log.done(), prepare=prepare, workers=_dask_threads(dask), long_ok=long_ok,
                      say=None if quiet else (lambda msg: print(msg, file=sys.stderr)))
     batches = plan_batches(spec, log.done(), workers=workers, max_size=DEVICE_BATCH_RUNS if device != "cpu" else 25)
+    stream = log.noise_stream
     total = spec.runs * len(spec.points())
     done_before = sum(1 for (p, r) in log.done() if r < spec.runs)
     info: dict[str, Any] = {"crb": {}, "prepare_seconds": {}, "warnings": {}, "retried": [], "new_runs": 0,
@@ -611,12 +615,12 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
 
     try:
         if dask is not None:
-            _run_dask(spec, prepare, batches, dask, take, say, device)
+            _run_dask(spec, prepare, batches, dask, take, say, device, stream)
         elif workers == 1:
             for b in batches:
-                take(run_batch(prepare, b.params, b.point, b.start, b.stop, spec.seed, device), b)
+                take(run_batch(prepare, b.params, b.point, b.start, b.stop, spec.seed, device, 1, stream), b)
         else:
-            _run_pool(spec, prepare, batches, workers, take, say, device)
+            _run_pool(spec, prepare, batches, workers, take, say, device, stream)
         # bounds of points whose runs were all done before this start (needed by the summary)
         for p, params in enumerate(spec.points()):
             if p not in info["crb"]:
@@ -631,7 +635,7 @@ def execute(spec: StudyPlan, log: RunLog, *, prepare: Preparer, workers: int, da
 
 
 def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], workers: int, take: Callable,
-              say: Callable, device: str = "cpu") -> None:
+              say: Callable, device: str = "cpu", stream: str = HOST_STREAM) -> None:
     import multiprocessing
 
     attempts: dict[Batch, int] = {}
@@ -653,7 +657,7 @@ def _run_pool(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], work
                     try:
                         while b is not None and len(running) < workers:  # one batch per worker: a death names its batch
                             running[pool.submit(run_batch, prepare, b.params, b.point, b.start, b.stop,
-                                                spec.seed, device, workers)] = b
+                                                spec.seed, device, workers, stream)] = b
                             b = next_batch()
                     except BrokenProcessPool:  # a worker died since the last wait: the running batches retry
                         broken += list(running.values())
@@ -787,7 +791,7 @@ def _dask_threads(address: Any) -> int:
 
 
 def _run_dask(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], address: Any, take: Callable,
-              say: Callable, device: str = "cpu") -> None:
+              say: Callable, device: str = "cpu", stream: str = HOST_STREAM) -> None:
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
@@ -795,7 +799,7 @@ def _run_dask(spec: StudyPlan, prepare: Preparer, batches: Iterator[Batch], addr
     plan = iter(batches)
 
     def submit(b: Batch) -> Any:
-        fut = client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed, device,
+        fut = client.submit(run_batch, prepare, b.params, b.point, b.start, b.stop, spec.seed, device, 1, stream,
                             key=f"risloc-study-{spec.key}-{b.point}-{b.start}-{b.stop}", pure=False,
                             retries=MAX_ATTEMPTS - 1)
         futures[fut] = b

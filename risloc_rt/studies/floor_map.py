@@ -523,7 +523,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
         old_manifest = json.loads(manifest.read_text())
         old = old_manifest.get("key")
         if old == settings.key:
-            check_stream(folder, old_manifest, stream, folder / "runs.jsonl")
+            stream = check_stream(folder, old_manifest, stream, folder / "runs.jsonl")
         else:
             if not force:
                 raise StudyFolderError(f"{str(folder)!r} holds another floor map (key {old}); use a new --out or "
@@ -550,6 +550,7 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     atomic_write_bytes(manifest, json.dumps({"key": settings.key, "settings": asdict(settings),
                                              "noise_stream": stream}).encode(), sync=True)
     log = RunLog(folder / "runs.jsonl", devices_file=devices_path(folder, settings.key)).open()
+    log.noise_stream = stream
     start = time.perf_counter()
     try:
         saved = _saved_points(folder / "points.json", settings, spec, pairs)

@@ -4,11 +4,13 @@ Every run of a point shares the same paths and therefore the same noiseless beat
 :func:`prepare_point` synthesises it once; :func:`run_once` adds the run's receiver noise
 (``SeedSequence(study_seed, spawn_key=(point, run))``) and runs the public DSP,
 ``dsp.self_localize``, exactly as ``risloc locate`` does on a simulated capture: the numbers equal
-``simulate(..., rng, noise_stream="fast") -> process_capture``'s for the noise of that stream,
+``simulate(..., rng, noise_stream="boxmuller") -> process_capture``'s for the noise of that stream,
 because ``risloc_rt.model.add_noise`` is what ``simulate`` calls — bit for bit when both run on one
 BLAS thread, as every study run does (``engine.run_batch``); a multi-threaded BLAS changes last
-digits. The "fast" stream (float32 normals, one child stream per beam) has the distribution of the
-standard one and costs about half as much, which a run of a study feels (docs/studies.md).
+digits. The "boxmuller" stream (float32 Box–Muller, one child stream per beam) has the distribution
+of the standard one and costs a third as much, which a run of a study feels (docs/studies.md); a
+study folder started on the older "fast" stream (NumPy's float32 ziggurat) continues on it
+(``noise_stream``).
 """
 
 from __future__ import annotations
@@ -217,8 +219,9 @@ def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
 
 
 def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
-             buffer: np.ndarray | None = None, backend: dsp.ArrayBackend | None = None) -> dict[str, Any]:
-    """One Monte Carlo run: the seeded noise (the "fast" stream) on the point's cube, then ``dsp.self_localize``.
+             buffer: np.ndarray | None = None, backend: dsp.ArrayBackend | None = None,
+             noise_stream: str = "boxmuller") -> dict[str, Any]:
+    """One Monte Carlo run: the seeded noise on the point's cube, then ``dsp.self_localize``.
 
     :func:`run_runs` with one run: the same row as that run has in any batch.
 
@@ -232,6 +235,8 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
         Host scratch space shaped like ``prep.cube`` or ``[B, *prep.cube.shape]``, reused between runs.
     backend : dsp.ArrayBackend, optional
         Where the noise and the detector run (default NumPy).
+    noise_stream : {"boxmuller", "fast"}, default "boxmuller"
+        The host's per-beam noise stream (:func:`risloc_rt.model.beat.add_noise`); a GPU draws its own.
 
     Returns
     -------
@@ -244,12 +249,13 @@ def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
     """
     if buffer is not None and buffer.ndim == 3:
         buffer = buffer[None]
-    return run_runs(prep, study_seed=study_seed, point=point, runs=[run], buffer=buffer, backend=backend)[0]
+    return run_runs(prep, study_seed=study_seed, point=point, runs=[run], buffer=buffer, backend=backend,
+                    noise_stream=noise_stream)[0]
 
 
 def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buffer: np.ndarray | None = None,
              backend: dsp.ArrayBackend | None = None, batch: int | None = None,
-             share: int = 1) -> list[dict[str, Any]]:
+             share: int = 1, noise_stream: str = "boxmuller") -> list[dict[str, Any]]:
     """Monte Carlo runs of one point, B realizations per call of the whole-cube steps.
 
     For each group of B runs: their receiver noise (:func:`risloc_rt.model.beat.add_noise_batch`,
@@ -276,6 +282,9 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     share : int
         Processes sharing the GPU (a study's local workers): each sizes B from its share of the free
         memory.
+    noise_stream : {"boxmuller", "fast"}, default "boxmuller"
+        The host's per-beam noise stream (:func:`risloc_rt.model.beat.add_noise`; NumPy and
+        array_api_strict); a GPU draws its own (cuRAND).
 
     Returns
     -------
@@ -310,11 +319,12 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
                 az = p["aod_deg"] + (rng.random() - 0.5) * p["aod_spread_deg"]
                 cap = simulate(point_scenario({**p, "aod_deg": az}, structure=p["structure"]), rng=rng, noise=False)
                 truths[i] = cap.truth
-                noisy.append(add_noise_batch(cap.cube, prep.radar.noise_power, [rng], backend=backend))
+                noisy.append(add_noise_batch(cap.cube, prep.radar.noise_power, [rng], backend=backend,
+                                             stream=noise_stream))
             cubes = backend.xp.concat(noisy, axis=0)
         else:
             cubes = add_noise_batch(prep.cube, prep.radar.noise_power, rngs, backend=backend, out=buffer,
-                                    device_cube=device_cube)
+                                    device_cube=device_cube, stream=noise_stream)
         dets = dsp.detect_batch(cubes, prep.radar, backend=backend, pfa=p["pfa"],
                                 min_range=prep.processing.min_range, max_candidates=5, pattern=prep.pattern,
                                 sweep=prep.sweep, oversample=2)

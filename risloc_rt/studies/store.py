@@ -26,12 +26,46 @@ from .._files import atomic_write_bytes
 from .spec import StudySpec
 
 __all__ = ["RunLog", "RunLogError", "StudyFolderError", "check_stream", "keep_log", "devices_path",
-           "read_devices", "open_study_folder", "study_device", "write_parquet", "read_runs_table"]
+           "read_devices", "open_study_folder", "study_device", "write_parquet", "read_runs_table",
+           "HOST_STREAMS", "HOST_STREAM", "host_noise"]
 
 MANIFEST = "study.json"
 LOG = "runs.jsonl"
 TABLE = "runs.parquet"
 SUMMARY = "summary.json"
+
+#: A study folder's noise streams drawn on the host (its manifest's ``noise_stream``) and the stream of
+#: :func:`risloc_rt.model.beat.add_noise` that draws each: ``"host"`` NumPy's float32 ziggurat (folders made
+#: before the Box–Muller stream, and manifests without the key), ``"host-boxmuller"`` float32 Box–Muller
+#: (2-2.5x cheaper). The third stream, ``"cuda"``, is cuRAND's on a GPU.
+HOST_STREAMS = {"host": "fast", "host-boxmuller": "boxmuller"}
+#: The host stream of a new study folder.
+HOST_STREAM = "host-boxmuller"
+
+
+def host_noise(stream: str) -> str:
+    """The :func:`risloc_rt.model.beat.add_noise` stream that draws a study stream's noise on the host.
+
+    Parameters
+    ----------
+    stream : {"host", "host-boxmuller", "cuda"}
+        A study folder's noise stream (:data:`HOST_STREAMS`; ``"cuda"``: a GPU draws it, and a host
+        that runs such a batch draws :data:`HOST_STREAM`'s).
+
+    Returns
+    -------
+    {"fast", "boxmuller"}
+
+    Raises
+    ------
+    ValueError
+        An unknown stream.
+    """
+    if stream == "cuda":
+        return HOST_STREAMS[HOST_STREAM]
+    if stream not in HOST_STREAMS:
+        raise ValueError(f"noise stream {stream!r} is not a study stream; use one of {', '.join(HOST_STREAMS)} or cuda")
+    return HOST_STREAMS[stream]
 
 
 class StudyFolderError(ValueError):
@@ -140,6 +174,8 @@ class RunLog:
         The runs read or appended, by (point, run); the first row of a pair wins.
     devices : list of dict
         What ran them, every sitting's (:func:`risloc_rt.io.report.run_environment` objects).
+    noise_stream : str
+        The noise stream this sitting's runs draw (:func:`open_study_folder` sets it: the folder's).
     """
 
     def __init__(self, path: Path, *, devices_file: Path | None = None) -> None:
@@ -147,6 +183,7 @@ class RunLog:
         self.rows: dict[tuple[int, int], dict[str, Any]] = {}
         self.devices_file = devices_file
         self.devices: list[dict[str, Any]] = []
+        self.noise_stream = HOST_STREAM
         self._fh: Any = None
 
     def open(self) -> "RunLog":
@@ -270,9 +307,10 @@ def study_device(device: str | None, *, local: bool) -> tuple[str, str]:
     -------
     device : str
         The checked name, passed to the workers.
-    stream : {"host", "cuda"}
-        NumPy's "fast" stream (the CPU and array_api_strict) or cuRAND's on a GPU; ``auto`` is
-        resolved on this machine.
+    stream : {"host-boxmuller", "cuda"}
+        The host's stream (:data:`HOST_STREAM`, the CPU and array_api_strict) or cuRAND's on a GPU;
+        ``auto`` is resolved on this machine. A folder whose runs were drawn on the older host stream
+        continues on it (:func:`check_stream`).
 
     Raises
     ------
@@ -285,37 +323,52 @@ def study_device(device: str | None, *, local: bool) -> tuple[str, str]:
     if local:
         backend_for(device)
     resolved = device if device != "auto" else ("cuda" if cuda_available()[0] else "cpu")
-    return device, "cuda" if resolved == "cuda" else "host"
+    return device, "cuda" if resolved == "cuda" else HOST_STREAM
 
 
-def check_stream(out: Path, manifest: dict[str, Any], stream: str, log: Path) -> None:
-    """Refuse to continue a study folder whose rows were drawn on another noise stream (:func:`study_device`).
+def check_stream(out: Path, manifest: dict[str, Any], stream: str, log: Path) -> str:
+    """The noise stream that continues a study folder; refuse one whose rows were drawn on another device.
 
     Parameters
     ----------
     out : Path
         The folder (for the message).
     manifest : dict
-        Its manifest as read (``noise_stream`` absent: written before devices existed, the host's).
+        Its manifest as read (``noise_stream`` absent: written before devices existed, the host's
+        ziggurat, ``"host"``).
     stream : str
-        This sitting's stream.
+        This sitting's stream (:func:`study_device`).
     log : Path
         The folder's run log (a missing or empty one holds no runs).
+
+    Returns
+    -------
+    str
+        ``stream``, or the folder's own host stream when its runs were drawn on another one and this
+        sitting runs on the host too (a folder started before the Box–Muller stream keeps its
+        ziggurat: one stream per table).
 
     Raises
     ------
     StudyFolderError
-        The streams differ and the log holds runs.
+        The folder holds runs of a GPU and this sitting is on the CPU, or the other way round, or its
+        manifest names a stream this version does not know.
     """
     old = str(manifest.get("noise_stream", "host"))
-    if old != stream and log.exists() and log.stat().st_size > 0:
-        was = "a GPU (--device cuda)" if old == "cuda" else "the CPU (--device cpu)"
-        raise StudyFolderError(f"{str(out)!r} holds runs whose noise was drawn on {was}; continue it with that "
-                               "device, or use a new --out (a table of both streams would mix two random streams)")
+    if old == stream or not (log.exists() and log.stat().st_size > 0):
+        return stream
+    if old in HOST_STREAMS and stream in HOST_STREAMS:
+        return old
+    if old != "cuda" and old not in HOST_STREAMS:
+        raise StudyFolderError(f"{str(out)!r} holds runs of the noise stream {old!r}, which this version of "
+                               "risloc-rt does not draw; use a new --out (or the version that made the folder)")
+    was = "a GPU (--device cuda)" if old == "cuda" else "the CPU (--device cpu)"
+    raise StudyFolderError(f"{str(out)!r} holds runs whose noise was drawn on {was}; continue it with that "
+                           "device, or use a new --out (a table of both streams would mix two random streams)")
 
 
 def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
-                      notice: Callable[[str], None] | None = None, stream: str = "host") -> RunLog:
+                      notice: Callable[[str], None] | None = None, stream: str = HOST_STREAM) -> RunLog:
     """Create or reopen ``out`` for ``spec``; refuse a folder of another study (or not a study) without ``force``.
 
     With ``force`` a previous study's log is kept, renamed ``runs-<its key>.jsonl`` (``-2``, ``-3``, ...
@@ -331,14 +384,15 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
         Use a folder that holds another study, or other files.
     notice : callable, optional
         Receives the one-line note naming where a previous study's log was kept (default: stderr).
-    stream : {"host", "cuda"}
+    stream : {"host-boxmuller", "host", "cuda"}
         The noise stream of this sitting's runs (:func:`study_device`); a folder whose runs were
-        drawn on the other one is refused (:func:`check_stream`).
+        drawn on another device is refused, one drawn on another host stream continues on it
+        (:func:`check_stream`).
 
     Returns
     -------
     RunLog
-        The folder's run log, open for appending.
+        The folder's run log, open for appending; its ``noise_stream`` is the stream its runs draw.
 
     Raises
     ------
@@ -356,7 +410,7 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
         except (ValueError, KeyError, TypeError):
             old_key = "unreadable"
         if old_key == spec.key:
-            check_stream(out, old, stream, out / LOG)
+            stream = check_stream(out, old, stream, out / LOG)
         if old_key != spec.key:
             if not force:
                 raise StudyFolderError(
@@ -376,7 +430,9 @@ def open_study_folder(out: Path, spec: StudySpec, *, force: bool = False,
     atomic_write_bytes(manifest, json.dumps({"key": spec.key, "spec": spec.to_dict(), "risloc_rt": __version__,
                                              "noise_stream": stream},
                                             indent=1, sort_keys=True).encode() + b"\n", sync=True)
-    return RunLog(out / LOG, devices_file=devices_path(out, spec.key)).open()
+    log = RunLog(out / LOG, devices_file=devices_path(out, spec.key)).open()
+    log.noise_stream = stream
+    return log
 
 
 def write_parquet(path: Path, rows: list[dict[str, Any]], points: list[dict[str, Any]], *,

@@ -198,9 +198,9 @@ def test_paper_azimuth_sigma_is_the_grid_at_high_snr_and_the_jumps_at_low_snr():
     assert np.all(np.diff(values) < 0)
 
 
-def _within_wilson(c: dict, level: int, p: float) -> bool:
+def _within_wilson(c: dict, level: int, p: float, z: float = 1.959964) -> bool:
     k = round(c["share"][level] * c["n"])
-    lo, hi = _wilson(k, c["n"])
+    lo, hi = _wilson(k, c["n"], z)
     return lo <= p <= hi
 
 
@@ -210,7 +210,12 @@ def test_small_study_refined_sigma_covers_like_a_gaussian():
     interval holds 68.3 %, 3σ's reaches 99 %, for distance and azimuth. Without the panel's
     structural reflection: the small cube's 34 cm range cell holds it (27 cm from the RIS return),
     the ``pattern-mismatch`` rule then widens the AoD's σ by its fit's excess (measured: 86 % within
-    1σ at 25 dBm), a second return the single-tone σ does not describe."""
+    1σ at 25 dBm), a second return the single-tone σ does not describe.
+
+    Four such intervals (two powers, two parameters) are one family: each is a 99 % interval, so an
+    honest σ fails the family with probability <= 4 % (Bonferroni). At 95 % each it failed 19 % of
+    seeds: the boxmuller stream's seed 20 gave 0.74 (0.688-0.786) for the AoD at 35 dBm, where 2000
+    runs on each noise stream give 0.710 (ziggurat) and 0.696 (Box–Muller), both streams alike."""
     for i, power in enumerate((25.0, 35.0)):
         prep = _small_point("refined", power, structure=False)
         runs = [run_once(prep, study_seed=20, point=i, run=r) for r in range(300)]
@@ -218,5 +223,5 @@ def test_small_study_refined_sigma_covers_like_a_gaussian():
         for err, sd in (("distance_error", "std_distance"), ("aod_az_error", "std_aod_az")):
             c = coverage([r[err] for r in det], [r[sd] for r in det])
             assert c["n"] >= 250
-            assert _within_wilson(c, 0, 0.6827), (power, err, c)
+            assert _within_wilson(c, 0, 0.6827, z=2.575829), (power, err, c)  # 99 %: one of a family of four
             assert c["ci95"][2][1] >= 0.99, (power, err, c)

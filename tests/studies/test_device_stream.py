@@ -12,16 +12,16 @@ from risloc_rt.studies.store import StudyFolderError, study_device
 
 
 def test_the_stream_of_each_device():
-    assert study_device("cpu", local=True) == ("cpu", "host")
+    assert study_device("cpu", local=True) == ("cpu", "host-boxmuller")
     assert study_device("cuda", local=False) == ("cuda", "cuda")  # a Dask cluster's workers resolve it
-    assert study_device("AUTO", local=True) == ("auto", "cuda" if dsp.cuda_available()[0] else "host")
+    assert study_device("AUTO", local=True) == ("auto", "cuda" if dsp.cuda_available()[0] else "host-boxmuller")
 
 
 def test_a_study_records_its_stream_and_its_devices(small_spec, tmp_path):
     res = run_study(small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),)), tmp_path / "s", workers=1, quiet=True,
                     figures=False, device="cpu")
     manifest = json.loads((tmp_path / "s" / "study.json").read_text())
-    assert manifest["noise_stream"] == "host"
+    assert manifest["noise_stream"] == "host-boxmuller"
     (dev,) = res.summary["devices"]
     assert dev["dsp"]["device"] == "cpu" and dev["dsp"]["library"].startswith("numpy ")
     assert dev["trace"] is None or dev["trace"].endswith("_ad_mono_polarized")  # an analytic study traced nothing
@@ -75,6 +75,47 @@ def test_continuing_a_folder_whose_runs_came_from_another_stream_is_refused(smal
         run_study(spec.__class__(**{**spec.__dict__, "runs": 3}), tmp_path / "s", workers=1, quiet=True,
                   figures=False, device="cpu")
     assert (tmp_path / "s" / "runs.jsonl").read_bytes() == log  # nothing appended
+
+
+def test_a_folder_started_on_the_ziggurat_stream_continues_on_it(small_spec, tmp_path):
+    # A CPU folder made before the Box–Muller stream ("host", or no noise_stream at all) keeps its stream:
+    # its new runs are the ziggurat's ("fast"), bit for bit a run of that stream, and its manifest still says so
+    from risloc_rt.studies.kernel import prepare_point, run_once
+    from risloc_rt.studies.params import complete_point
+
+    spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
+    for old in ("host", None):
+        folder = tmp_path / f"s-{old}"
+        run_study(spec, folder, workers=1, quiet=True, figures=False, device="cpu")
+        manifest = folder / "study.json"
+        data = json.loads(manifest.read_text())
+        if old is None:
+            del data["noise_stream"]  # a manifest from before devices existed
+        else:
+            data["noise_stream"] = old
+        manifest.write_text(json.dumps(data))
+        more = spec.__class__(**{**spec.__dict__, "runs": 3})
+        res = run_study(more, folder, workers=1, quiet=True, figures=False, device="cpu")
+        assert res.new_runs == 1
+        assert json.loads(manifest.read_text())["noise_stream"] == "host"
+        new = [json.loads(line) for line in (folder / "runs.jsonl").read_text().splitlines()][-1]
+        assert new["run"] == 2
+        prep = prepare_point(complete_point(spec.points()[0]))
+        fast = run_once(prep, study_seed=spec.seed, point=0, run=2, noise_stream="fast")
+        boxmuller = run_once(prep, study_seed=spec.seed, point=0, run=2, noise_stream="boxmuller")
+        assert new["snr_db"] == fast["snr_db"] != boxmuller["snr_db"]  # the grid distance is the same at 30 dBm
+        assert new["distance"] == fast["distance"] and new["aod_az"] == fast["aod_az"]
+
+
+def test_a_folder_of_an_unknown_stream_is_refused(small_spec, tmp_path):
+    spec = small_spec(runs=2, vary=(("tx_power_dbm", (30.0,)),))
+    run_study(spec, tmp_path / "s", workers=1, quiet=True, figures=False, device="cpu")
+    manifest = tmp_path / "s" / "study.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "noise_stream": "host-sobol"}))
+    with pytest.raises(StudyFolderError, match=r"noise stream 'host-sobol', which this version of risloc-rt does "
+                                                r"not draw"):
+        run_study(spec.__class__(**{**spec.__dict__, "runs": 3}), tmp_path / "s", workers=1, quiet=True,
+                  figures=False, device="cpu")
 
 
 def test_a_bad_device_name_is_one_line_before_any_work(small_spec, tmp_path, monkeypatch):

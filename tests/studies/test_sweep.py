@@ -29,10 +29,15 @@ def test_a_run_is_what_simulate_then_locate_gives_for_the_same_noise():
     from risloc_rt.studies.kernel import point_scenario
 
     params = complete_point({**SMALL, "tx_power_dbm": 30.0, "estimator": "refined"})
-    row = run_once(prepare_point(params), study_seed=3, point=1, run=4)
-    cap = simulate(point_scenario(params, structure=True), rng=run_rng(3, 1, 4), noise_stream="fast")
-    loc, _ = process_capture(cap, estimator="refined")
-    assert row["distance"] == loc.distance and row["aod_az"] == loc.aod[0]
+    prep = prepare_point(params)
+    rows = {}
+    for stream in ("boxmuller", "fast"):  # a new folder's stream, and an older folder's
+        rows[stream] = run_once(prep, study_seed=3, point=1, run=4, noise_stream=stream)
+        cap = simulate(point_scenario(params, structure=True), rng=run_rng(3, 1, 4), noise_stream=stream)
+        loc, _ = process_capture(cap, estimator="refined")
+        assert rows[stream]["distance"] == loc.distance and rows[stream]["aod_az"] == loc.aod[0]
+    assert rows["boxmuller"]["distance"] != rows["fast"]["distance"]  # two noise streams
+    assert run_once(prep, study_seed=3, point=1, run=4)["distance"] == rows["boxmuller"]["distance"]  # the default
 
 
 def static_template_factor(prep) -> float:
