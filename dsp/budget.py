@@ -162,7 +162,9 @@ def detect_memory(shape: Any, *, whole_cells: bool) -> int:
     Notes
     -----
     The noisy cube (complex128, 16 B) and its complex64 copy (8 B) per sample; the slow-time
-    transform (2K × N) and the half-bin transform (2K × 2N) in complex64; the statistics (D, the
+    transform (2K × N) and the half-bin transform (2K × 2N) in complex64 (NumPy casts the cube
+    into the half-bin array and transforms it in place, ``ArrayBackend.padded_ifft2``: the copy
+    and the slow-time array are the other backends'); the statistics (D, the
     window maximum, the statistic and its masks: 6 float64 arrays of 4KN cells), and with
     ``whole_cells`` the M + 1 running sums (8 B × 4KN each). A 1.5× margin covers FFT work buffers.
     """

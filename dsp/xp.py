@@ -110,6 +110,55 @@ class ArrayBackend:
             return scipy.fft.ifft(x, n=n, axis=axis, norm="forward", workers=thread_count())
         return self.xp.fft.ifft(x, n=n, axis=axis, norm="forward")
 
+    def padded_ifft2(self, x: Any, shape: tuple[int, int], *, dtype: Any, out: Any = None) -> Any:
+        """``Σ_k Σ_n x[..., k, n] e^{+j2π(q k/Q + p n/P)}`` over the last two axes, zero padded to ``(Q, P)``.
+
+        Parameters
+        ----------
+        x : complex array [..., K, N] of this backend
+        shape : (int, int)
+            (Q, P) >= (K, N): the padded sizes (``norm="forward"``: no 1/(QP)).
+        dtype : complex dtype of ``xp``
+            The transform's precision (x is cast to it).
+        out : complex array [..., Q, P] of ``dtype``, optional
+            NumPy only: written and returned (a study reuses it; the result is the same bit for bit).
+
+        Returns
+        -------
+        complex array [..., Q, P] of ``dtype``
+
+        Notes
+        -----
+        Along axis -2 first, then -1, without transforming the zero-padded rows. NumPy writes x,
+        cast, into the padded array and transforms it in place (``scipy.fft``, ``overwrite_x``): no
+        cast copy and none of ``scipy.fft``'s padded copies, the same numbers as two padded
+        :meth:`ifft` calls (pocketfft transforms each line alike wherever it lies). Other namespaces:
+        the two :meth:`ifft` calls.
+        """
+        q, p = (int(v) for v in shape)
+        k, n = (int(v) for v in x.shape[-2:])
+        if not self.is_numpy:
+            return self.ifft(self.ifft(self.xp.astype(x, dtype, copy=False), n=q, axis=-2), n=p, axis=-1)
+        import scipy.fft
+
+        from .threads import thread_count
+
+        full = tuple(x.shape[:-2]) + (q, p)
+        if out is None:
+            out = np.empty(full, dtype=dtype)
+        elif out.shape != full or out.dtype != np.dtype(dtype) or not out.flags.c_contiguous:
+            raise ValueError(f"out must be a C-contiguous {np.dtype(dtype)} array of shape {list(full)}, "
+                             f"got {out.dtype} {list(out.shape)}")
+        out[..., :k, :n] = x
+        out[..., k:, :n] = 0
+        out[..., n:] = 0
+        workers = thread_count()
+        for part, axis in ((out[..., :n], -2), (out, -1)):
+            done = scipy.fft.ifft(part, axis=axis, norm="forward", workers=workers, overwrite_x=True)
+            if not np.may_share_memory(done, part):  # a scipy that copied instead: the result, written back
+                part[...] = done
+        return out
+
     def kth_smallest(self, x: Any, k: int, axis: int) -> Any:
         """The k-th smallest value along ``axis`` (0-based; ``size // 2``: the upper median), that axis removed.
 

@@ -501,9 +501,9 @@ def run_batch(prepare: Preparer, params: dict[str, Any], point: int, start: int,
         backend = _BACKENDS.setdefault(device, backend_for(device))
     with one_thread():
         prep = _prepared(prepare, params)
-        buffer = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else None
+        buffer, workspace = _host_buffer(prep.cube.shape) if not backend.name == "cupy" else (None, None)
         rows = run_runs(prep, study_seed=study_seed, point=point, runs=range(start, stop), backend=backend,
-                        buffer=buffer, share=share, noise_stream=host_noise(stream))
+                        buffer=buffer, share=share, noise_stream=host_noise(stream), workspace=workspace)
     return {"rows": rows, "crb": prep.crb, "prepare_seconds": prep.seconds,
             "warnings": list(prep.params.get("warnings", ())), "device": run_environment(backend)}
 
@@ -512,17 +512,20 @@ _BACKENDS: dict[str, Any] = {}
 _BUFFER = threading.local()  # per thread: the threads of one Dask worker run batches at once
 
 
-def _host_buffer(shape: tuple[int, ...]) -> Any:
-    """This thread's host scratch space for a batch of noisy cubes ``[B, *shape]`` (kept between batches)."""
+def _host_buffer(shape: tuple[int, ...]) -> tuple[Any, Any]:
+    """This thread's host scratch space, kept between batches: a batch of noisy cubes ``[B, M, K, N]`` (complex128)
+    and their detector's half-bin transform ``[B, M, 2K, 2N]`` (complex64)."""
     import numpy as np
 
     from dsp.budget import detect_batch_size
 
     b = detect_batch_size(shape)
+    m, k, n = (int(v) for v in shape)
     buf = getattr(_BUFFER, "cubes", None)
-    if buf is None or buf.shape != (b,) + tuple(shape):
-        _BUFFER.cubes = None
-        buf = _BUFFER.cubes = np.empty((b,) + tuple(shape), dtype=np.complex128)
+    if buf is None or buf[0].shape != (b, m, k, n):
+        _BUFFER.cubes = None  # the old pair is freed before the new one is made
+        buf = _BUFFER.cubes = (np.empty((b, m, k, n), dtype=np.complex128),
+                               np.empty((b, m, 2 * k, 2 * n), dtype=np.complex64))
     return buf
 
 

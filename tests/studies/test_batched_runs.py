@@ -82,9 +82,16 @@ def test_rows_do_not_depend_on_the_batch(prepared, variant):
 
     for batch in (3, 4):
         assert differences(one, run_runs(prep, study_seed=SEED, point=POINT, runs=RUNS, batch=batch)) == [], batch
-    # a reused scratch buffer (left full of NaN) and the default batch from the memory estimate
+    # reused scratch buffers (left full of NaN: the noisy cubes and the detector's transform) and the default
+    # batch from the memory estimate
     buffer = np.full((4,) + prep.cube.shape, np.nan, dtype=complex)
-    assert differences(one, run_runs(prep, study_seed=SEED, point=POINT, runs=RUNS, batch=4, buffer=buffer)) == []
+    m, k, n = prep.cube.shape
+    workspace = np.full((4, m, 2 * k, 2 * n), np.nan, dtype=np.complex64)
+    assert differences(one, run_runs(prep, study_seed=SEED, point=POINT, runs=RUNS, batch=4, buffer=buffer,
+                                     workspace=workspace)) == []
+    assert np.isfinite(workspace[0]).all()  # the transform went there
+    assert differences([one[1]], [run_once(prep, study_seed=SEED, point=POINT, run=RUNS[1],
+                                           workspace=workspace[0])]) == []
     assert differences(one, run_runs(prep, study_seed=SEED, point=POINT, runs=RUNS)) == []
     # the same run alone, by run_once, and in another order
     assert differences([one[0]], [run_once(prep, study_seed=SEED, point=POINT, run=RUNS[0])]) == []
