@@ -76,6 +76,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if not args.quiet:
         _print_summary(result)
         _print_devices(result.summary.get("devices"), result.new_runs)
+        print(f"noise stream: {result.summary.get('noise_stream')} (study.json; docs/studies.md)")
     return 0
 
 

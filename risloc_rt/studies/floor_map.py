@@ -581,7 +581,8 @@ def run_map(settings: MapSettings, out: str | Path, *, workers: int | None = Non
     # moved in together (risloc_rt._outputs); the folder is the map's (its manifest was checked)
     with output_folder(folder, force=True, flag="--out") as stage:
         atomic_write_bytes(stage / "map.json", json.dumps({
-            "settings": asdict(settings), "devices": log.devices, "ris": list(grid.names),
+            "settings": asdict(settings), "devices": log.devices, "noise_stream": log.noise_stream,
+            "ris": list(grid.names),
             "coverage": {**cover, "unseen": [[float(v) for v in ue] for ue in unseen]},
             "cells": out_cells}, indent=1).encode() + b"\n")
         atomic_write_bytes(stage / "map.parquet", buf_pq.getvalue())

@@ -117,6 +117,7 @@ def run_study(spec: StudySpec, out: str | Path, *, workers: int | None = None, d
     summary["wall_seconds"] = info["wall_seconds"]
     summary["workers"] = "dask" if dask is not None else workers
     summary["devices"] = log.devices  # what ran the runs, every sitting's: DSP device and library, trace variant
+    summary["noise_stream"] = log.noise_stream  # which random stream drew the receiver noise (store.HOST_STREAMS)
     from ..io.report import json_safe
 
     # the derived files are moved in together (risloc_rt._outputs): an interrupt leaves the old set or

@@ -301,6 +301,7 @@ def test_study_sweep_gives_the_same_runs_with_device_cpu_and_prints_the_device(t
     _check_cpu_device(summary["devices"][0])
     for text in (out_default, out_cpu):
         assert _device_lines(text) == [format_environment(summary["devices"][0])]
+        assert "noise stream: host-boxmuller (study.json; docs/studies.md)" in text.splitlines()
     # continued with nothing left to run: it says so, and still names what computed the runs (the folder's record)
     assert main([*argv, str(tmp_path / "cpu"), "--device", "cpu"]) == 0
     assert _device_lines(capsys.readouterr().out) == [
@@ -327,6 +328,7 @@ def test_study_map_gives_the_same_cells_with_device_cpu_and_prints_the_device(tm
     assert len(cpu["devices"]) == 1
     _check_cpu_device(cpu["devices"][0])
     assert cpu["devices"][0]["trace"] in ("llvm_ad_mono_polarized", "cuda_ad_mono_polarized")
+    assert cpu["noise_stream"] == default["noise_stream"] == "host-boxmuller"
     for text in (out_default, out_cpu):
         assert _device_lines(text) == [format_environment(cpu["devices"][0])]
         assert "; trace " in _device_lines(text)[0]

@@ -213,9 +213,9 @@ def test_small_study_refined_sigma_covers_like_a_gaussian():
     1σ at 25 dBm), a second return the single-tone σ does not describe.
 
     Four such intervals (two powers, two parameters) are one family: each is a 99 % interval, so an
-    honest σ fails the family with probability <= 4 % (Bonferroni). At 95 % each it failed 19 % of
-    seeds: the boxmuller stream's seed 20 gave 0.74 (0.688-0.786) for the AoD at 35 dBm, where 2000
-    runs on each noise stream give 0.710 (ziggurat) and 0.696 (Box–Muller), both streams alike."""
+    honest σ fails the family with probability <= 4 % (Bonferroni); at 95 % each that was up to
+    1 - 0.95⁴ = 19 %. The Box–Muller stream's seed 20 gave 0.74 (95 %: 0.688-0.786) for the AoD at
+    35 dBm, where 2000 runs on each noise stream give 0.710 (ziggurat) and 0.696 (Box–Muller)."""
     for i, power in enumerate((25.0, 35.0)):
         prep = _small_point("refined", power, structure=False)
         runs = [run_once(prep, study_seed=20, point=i, run=r) for r in range(300)]

@@ -27,6 +27,7 @@ def test_a_study_records_its_stream_and_its_devices(small_spec, tmp_path):
     assert dev["trace"] is None or dev["trace"].endswith("_ad_mono_polarized")  # an analytic study traced nothing
     on_disk = json.loads((tmp_path / "s" / "summary.json").read_text())
     assert on_disk["devices"] == res.summary["devices"]
+    assert on_disk["noise_stream"] == res.summary["noise_stream"] == "host-boxmuller"
 
 
 def test_a_rerun_with_nothing_left_to_run_still_names_what_ran_the_runs(small_spec, tmp_path):
@@ -97,7 +98,7 @@ def test_a_folder_started_on_the_ziggurat_stream_continues_on_it(small_spec, tmp
         more = spec.__class__(**{**spec.__dict__, "runs": 3})
         res = run_study(more, folder, workers=1, quiet=True, figures=False, device="cpu")
         assert res.new_runs == 1
-        assert json.loads(manifest.read_text())["noise_stream"] == "host"
+        assert json.loads(manifest.read_text())["noise_stream"] == res.summary["noise_stream"] == "host"
         new = [json.loads(line) for line in (folder / "runs.jsonl").read_text().splitlines()][-1]
         assert new["run"] == 2
         prep = prepare_point(complete_point(spec.points()[0]))
