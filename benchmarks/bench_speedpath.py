@@ -29,7 +29,7 @@ on the same cubes, alternating with the current one, and checks its bins too.
 Synthesis: a Table I capture of the default hall's kept paths (``simulate``), with the standard
 noise stream and the per-beam ones ("fast": float32 ziggurat, "boxmuller": float32 Box–Muller; per-beam
 child streams, threaded), median of ``--repeat``, each beside its noise's law on the last capture:
-the power over σ² (sampling std 3e-4) and the Kolmogorov–Smirnov distance of I and Q from N(0, σ²/2)
+the power over σ² (sampling std 5e-4) and the Kolmogorov–Smirnov distance of I and Q from N(0, σ²/2)
 (0.0004 is the 95 % point for 9.4 M values).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_speedpath.py [--realizations 5] [--full 2] [--low-power 0,10]
