@@ -29,21 +29,15 @@ import dsp
 from risloc_rt.io.report import process_capture
 from risloc_rt.model import simulate
 from risloc_rt.model.beat import add_noise
-from risloc_rt.studies.kernel import point_scenario, prepare_point, run_once, run_rng
+from risloc_rt.studies.kernel import detector_workspace, point_scenario, prepare_point, run_once, run_rng
 from risloc_rt.studies.params import complete_point
 
 GOAL = 0.25  # core-seconds per Table I run (issue 21)
 
 
-def _workspace(prep) -> np.ndarray:
-    """The detector's half-bin transform, kept between runs as a study worker keeps it."""
-    m, k, n = prep.cube.shape
-    return np.empty((1, m, 2 * k, 2 * n), np.complex64)
-
-
 def _stage_times(prep, params, runs: int, seed: int, stream: str) -> dict[str, float]:
     buf = np.empty_like(prep.cube)
-    ws = _workspace(prep)
+    ws = detector_workspace(prep.cube.shape)  # kept between runs, as a study worker keeps it
     stages: dict[str, list[float]] = {"noise": [], "detect": [], "grid": []}
     for r in range(runs):
         t = time.perf_counter()
@@ -73,7 +67,7 @@ def _exact_floor(prep, runs: int) -> dict[str, float]:
     _, k, n = prep.cube.shape
     cube64 = prep.cube.astype(np.complex64)
     buf = np.empty_like(prep.cube)
-    ws = _workspace(prep)
+    ws = detector_workspace(prep.cube.shape)
     t_normals, t_boxmuller, t_fft = [], [], []
     for _ in range(runs):
         t = time.perf_counter()
@@ -109,7 +103,8 @@ def main() -> None:
                 params = complete_point({"aod_deg": 10.3, "estimator": est, "tx_power_dbm": tx})
                 prep = prepare_point(params)
                 buf = np.empty_like(prep.cube)
-                kw = {"buffer": buf, "workspace": _workspace(prep), "noise_stream": args.noise_stream}
+                kw = {"buffer": buf, "workspace": detector_workspace(prep.cube.shape),
+                      "noise_stream": args.noise_stream}
                 run_once(prep, study_seed=args.seed, point=0, run=args.runs, **kw)  # warm caches
                 rows = [run_once(prep, study_seed=args.seed, point=0, run=r, **kw) for r in range(args.runs)]
                 per_run = float(np.median([r["seconds"] for r in rows])) + prep.seconds / 1000

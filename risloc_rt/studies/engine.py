@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol
 
 from .._workers import init_worker
-from .kernel import PreparedPoint, run_once, run_runs
+from .kernel import PreparedPoint, detector_workspace, run_once, run_runs
 from .store import HOST_STREAM, RunLog, host_noise
 
 __all__ = ["ONE_THREAD_ENV", "StudyError", "StudyPlan", "Preparer", "Batch", "plan_batches", "count_missing",
@@ -520,12 +520,11 @@ def _host_buffer(shape: tuple[int, ...]) -> tuple[Any, Any]:
     from dsp.budget import detect_batch_size
 
     b = detect_batch_size(shape)
-    m, k, n = (int(v) for v in shape)
+    cubes = (b,) + tuple(int(v) for v in shape)
     buf = getattr(_BUFFER, "cubes", None)
-    if buf is None or buf[0].shape != (b, m, k, n):
+    if buf is None or buf[0].shape != cubes:
         _BUFFER.cubes = None  # the old pair is freed before the new one is made
-        buf = _BUFFER.cubes = (np.empty((b, m, k, n), dtype=np.complex128),
-                               np.empty((b, m, 2 * k, 2 * n), dtype=np.complex64))
+        buf = _BUFFER.cubes = (np.empty(cubes, dtype=np.complex128), detector_workspace(shape, b))
     return buf
 
 

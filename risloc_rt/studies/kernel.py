@@ -27,7 +27,8 @@ from dsp import SPEED_OF_LIGHT, BeamSweep, ProcessingConfig, RadarConfig
 from ..model import analytic_scenario, simulate
 from .params import ris_size
 
-__all__ = ["PreparedPoint", "prepare_point", "point_scenario", "run_once", "run_runs", "run_rng", "point_bound", "ROW_FLOATS"]
+__all__ = ["PreparedPoint", "prepare_point", "point_scenario", "run_once", "run_runs", "run_rng", "point_bound",
+           "ROW_FLOATS", "detector_workspace"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,6 +219,24 @@ def run_rng(study_seed: int, point: int, run: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(study_seed, spawn_key=(point, run)))
 
 
+def detector_workspace(shape: Any, batch: int = 1) -> np.ndarray:
+    """Host scratch space for the detector's half-bin transform of ``batch`` cubes.
+
+    Parameters
+    ----------
+    shape : (int, int, int)
+        A cube's (M, K, N): beams, chirps, samples.
+    batch : int
+        Cubes per detector call (0: no memory, only the shape).
+
+    Returns
+    -------
+    complex64 ndarray [batch, M, 2K, 2N] (uninitialised; :func:`run_runs` overwrites it whole)
+    """
+    m, k, n = (int(v) for v in shape)
+    return np.empty((int(batch), m, 2 * k, 2 * n), np.complex64)
+
+
 def run_once(prep: PreparedPoint, *, study_seed: int, point: int, run: int,
              buffer: np.ndarray | None = None, backend: dsp.ArrayBackend | None = None,
              noise_stream: str = "boxmuller", workspace: np.ndarray | None = None) -> dict[str, Any]:
@@ -291,8 +310,9 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
         The host's per-beam noise stream (:func:`risloc_rt.model.beat.add_noise`; NumPy and
         array_api_strict); a GPU draws its own (cuRAND).
     workspace : complex64 ndarray [B', M, 2K, 2N], B' >= B, optional
-        Host scratch space (NumPy) for the detector's half-bin transform, reused between calls (a fresh
-        one per call costs its page faults, ≈ 15 ms per Table I run); default: one for this call.
+        Host scratch space (NumPy, :func:`detector_workspace`) for the detector's half-bin transform,
+        reused between calls (a fresh one per call costs its page faults, ≈ 15 ms per Table I run);
+        default: one for this call.
 
     Returns
     -------
@@ -317,12 +337,13 @@ def run_runs(prep: PreparedPoint, *, study_seed: int, point: int, runs: Any, buf
     device_cube = backend.asarray(prep.cube) if backend.name == "cupy" and not spread else None
     rows: list[dict[str, Any]] = []
     # the detector's half-bin transform, reused by every group (NumPy: 150 MB per Table I cube)
-    m, k, n = prep.cube.shape
-    size = (min(batch, len(runs)), m, 2 * k, 2 * n)
+    need = min(batch, len(runs))
     if not backend.is_numpy or not runs:
         workspace = None
-    elif workspace is None or workspace.shape[0] < size[0] or workspace.shape[1:] != size[1:]:
-        workspace = np.empty(size, np.complex64)
+    else:
+        one_cube = detector_workspace(prep.cube.shape, 0).shape[1:]  # [M, 2K, 2N], no memory
+        if workspace is None or workspace.shape[0] < need or workspace.shape[1:] != one_cube:
+            workspace = detector_workspace(prep.cube.shape, need)
     for g in range(0, len(runs), batch):
         group = runs[g:g + batch]
         start = time.perf_counter()
